@@ -1,0 +1,55 @@
+# The two set-up commands of the README: `make demo` and `make test`.
+PYTHON ?= python3
+VENV   ?= .venv
+PY     := $(VENV)/bin/python
+PIP    := $(PY) -m pip
+BIN    := $(VENV)/bin
+
+.PHONY: demo test test-all sysdeps venv install install-test clean bench
+
+# open3d's Linux wheel links against libusb-1.0; pip cannot provide it.
+sysdeps:
+	@if ldconfig -p 2>/dev/null | grep -q 'libusb-1.0.so.0'; then :; \
+	elif [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then \
+	  echo "installing libusb-1.0-0 (needed by open3d) with apt-get"; \
+	  DEBIAN_FRONTEND=noninteractive apt-get install -y -q libusb-1.0-0 >/dev/null 2>&1 || \
+	  { apt-get update -q >/dev/null 2>&1 && DEBIAN_FRONTEND=noninteractive apt-get install -y -q libusb-1.0-0 >/dev/null; }; \
+	else \
+	  echo "aerial-synth needs the system library libusb-1.0-0 (open3d links against it)."; \
+	  echo "Install it with:  sudo apt-get install libusb-1.0-0   and run make again."; \
+	  exit 1; \
+	fi
+
+$(VENV)/.created:
+	$(PYTHON) -m venv $(VENV)
+	$(PIP) install -q --upgrade pip
+	touch $@
+
+venv: $(VENV)/.created
+
+$(VENV)/.installed: $(VENV)/.created pyproject.toml
+	$(PIP) install -q -e .
+	touch $@
+
+$(VENV)/.installed-test: $(VENV)/.installed
+	$(PIP) install -q -e '.[test]'
+	touch $@
+
+install: sysdeps $(VENV)/.installed
+install-test: sysdeps $(VENV)/.installed-test
+
+demo: install
+	$(BIN)/aerial-synth place --scenario jam --scene city_park --seed 0 --out out/demo
+	@echo "demo output in out/demo/ (placement.json, placement.png)"
+
+test: install-test
+	$(BIN)/python -m pytest -q
+
+test-all: install-test
+	$(BIN)/python -m pytest -q -m "slow or not slow"
+
+bench: install
+	$(BIN)/python tools/bench_scenes.py
+
+clean:
+	rm -rf $(VENV) out .pytest_cache

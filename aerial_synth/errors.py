@@ -1,0 +1,51 @@
+"""One small exception tree.
+
+Every user mistake raises an :class:`AerialSynthError` subclass whose message names the
+file or field, what was expected and what arrived. The CLI prints that one line and exits
+with status 2; no traceback is shown for these.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "AerialSynthError",
+    "ConfigError",
+    "SceneError",
+    "AssetError",
+    "PlacementError",
+    "CameraError",
+    "RenderError",
+    "ExportError",
+]
+
+
+class AerialSynthError(Exception):
+    """Base class of every error caused by bad input or configuration."""
+
+
+class ConfigError(AerialSynthError, ValueError):
+    """A configuration value (YAML field, CLI option) is invalid."""
+
+
+class SceneError(AerialSynthError):
+    """A scene file, label-rules file or scene spec cannot be used."""
+
+
+class AssetError(AerialSynthError):
+    """A vehicle catalog entry or vehicle mesh cannot be used."""
+
+
+class PlacementError(AerialSynthError):
+    """Placement cannot run (no road found, bad scenario parameters, ...)."""
+
+
+class CameraError(AerialSynthError):
+    """An invalid camera setting (altitude, image size, GSD/FOV/focal, tilt)."""
+
+
+class RenderError(AerialSynthError):
+    """Rendering cannot run (e.g. an optional backend is unavailable)."""
+
+
+class ExportError(AerialSynthError):
+    """A dataset export cannot run (unknown format, bad output folder, ...)."""

@@ -1,0 +1,344 @@
+"""RayScene: the one source of geometric truth, wrapping open3d's RaycastingScene (Embree).
+
+Placement probes it with vertical traces, the renderer casts camera and shadow rays into it,
+and both read labels from the same per-triangle tables, so labels and geometry can never
+disagree.
+
+Layout: all static scene triangles of one probe set form one Embree geometry, all vehicles
+another; per-triangle tables (label, object, instance id, material, albedo) are indexed by a
+global face index. open3d cannot remove geometry from a RaycastingScene, so adding or
+removing vehicles marks the Embree scenes stale and they are rebuilt lazily on the next cast.
+The ignore-set of :meth:`RayScene.trace_down` is honoured by a cached Embree scene built
+without the ignored labels, so a trace through an ignored crown costs the same as any other.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterable
+
+import numpy as np
+
+from .model import LABEL_IDS, LABELS, MATERIAL_IDS, LabelConfig, Scene
+
+__all__ = ["RayScene", "RayHits", "TraceResult"]
+
+_VEHICLE_LABEL = LABEL_IDS["vehicle"]
+
+
+def _o3d():
+    import open3d as o3d  # heavy: imported only when a RayScene is built
+
+    return o3d
+
+
+@dataclass(frozen=True)
+class RayHits:
+    """Result of :meth:`RayScene.cast_rays` for n rays.
+
+    t           : (n,) float32, distance along the (unit or not) ray direction; inf on miss
+    face        : (n,) int64, global face index into the RayScene tables; -1 on miss
+    label_id    : (n,) int16, semantic id (see model.LABELS); 0 on miss
+    instance_id : (n,) int32, vehicle instance id; 0 for non-vehicles and misses
+    normal      : (n, 3) float32, geometric normal of the hit triangle (world); 0 on miss
+    """
+
+    t: np.ndarray
+    face: np.ndarray
+    label_id: np.ndarray
+    instance_id: np.ndarray
+    normal: np.ndarray
+
+    @property
+    def hit(self) -> np.ndarray:
+        return self.face >= 0
+
+
+@dataclass(frozen=True)
+class TraceResult:
+    """Result of :meth:`RayScene.trace_down` for n points.
+
+    z           : (n,) float64, hit height in metres (world z); nan on miss
+    label_id    : (n,) int16 semantic id; 0 (``unknown``) on miss
+    object_index: (n,) int32 index into ``scene.objects``; -1 for vehicles and misses
+    instance_id : (n,) int32 vehicle id; 0 otherwise
+    """
+
+    z: np.ndarray
+    label_id: np.ndarray
+    object_index: np.ndarray
+    instance_id: np.ndarray
+
+    @property
+    def labels(self) -> list[str]:
+        return [LABELS[i] for i in self.label_id]
+
+    def is_label(self, names: Iterable[str]) -> np.ndarray:
+        ids = [LABEL_IDS[n] for n in names]
+        return np.isin(self.label_id, ids)
+
+
+class _Built:
+    """One Embree scene plus the map from (geometry id, primitive id) to global face."""
+
+    def __init__(self, o3d_scene, geom_face_base: dict[int, np.ndarray]):
+        self.scene = o3d_scene
+        self.geom_face_base = geom_face_base  # geometry id -> (m_g,) global face index
+
+
+class RayScene:
+    """Ray-casting view of a :class:`Scene` with labels per triangle.
+
+    Parameters
+    ----------
+    scene : the labelled scene (static objects)
+    label_config : overrides ``scene.label_config`` (drivable / obstacle / ignore sets)
+    nthreads : threads for Embree (0 = all cores)
+    """
+
+    def __init__(self, scene: Scene, label_config: LabelConfig | None = None, nthreads: int = 0):
+        self.scene = scene
+        self.label_config = label_config or scene.label_config
+        self.nthreads = int(nthreads)
+        objs = scene.objects
+        nf = [o.n_triangles for o in objs]
+        nv = [len(o.vertices) for o in objs]
+        self._static_vertices64 = (
+            np.concatenate([o.vertices for o in objs]).astype(np.float64)
+            if objs
+            else np.zeros((0, 3), np.float64)
+        )
+        self._static_vertices = self._static_vertices64.astype(np.float32)
+        voff = np.concatenate([[0], np.cumsum(nv)[:-1]]).astype(np.int64) if objs else []
+        self._static_faces = (
+            np.concatenate([o.faces + off for o, off in zip(objs, voff)]).astype(np.uint32)
+            if objs
+            else np.zeros((0, 3), np.uint32)
+        )
+        self._static_face_object = np.repeat(np.arange(len(objs), dtype=np.int32), nf)
+        self._static_face_label = np.repeat(
+            np.array([LABEL_IDS[o.label] for o in objs], dtype=np.int16), nf
+        )
+        self._static_face_material = np.repeat(
+            np.array([MATERIAL_IDS[o.material] for o in objs], dtype=np.uint8), nf
+        )
+        self._static_face_albedo = np.repeat(
+            np.array([o.color for o in objs], dtype=np.float32).reshape(-1, 3), nf, axis=0
+        )
+        self._vehicles: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._built: dict[frozenset[str], _Built] = {}
+        self._tables_dirty = True
+        self._rebuild_tables()
+        b = scene.bounds()
+        self.z_top = float(b[1, 2]) + 10.0
+
+    # ------------------------------------------------------------------ vehicles
+    def add_vehicle(
+        self,
+        instance_id: int,
+        vertices: np.ndarray,
+        faces: np.ndarray,
+        face_material: np.ndarray | None = None,
+        face_albedo: np.ndarray | None = None,
+    ) -> None:
+        """Add (or replace) a vehicle mesh, already in world coordinates.
+
+        vertices : (n, 3) float, metres, world; faces : (m, 3) int
+        face_material : (m,) uint8 material ids (default ``paint``)
+        face_albedo : (m, 3) float RGB in [0, 1] (default mid grey)
+        """
+        iid = int(instance_id)
+        if iid <= 0:
+            raise ValueError(f"vehicle instance ids must be >= 1, got {iid}")
+        v = np.asarray(vertices, dtype=np.float32).reshape(-1, 3)
+        f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+        m = len(f)
+        mat = (
+            np.full(m, MATERIAL_IDS["paint"], np.uint8)
+            if face_material is None
+            else np.asarray(face_material, dtype=np.uint8).reshape(m)
+        )
+        alb = (
+            np.full((m, 3), 0.5, np.float32)
+            if face_albedo is None
+            else np.asarray(face_albedo, dtype=np.float32).reshape(m, 3)
+        )
+        self._vehicles[iid] = (v, f, mat, alb)
+        self._invalidate()
+
+    def remove_vehicle(self, instance_id: int) -> None:
+        """Remove a vehicle; unknown ids raise KeyError."""
+        del self._vehicles[int(instance_id)]
+        self._invalidate()
+
+    def clear_vehicles(self) -> None:
+        self._vehicles.clear()
+        self._invalidate()
+
+    @property
+    def vehicle_ids(self) -> list[int]:
+        return sorted(self._vehicles)
+
+    def _invalidate(self) -> None:
+        self._built.clear()
+        self._tables_dirty = True
+
+    # ------------------------------------------------------------------ tables
+    def _rebuild_tables(self) -> None:
+        if not self._tables_dirty:
+            return
+        ids = sorted(self._vehicles)
+        vs = [self._vehicles[i] for i in ids]
+        nfs = [len(x[1]) for x in vs]
+        self.face_label = np.concatenate(
+            [self._static_face_label, np.full(sum(nfs), _VEHICLE_LABEL, np.int16)]
+        )
+        self.face_object = np.concatenate(
+            [self._static_face_object, np.full(sum(nfs), -1, np.int32)]
+        )
+        self.face_instance = np.concatenate(
+            [
+                np.zeros(len(self._static_face_label), np.int32),
+                np.repeat(np.array(ids, dtype=np.int32), nfs),
+            ]
+        )
+        self.face_material = np.concatenate(
+            [self._static_face_material] + [x[2] for x in vs]
+        ).astype(np.uint8)
+        self.face_albedo = np.concatenate(
+            [self._static_face_albedo] + [x[3] for x in vs]
+        ).astype(np.float32)
+        self._veh_vertices = (
+            np.concatenate([x[0] for x in vs]) if vs else np.zeros((0, 3), np.float32)
+        )
+        voff = np.concatenate([[0], np.cumsum([len(x[0]) for x in vs])[:-1]]) if vs else []
+        self._veh_faces = (
+            np.concatenate([x[1] + o for x, o in zip(vs, voff)]).astype(np.uint32)
+            if vs
+            else np.zeros((0, 3), np.uint32)
+        )
+        self._tables_dirty = False
+
+    def _get_built(self, ignore: frozenset[str]) -> _Built:
+        self._rebuild_tables()
+        built = self._built.get(ignore)
+        if built is not None:
+            return built
+        o3d = _o3d()
+        sc = o3d.t.geometry.RaycastingScene(nthreads=self.nthreads) if _accepts_nthreads() else (
+            o3d.t.geometry.RaycastingScene()
+        )
+        base: dict[int, np.ndarray] = {}
+        n_static = len(self._static_faces)
+        keep = np.ones(n_static, bool)
+        if ignore:
+            keep &= ~np.isin(self._static_face_label, [LABEL_IDS[n] for n in ignore])
+        face_idx = np.flatnonzero(keep)
+        if len(face_idx):
+            gid = sc.add_triangles(
+                o3d.core.Tensor.from_numpy(np.ascontiguousarray(self._static_vertices)),
+                o3d.core.Tensor.from_numpy(np.ascontiguousarray(self._static_faces[face_idx])),
+            )
+            base[int(gid)] = face_idx.astype(np.int64)
+        if len(self._veh_faces) and "vehicle" not in ignore:
+            gid = sc.add_triangles(
+                o3d.core.Tensor.from_numpy(np.ascontiguousarray(self._veh_vertices)),
+                o3d.core.Tensor.from_numpy(np.ascontiguousarray(self._veh_faces)),
+            )
+            base[int(gid)] = np.arange(n_static, n_static + len(self._veh_faces), dtype=np.int64)
+        built = _Built(sc, base)
+        self._built[ignore] = built
+        return built
+
+    # ------------------------------------------------------------------ casting
+    def cast_rays(self, rays: np.ndarray, ignore: Iterable[str] = ()) -> RayHits:
+        """Cast arbitrary rays.
+
+        rays : (n, 6) float, [ox, oy, oz, dx, dy, dz] in metres, world frame. ``t`` is
+               measured in units of the direction's length.
+        ignore : labels to pass through (default: none, the renderer's view)
+        """
+        built = self._get_built(frozenset(ignore))
+        r = np.ascontiguousarray(np.asarray(rays, dtype=np.float32).reshape(-1, 6))
+        o3d = _o3d()
+        ans = built.scene.cast_rays(o3d.core.Tensor.from_numpy(r))
+        t = ans["t_hit"].numpy()
+        gid = ans["geometry_ids"].numpy()
+        pid = ans["primitive_ids"].numpy()
+        normal = ans["primitive_normals"].numpy()
+        face = np.full(len(r), -1, np.int64)
+        for g, fidx in built.geom_face_base.items():
+            sel = gid == g
+            if sel.any():
+                face[sel] = fidx[pid[sel].astype(np.int64)]
+        hit = face >= 0
+        fi = np.where(hit, face, 0)
+        if len(self.face_label):
+            label = np.where(hit, self.face_label[fi], 0).astype(np.int16)
+            inst = np.where(hit, self.face_instance[fi], 0).astype(np.int32)
+        else:
+            label = np.zeros(len(r), np.int16)
+            inst = np.zeros(len(r), np.int32)
+        return RayHits(t=t, face=face, label_id=label, instance_id=inst, normal=normal)
+
+    def count_intersections_above(self, xy: np.ndarray, z: np.ndarray, ignore=None) -> np.ndarray:
+        """Number of surfaces above points (xy, z), ignoring the ignore-set (default config)."""
+        ign = self.label_config.ignore if ignore is None else frozenset(ignore)
+        built = self._get_built(frozenset(ign))
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        r = np.zeros((len(xy), 6), np.float32)
+        r[:, :2] = xy
+        r[:, 2] = np.asarray(z, dtype=np.float64) + 0.01
+        r[:, 5] = 1.0
+        o3d = _o3d()
+        return built.scene.count_intersections(o3d.core.Tensor.from_numpy(r)).numpy()
+
+    def trace_down(self, xy: np.ndarray, ignore: Iterable[str] | None = None) -> TraceResult:
+        """First surface straight below each point (a vertical line trace).
+
+        xy     : (n, 2) float, metres, world
+        ignore : labels the trace passes through; None = the label config's ignore-set
+                 (tree crowns by default); ``()`` = see everything.
+        """
+        ign = self.label_config.ignore if ignore is None else frozenset(ignore)
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        rays = np.empty((len(xy), 6), np.float32)
+        rays[:, :2] = xy
+        rays[:, 2] = self.z_top
+        rays[:, 3:5] = 0.0
+        rays[:, 5] = -1.0
+        h = self.cast_rays(rays, ignore=ign)
+        z = np.where(h.hit, self.z_top - h.t.astype(np.float64), np.nan)
+        # Embree intersects in float32; refine static hits to the exact float64 plane height.
+        st = h.hit & (h.face < len(self._static_faces))
+        if st.any():
+            tri = self._static_vertices64[self._static_faces[h.face[st]].astype(np.int64)]
+            n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+            ok = np.abs(n[:, 2]) > 1e-12
+            p0 = tri[:, 0]
+            zz = p0[:, 2] - (
+                n[:, 0] * (xy[st, 0] - p0[:, 0]) + n[:, 1] * (xy[st, 1] - p0[:, 1])
+            ) / np.where(ok, n[:, 2], 1.0)
+            zst = z[st]
+            zst[ok] = zz[ok]
+            z[st] = zst
+        obj = np.where(h.hit, self.face_object[np.where(h.hit, h.face, 0)], -1).astype(np.int32)
+        return TraceResult(z=z, label_id=h.label_id, object_index=obj, instance_id=h.instance_id)
+
+    def object_names(self, object_index: np.ndarray) -> list[str]:
+        return [self.scene.objects[i].name if i >= 0 else "" for i in np.asarray(object_index)]
+
+
+_NTHREADS_OK: bool | None = None
+
+
+def _accepts_nthreads() -> bool:
+    global _NTHREADS_OK
+    if _NTHREADS_OK is None:
+        o3d = _o3d()
+        try:
+            o3d.t.geometry.RaycastingScene(nthreads=0)
+            _NTHREADS_OK = True
+        except TypeError:
+            _NTHREADS_OK = False
+    return _NTHREADS_OK
