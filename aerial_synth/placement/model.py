@@ -1,0 +1,120 @@
+"""Placement records: where every vehicle stands. Pure data, JSON round-trip."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field, fields
+
+import numpy as np
+
+__all__ = ["PlacedVehicle", "Placement", "footprint_corners_xy"]
+
+
+@dataclass(frozen=True)
+class PlacedVehicle:
+    """One placed vehicle.
+
+    id          : instance id >= 1 (the renderer's instance buffer uses the same ids)
+    x_m, y_m, z_m : footprint centre on the ground, metres, world frame (z up)
+    heading_rad : 0 = +x (east), counter-clockwise, in [0, 2 pi)
+    line_id     : traffic line (-1 for the random scenario)
+    lane        : 0 = the line's own lane, 1 = the opposite lane of a double lane
+    direction   : "forward" (seeded line) or "opposite" (its double lane) or "random"
+    spacing_m   : centre-to-centre distance to the predecessor in its line (nan for the first)
+    """
+
+    id: int
+    model: str
+    color: str
+    cls: str
+    length_m: float
+    width_m: float
+    height_m: float
+    x_m: float
+    y_m: float
+    z_m: float
+    heading_rad: float
+    line_id: int = -1
+    lane: int = 0
+    direction: str = "forward"
+    spacing_m: float = float("nan")
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        for k, v in d.items():
+            if isinstance(v, float):
+                d[k] = None if not np.isfinite(v) else round(v, 6)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "PlacedVehicle":
+        names = {f.name for f in fields(cls)}
+        kw = {k: v for k, v in d.items() if k in names}
+        if kw.get("spacing_m") is None:
+            kw["spacing_m"] = float("nan")
+        return cls(**kw)
+
+    def corners_xy(self, gap_m: float = 0.0) -> np.ndarray:
+        """(4, 2) footprint corners, metres, world: front-left, front-right, rear-right,
+        rear-left, of the rectangle grown by ``gap_m`` on every side."""
+        return footprint_corners_xy(
+            self.x_m, self.y_m, self.heading_rad, self.length_m + 2 * gap_m, self.width_m + 2 * gap_m
+        )
+
+
+def footprint_corners_xy(x, y, heading_rad, length_m, width_m) -> np.ndarray:
+    """Rotated-rectangle corners; scalar inputs give (4, 2), arrays of n give (n, 4, 2).
+
+    Order: front-left, front-right, rear-right, rear-left (vehicle frame +x forward, +y left).
+    """
+    x, y, h, ln, w = np.broadcast_arrays(*map(np.asarray, (x, y, heading_rad, length_m, width_m)))
+    c, s = np.cos(h), np.sin(h)
+    local = np.array([[0.5, 0.5], [0.5, -0.5], [-0.5, -0.5], [-0.5, 0.5]])  # (4, 2) in (l, w)
+    lx = local[:, 0] * ln[..., None]
+    ly = local[:, 1] * w[..., None]
+    wx = x[..., None] + c[..., None] * lx - s[..., None] * ly
+    wy = y[..., None] + s[..., None] * lx + c[..., None] * ly
+    return np.stack([wx, wy], axis=-1)
+
+
+@dataclass
+class Placement:
+    """A placement: scene, scenario, parameters, seed and the vehicles."""
+
+    scene: str
+    scenario: str
+    seed: int | None
+    parameters: dict = field(default_factory=dict)
+    vehicles: list[PlacedVehicle] = field(default_factory=list)
+    stats: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {
+            "scene": self.scene,
+            "scenario": self.scenario,
+            "seed": self.seed,
+            "parameters": self.parameters,
+            "stats": self.stats,
+            "vehicles": [v.to_dict() for v in self.vehicles],
+        }
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2, sort_keys=True) + "\n"
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Placement":
+        return cls(
+            scene=d["scene"],
+            scenario=d["scenario"],
+            seed=d.get("seed"),
+            parameters=d.get("parameters", {}),
+            stats=d.get("stats", {}),
+            vehicles=[PlacedVehicle.from_dict(v) for v in d.get("vehicles", [])],
+        )
+
+    @classmethod
+    def from_json(cls, text: str) -> "Placement":
+        return cls.from_dict(json.loads(text))
+
+    def by_id(self) -> dict[int, PlacedVehicle]:
+        return {v.id: v for v in self.vehicles}
