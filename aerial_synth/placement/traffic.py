@@ -1,0 +1,472 @@
+"""Traffic scenarios: traffic lines with double lanes (thesis §3.2.3) and the random baseline.
+
+The engine only probes the RayScene with vertical traces (see :mod:`.linetrace`); road
+polygons a generator may know are never read here.
+
+Batching: lines advance in lock-step waves. In each round every active line samples its
+spacing, steps ahead, re-probes its two directions, and checks its candidate footprint;
+all of those traces go into a handful of casts for the whole wave. Acceptance (overlap
+against every placed vehicle) is then decided sequentially in line order, so the result
+depends only on the seed.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import PlacementError
+from ..scene.model import LABEL_IDS
+from .config import ScenarioConfig, load_scenario
+from .footprints import FootprintIndex
+from .linetrace import Prober, unit
+from .model import PlacedVehicle, Placement, footprint_corners_xy
+
+__all__ = ["place", "PlacementWarning"]
+
+TWO_PI = 2.0 * np.pi
+
+
+class PlacementWarning(UserWarning):
+    """Fewer vehicles than asked for fit on the roads."""
+
+
+def _wrap(a):
+    return np.mod(a, TWO_PI)
+
+
+def _angdiff(a, b):
+    return np.abs(np.angle(np.exp(1j * (np.asarray(a) - np.asarray(b)))))
+
+
+@dataclass
+class _Line:
+    line_id: int
+    lane: int
+    target: int
+    x: float
+    y: float
+    heading: float
+    edge_dist: float = 0.0
+    placed: list = field(default_factory=list)  # indices into the vehicle list
+    reason: str = ""
+
+
+@dataclass
+class _Cand:
+    x: np.ndarray
+    y: np.ndarray
+    heading: np.ndarray
+    ok: np.ndarray
+    reason: np.ndarray  # object array of str
+    edge_dist: np.ndarray
+
+
+class _Engine:
+    def __init__(self, rayscene, cfg: ScenarioConfig, rng: np.random.Generator, catalog):
+        self.rs = rayscene
+        self.cfg = cfg
+        self.rng = rng
+        self.catalog = catalog
+        self.prober = Prober(rayscene, cfg.probe)
+        self.index = FootprintIndex(cfg.gap_m, cfg.min_center_distance_m)
+        self.vehicles: list[PlacedVehicle] = []
+        self.lines: list[_Line] = []
+        self.side = -1.0 if cfg.traffic == "right" else 1.0  # edge side: right = heading - 90 deg
+        self.drivable_ids = self.prober.drivable_ids
+        b = rayscene.scene.bounds()
+        self.xy_lo, self.xy_hi = b[0, :2], b[1, :2]
+        self._seed_pool = np.zeros((0, 2))
+        self.seeds_tried = 0
+        self.seed_batches = 0
+        self.road_seen = False
+        self.limit = None
+
+    # ------------------------------------------------------------------ seeds
+    def next_seeds(self, n: int) -> np.ndarray:
+        """Up to n random road points (vertical traces over the scene's extent, keep road)."""
+        out = []
+        have = 0
+        empty_batches = 0
+        while have < n and self.seeds_tried < self.cfg.max_seed_attempts:
+            if len(self._seed_pool) == 0:
+                k = self.cfg.seed_batch
+                xy = self.rng.uniform(self.xy_lo, self.xy_hi, size=(k, 2))
+                self.seeds_tried += k
+                self.seed_batches += 1
+                road = self.prober.is_road(xy)
+                self._seed_pool = xy[road]
+                if len(self._seed_pool):
+                    self.road_seen = True
+                    empty_batches = 0
+                else:
+                    empty_batches += 1
+                    if empty_batches >= 3 and not self.road_seen:
+                        break
+                    continue
+            take = self._seed_pool[: n - have]
+            self._seed_pool = self._seed_pool[len(take):]
+            out.append(take)
+            have += len(take)
+        return np.concatenate(out) if out else np.zeros((0, 2))
+
+    # ------------------------------------------------------------------ geometry
+    def locate(self, q: np.ndarray, theta: np.ndarray) -> _Cand:
+        """Two-direction re-probe (thesis Fig. 3.11) from points q with heading guesses theta.
+
+        Directions: perpendicular to theta towards the traffic-side edge, and that turned by
+        side_angle_deg towards theta. The line through the two edge points is the local
+        road direction; the vehicle stands lane_offset_m inside it, at the foot of the
+        perpendicular from q (so the spacing along the line is the sampled one).
+        """
+        cfg = self.cfg
+        q = np.asarray(q, float).reshape(-1, 2)
+        theta = np.asarray(theta, float).reshape(-1)
+        a1 = theta + self.side * np.pi / 2
+        a2 = a1 - self.side * np.radians(cfg.probe.side_angle_deg)
+        pr = self.prober.march(q, np.stack([a1, a2], axis=1))
+        e1, e2 = pr.edge_xy[:, 0], pr.edge_xy[:, 1]
+        t = e2 - e1
+        tn = np.linalg.norm(t, axis=1)
+        ok = pr.found.all(axis=1) & (tn > 1e-4)
+        reason = np.where(ok, "", "no_edge").astype(object)
+        tu = t / np.where(tn > 0, tn, 1.0)[:, None]
+        head = np.arctan2(tu[:, 1], tu[:, 0])
+        foot = e1 + ((q - e1) * tu).sum(axis=1, keepdims=True) * tu
+        inward = unit(head - self.side * np.pi / 2)  # towards the road's interior
+        pos = foot + cfg.lane_offset_m * inward
+        return _Cand(pos[:, 0], pos[:, 1], _wrap(head), ok, reason, pr.dist_m[:, 0])
+
+    def check_footprints(self, c: _Cand, L: np.ndarray, W: np.ndarray) -> np.ndarray:
+        """Corners and centre must trace (through ignorable vegetation only) to drivable
+        labels. Returns z of the centre hit; marks failures in c.ok / c.reason."""
+        sel = np.flatnonzero(c.ok)
+        z = np.full(len(c.ok), np.nan)
+        if not len(sel):
+            return z
+        corners = footprint_corners_xy(c.x[sel], c.y[sel], c.heading[sel], L[sel], W[sel])
+        pts = np.concatenate([corners, np.stack([c.x[sel], c.y[sel]], 1)[:, None, :]], axis=1)
+        tr = self.prober.trace(pts.reshape(-1, 2))
+        good = np.isin(tr.label_id, self.drivable_ids).reshape(len(sel), 5).all(axis=1)
+        z[sel] = tr.z.reshape(len(sel), 5)[:, 4]
+        bad = sel[~good]
+        c.ok[bad] = False
+        c.reason[bad] = "off_road"
+        return z
+
+    def sample_variants(self, n: int):
+        return self.catalog.sample(self.rng, n) if n else []
+
+    def accept(self, c: _Cand, variants, z, i: int) -> bool:
+        v = variants[i]
+        m = v.model
+        poly = self.index.polygon(c.x[i], c.y[i], c.heading[i], m.length_m, m.width_m)
+        if self.index.collides(poly, (c.x[i], c.y[i])):
+            c.ok[i] = False
+            c.reason[i] = "blocked"
+            return False
+        self.index.add(poly, (c.x[i], c.y[i]))
+        return True
+
+    def add_vehicle(self, c: _Cand, i: int, variant, z: float, line: _Line | None, spacing: float):
+        m = variant.model
+        pv = PlacedVehicle(
+            id=len(self.vehicles) + 1,
+            model=m.name,
+            color=variant.color.name,
+            cls=m.cls,
+            length_m=float(m.length_m),
+            width_m=float(m.width_m),
+            height_m=float(m.height_m),
+            x_m=float(c.x[i]),
+            y_m=float(c.y[i]),
+            z_m=float(z),
+            heading_rad=float(c.heading[i]),
+            line_id=line.line_id if line is not None else -1,
+            lane=line.lane if line is not None else 0,
+            direction=("forward" if line.lane == 0 else "opposite") if line is not None else "random",
+            spacing_m=float(spacing),
+        )
+        self.vehicles.append(pv)
+        if line is not None:
+            line.placed.append(len(self.vehicles) - 1)
+            line.x, line.y, line.heading = pv.x_m, pv.y_m, pv.heading_rad
+        return pv
+
+    def full(self) -> bool:
+        return self.limit is not None and len(self.vehicles) >= self.limit
+
+    # ------------------------------------------------------------------ line starts
+    def start_lines(self, seeds: np.ndarray) -> list[_Line]:
+        """36-direction probe at each seed → nearest edge → first vehicle of a line."""
+        cfg = self.cfg
+        P = len(seeds)
+        D = int(cfg.probe.directions)
+        ang = np.tile(np.arange(D) * (TWO_PI / D), (P, 1))
+        pr = self.prober.march(seeds, ang)
+        best = np.argmin(pr.count, axis=1)  # fewest road hits: perpendicular to the edge
+        has_edge = pr.found[np.arange(P), best]
+        phi = ang[np.arange(P), best]
+        theta0 = phi - self.side * np.pi / 2  # the edge lies on the traffic side
+        # refine with the two-direction probe from the seed itself
+        c = self.locate(seeds, theta0)
+        c.ok &= has_edge
+        # divided road: a median beyond the traffic-side edge means we face the wrong way
+        sel = np.flatnonzero(c.ok)
+        if len(sel) and cfg.probe.median_max_m > 0:
+            pos = np.stack([c.x[sel], c.y[sel]], 1)
+            far, crossed, _ = self.prober.road_runs(
+                pos, c.heading[sel] + self.side * np.pi / 2,
+                cfg.lane_offset_m + cfg.probe.median_max_m + 2.0, cfg.probe.median_max_m,
+            )
+            flip = sel[crossed]
+            if len(flip):
+                cf = self.locate(np.stack([c.x[flip], c.y[flip]], 1), c.heading[flip] + np.pi)
+                c.x[flip], c.y[flip], c.heading[flip] = cf.x, cf.y, cf.heading
+                c.ok[flip] &= cf.ok
+                c.edge_dist[flip] = cf.edge_dist
+        variants = self.sample_variants(P)
+        L = np.array([v.model.length_m for v in variants])
+        W = np.array([v.model.width_m for v in variants])
+        z = self.check_footprints(c, L, W)
+        started = []
+        for i in range(P):
+            if self.full():
+                break
+            if not c.ok[i] or not self.accept(c, variants, z, i):
+                continue
+            line = _Line(
+                line_id=len(self.lines), lane=0, target=cfg.vehicles_per_line.sample(self.rng),
+                x=c.x[i], y=c.y[i], heading=c.heading[i], edge_dist=cfg.lane_offset_m,
+            )
+            self.lines.append(line)
+            self.add_vehicle(c, i, variants[i], z[i], line, float("nan"))
+            started.append(line)
+        return started
+
+    def start_opposite(self, lines: list[_Line]) -> list[_Line]:
+        """Double lanes: rotate a random vehicle of each line by 180 degrees, find the
+        opposite edge (across a median if there is one) and start the opposite lane."""
+        cfg = self.cfg
+        picks = []
+        for ln in lines:
+            if self.rng.random() < cfg.double_lane_probability and ln.placed:
+                picks.append((ln, self.vehicles[ln.placed[int(self.rng.integers(len(ln.placed)))]]))
+        if not picks:
+            return []
+        pos = np.array([[v.x_m, v.y_m] for _, v in picks])
+        new_head = np.array([v.heading_rad for _, v in picks]) + np.pi
+        toward = new_head + self.side * np.pi / 2  # the new traffic side = the old far side
+        reach = 2 * cfg.probe.max_distance_m + cfg.probe.median_max_m
+        far, _, found = self.prober.road_runs(pos, toward, reach, cfg.probe.median_max_m)
+        q = pos + unit(toward) * np.maximum(far - cfg.lane_offset_m, 0.0)[:, None]
+        c = self.locate(q, new_head)
+        c.ok &= found & (far > cfg.lane_offset_m)
+        c.reason[~found] = "no_edge"
+        variants = self.sample_variants(len(picks))
+        L = np.array([v.model.length_m for v in variants])
+        W = np.array([v.model.width_m for v in variants])
+        z = self.check_footprints(c, L, W)
+        started = []
+        for i, (ln, _) in enumerate(picks):
+            if self.full():
+                break
+            if not c.ok[i] or not self.accept(c, variants, z, i):
+                continue
+            opp = _Line(
+                line_id=ln.line_id, lane=1, target=cfg.vehicles_per_line.sample(self.rng),
+                x=c.x[i], y=c.y[i], heading=c.heading[i], edge_dist=cfg.lane_offset_m,
+            )
+            self.lines.append(opp)
+            self.add_vehicle(c, i, variants[i], z[i], opp, float("nan"))
+            started.append(opp)
+        return started
+
+    # ------------------------------------------------------------------ advancing
+    def advance(self, active: list[_Line]) -> None:
+        """Advance lines in lock-step until each ends (thesis Fig. 3.12 steps a-e)."""
+        cfg = self.cfg
+        active = [ln for ln in active if len(ln.placed) < ln.target]
+        for ln in self.lines:
+            if len(ln.placed) >= ln.target and not ln.reason:
+                ln.reason = "complete"
+        while active and not self.full():
+            n = len(active)
+            s = cfg.spacing.sample(self.rng, n)
+            head = np.array([ln.heading for ln in active])
+            prev = np.array([[ln.x, ln.y] for ln in active])
+            q = prev + unit(head) * s[:, None]
+            on = self.prober.is_road(q)
+            c = self.locate(q, head)
+            c.ok &= on
+            c.reason[~on] = "off_road"
+            turned = _angdiff(c.heading, head) > np.radians(cfg.probe.max_turn_deg)
+            jump = np.abs(c.edge_dist - cfg.lane_offset_m) > cfg.probe.edge_jump_m
+            bad = c.ok & (turned | jump)
+            c.ok[bad] = False
+            c.reason[bad] = "junction"
+            variants = self.sample_variants(n)
+            L = np.array([v.model.length_m for v in variants])
+            W = np.array([v.model.width_m for v in variants])
+            z = self.check_footprints(c, L, W)
+            still = []
+            for i, ln in enumerate(active):
+                if self.full():
+                    ln.reason = ln.reason or "limit"
+                    continue
+                if c.ok[i] and self.accept(c, variants, z, i):
+                    spacing = float(np.hypot(c.x[i] - ln.x, c.y[i] - ln.y))
+                    self.add_vehicle(c, i, variants[i], z[i], ln, spacing)
+                    if len(ln.placed) >= ln.target:
+                        ln.reason = "complete"
+                    else:
+                        still.append(ln)
+                else:
+                    ln.reason = str(c.reason[i]) or "blocked"
+            active = still
+        for ln in active:
+            ln.reason = ln.reason or "limit"
+
+    # ------------------------------------------------------------------ scenarios
+    def run_lines(self, n_vehicles: int | None, n_lines: int | None, wave: int = 24) -> None:
+        self.limit = n_vehicles
+        fails = 0
+        while not self.full():
+            n_fwd = sum(1 for ln in self.lines if ln.lane == 0)
+            if n_lines is not None and n_fwd >= n_lines:
+                break
+            want = wave if n_lines is None else min(wave, n_lines - n_fwd)
+            seeds = self.next_seeds(want)
+            if not len(seeds):
+                break
+            seeds = np.array([p for p in seeds if not self.index.collides(self.index.polygon(p[0], p[1], 0.0, 0.1, 0.1))]).reshape(-1, 2)
+            if not len(seeds):
+                fails += want
+                if fails > 20 * wave:
+                    break
+                continue
+            started = self.start_lines(seeds)
+            fails = fails + (len(seeds) - len(started)) if not started else 0
+            self.advance(started)
+            opp = self.start_opposite([ln for ln in started])
+            self.advance(opp)
+            if fails > 20 * wave:  # the roads are full: nothing starts any more
+                break
+
+    def run_random(self, n_vehicles: int) -> None:
+        self.limit = n_vehicles
+        fails = 0
+        while not self.full():
+            seeds = self.next_seeds(max(64, min(1024, 2 * (n_vehicles - len(self.vehicles)))))
+            if not len(seeds):
+                break
+            head = self.rng.uniform(0.0, TWO_PI, len(seeds))
+            c = _Cand(seeds[:, 0].copy(), seeds[:, 1].copy(), head, np.ones(len(seeds), bool),
+                      np.full(len(seeds), "", object), np.zeros(len(seeds)))
+            variants = self.sample_variants(len(seeds))
+            L = np.array([v.model.length_m for v in variants])
+            W = np.array([v.model.width_m for v in variants])
+            z = self.check_footprints(c, L, W)
+            placed_before = len(self.vehicles)
+            for i in range(len(seeds)):
+                if self.full():
+                    break
+                if c.ok[i] and self.accept(c, variants, z, i):
+                    self.add_vehicle(c, i, variants[i], z[i], None, float("nan"))
+            fails = fails + len(seeds) if len(self.vehicles) == placed_before else 0
+            if fails > 20000:
+                break
+
+
+def place(
+    rayscene,
+    scenario: str | ScenarioConfig = "jam",
+    rng: np.random.Generator | None = None,
+    n_vehicles: int | None = None,
+    n_lines: int | None = None,
+    catalog=None,
+    overrides: dict | None = None,
+    seed: int | None = None,
+    scene_name: str | None = None,
+) -> Placement:
+    """Place vehicles on the roads of ``rayscene`` for one traffic scenario.
+
+    scenario  : a bundled name (jam, normal, sparse, random), a YAML path or a ScenarioConfig
+    rng       : the random generator; if None, ``np.random.default_rng(seed)``
+    n_vehicles / n_lines : how much to place (at most one; default from the scenario).
+                For lines scenarios n_lines counts seeded lines; opposite lanes come on top.
+    catalog   : vehicle catalog (default: the bundled one)
+    Returns a :class:`Placement`. If the roads hold fewer vehicles than asked for, it places
+    what fits, records the shortfall in ``stats`` and emits a :class:`PlacementWarning`.
+    """
+    if n_vehicles is not None and n_lines is not None:
+        raise PlacementError("give either a vehicle count or a line count, not both")
+    for name, v in (("vehicles", n_vehicles), ("lines", n_lines)):
+        if v is not None and (int(v) != v or v < 1):
+            raise PlacementError(f"--{name}: expected a positive integer, got {v}")
+    cfg = load_scenario(scenario, overrides)
+    if rng is None:
+        rng = np.random.default_rng(seed)
+    if catalog is None:
+        from ..vehicles import load_catalog
+
+        catalog = load_catalog()
+    t0 = time.perf_counter()
+    eng = _Engine(rayscene, cfg, rng, catalog)
+    if cfg.kind == "random":
+        n = n_vehicles or cfg.vehicles or (n_lines * 30 if n_lines else 400)
+        eng.run_random(int(n))
+        asked = int(n)
+    else:
+        if n_vehicles is None and n_lines is None:
+            n_vehicles, n_lines = cfg.vehicles, (cfg.lines if cfg.vehicles is None else None)
+        eng.run_lines(n_vehicles, n_lines)
+        asked = n_vehicles
+    if not eng.road_seen:
+        raise PlacementError(
+            f"scene {rayscene.scene.name!r}: {eng.seeds_tried} vertical traces over its extent found no "
+            f"road (labels {sorted(rayscene.label_config.road)})"
+        )
+    elapsed = time.perf_counter() - t0
+    spac = np.array([v.spacing_m for v in eng.vehicles if np.isfinite(v.spacing_m)])
+    reasons: dict[str, int] = {}
+    for ln in eng.lines:
+        reasons[ln.reason or "complete"] = reasons.get(ln.reason or "complete", 0) + 1
+    stats = {
+        "vehicles": len(eng.vehicles),
+        "requested_vehicles": asked,
+        "lines": sum(1 for ln in eng.lines if ln.lane == 0),
+        "opposite_lanes": sum(1 for ln in eng.lines if ln.lane == 1),
+        "line_end_reasons": dict(sorted(reasons.items())),
+        "complete_lines": [[ln.line_id, ln.lane] for ln in eng.lines if ln.reason == "complete"],
+        "spacing_m": {
+            "n": int(len(spac)),
+            "mean": round(float(spac.mean()), 4) if len(spac) else None,
+            "sd": round(float(spac.std(ddof=1)), 4) if len(spac) > 1 else None,
+            "min": round(float(spac.min()), 4) if len(spac) else None,
+            "max": round(float(spac.max()), 4) if len(spac) else None,
+        },
+        "seed_traces": int(eng.seeds_tried),
+        "rays": int(eng.prober.n_rays),
+        "casts": int(eng.prober.n_casts),
+    }
+    timing = {"seconds": elapsed, "vehicles_per_s": len(eng.vehicles) / elapsed if elapsed else 0.0,
+              "rays_per_s": eng.prober.n_rays / elapsed if elapsed else 0.0}
+    placement = Placement(
+        scene=scene_name or rayscene.scene.name,
+        scenario=cfg.name,
+        seed=seed,
+        parameters=cfg.to_dict(),
+        vehicles=eng.vehicles,
+        stats=stats,
+    )
+    placement.timing = timing  # not serialised: wall-clock figures differ between runs
+    if asked is not None and len(eng.vehicles) < asked:
+        msg = (f"the roads of {placement.scene!r} held {len(eng.vehicles)} of the {asked} vehicles asked "
+               f"for ({cfg.name})")
+        stats["shortfall"] = asked - len(eng.vehicles)
+        warnings.warn(msg, PlacementWarning, stacklevel=2)
+    return placement

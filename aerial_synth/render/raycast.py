@@ -1,0 +1,347 @@
+"""Frame buffers and visibility from the RayScene (the one source of geometric truth).
+
+One primary ray per pixel centre (see :meth:`aerial_synth.camera.Camera.pixel_rays`) gives
+
+- ``instance`` (H, W) uint32: vehicle id of the first hit (placement ids; 0 = background),
+- ``semantic`` (H, W) uint8: semantic id (:data:`aerial_synth.scene.model.LABEL_IDS`; 0 =
+  nothing hit),
+- ``depth`` (H, W) float32: z-depth along the optical axis in metres (0 = nothing hit),
+
+plus per-pixel hit data the shader needs (face index, normal, world position).
+
+Visibility compares each vehicle's visible pixels with its *amodal* silhouette, the pixels
+it would cover if no static geometry and no other vehicle were in the way. Amodal masks are
+ray cast too, with the same pixel-centre rays, but only against the vehicles (a
+vehicles-only ignore-set) and only for pixels inside each vehicle's projected 3-D box.
+Where boxes of several vehicles overlap, rays are continued behind the first vehicle hit
+("peeled") so a vehicle behind another still gets its full silhouette. The boxes may extend
+past the image border: pixels outside the image are cast too, so the truncated part of a
+silhouette is measured in the same pixel units (``truncated_fraction``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..scene.model import LABELS
+
+__all__ = [
+    "VehicleVisibility",
+    "Buffers",
+    "AmodalMasks",
+    "cast_buffers",
+    "vehicle_boxes_corners",
+    "compute_visibility",
+    "occluded",
+    "VEHICLES_ONLY",
+]
+
+#: Ignore-set that leaves only vehicles in the RayScene.
+VEHICLES_ONLY: frozenset[str] = frozenset(n for n in LABELS if n != "vehicle")
+
+_PEEL_EPS_M = 1e-3
+_MAX_PEELS = 8
+
+
+@dataclass(frozen=True)
+class VehicleVisibility:
+    """Visibility of one vehicle in one frame.
+
+    id                 : placement id (= instance id in the buffers)
+    visible_px         : pixels where this vehicle is the first surface hit
+    amodal_px          : pixels of its unoccluded silhouette inside the image
+    visible_fraction   : visible_px / amodal_px, in [0, 1]
+    amodal_bbox_xyxy   : (x0, y0, x1, y1) pixel-edge box of the amodal silhouette clipped to
+                         the image (a single pixel (row i, col j) is (j, i, j + 1, i + 1))
+    truncated          : True when the image border cuts the amodal silhouette
+    truncated_fraction : fraction of the whole amodal silhouette outside the image
+    amodal_px_full     : amodal pixels including those outside the image
+    amodal_bbox_full_xyxy : the amodal box before clipping to the image
+    visible_bbox_xyxy  : box of the visible pixels, or None when fully occluded
+    centre_px          : (x, y) projection of the footprint centre raised by half the height
+    cls                : detection class from the placement ("" if unknown)
+    """
+
+    id: int
+    visible_px: int
+    amodal_px: int
+    visible_fraction: float
+    amodal_bbox_xyxy: tuple[int, int, int, int]
+    truncated: bool
+    truncated_fraction: float
+    amodal_px_full: int = 0
+    amodal_bbox_full_xyxy: tuple[int, int, int, int] = (0, 0, 0, 0)
+    visible_bbox_xyxy: tuple[int, int, int, int] | None = None
+    centre_px: tuple[float, float] = (float("nan"), float("nan"))
+    cls: str = ""
+
+    @property
+    def occluded_fraction(self) -> float:
+        return 1.0 - self.visible_fraction
+
+    def to_dict(self) -> dict:
+        return {
+            "id": self.id,
+            "cls": self.cls,
+            "visible_px": self.visible_px,
+            "amodal_px": self.amodal_px,
+            "amodal_px_full": self.amodal_px_full,
+            "visible_fraction": round(float(self.visible_fraction), 6),
+            "amodal_bbox_xyxy": list(self.amodal_bbox_xyxy),
+            "amodal_bbox_full_xyxy": list(self.amodal_bbox_full_xyxy),
+            "visible_bbox_xyxy": None
+            if self.visible_bbox_xyxy is None
+            else list(self.visible_bbox_xyxy),
+            "truncated": bool(self.truncated),
+            "truncated_fraction": round(float(self.truncated_fraction), 6),
+            "centre_px": [round(float(c), 4) for c in self.centre_px],
+        }
+
+
+@dataclass
+class Buffers:
+    """Per-pixel results of the primary cast (row-major flat arrays of n = H * W).
+
+    face   : (n,) int64 global face index (-1 = miss)
+    t      : (n,) float32 z-depth, metres (inf = miss)
+    normal : (n, 3) float32 geometric normal facing the camera (world)
+    """
+
+    height_px: int
+    width_px: int
+    instance: np.ndarray  # (H, W) uint32
+    semantic: np.ndarray  # (H, W) uint8
+    depth: np.ndarray  # (H, W) float32
+    face: np.ndarray
+    t: np.ndarray
+    normal: np.ndarray
+    rays: np.ndarray  # (n, 6) float32
+
+    def world_points(self) -> np.ndarray:
+        """(n, 3) float32 hit positions (world, metres); garbage where face == -1."""
+        t = np.where(np.isfinite(self.t), self.t, 0.0).astype(np.float32)
+        return self.rays[:, :3] + t[:, None] * self.rays[:, 3:]
+
+
+@dataclass
+class AmodalMasks:
+    """Amodal silhouettes of all vehicles in view, stored as sorted (vehicle, pixel) pairs.
+
+    ids    : (k,) int64 vehicle id of each pair (sorted)
+    rows, cols : (k,) int32 pixel row / column (in the image only)
+    """
+
+    ids: np.ndarray
+    rows: np.ndarray
+    cols: np.ndarray
+    _index: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if len(self.ids):
+            u, start, count = np.unique(self.ids, return_index=True, return_counts=True)
+            self._index = {int(i): (int(s), int(c)) for i, s, c in zip(u, start, count)}
+
+    def pixels(self, vehicle_id: int) -> tuple[np.ndarray, np.ndarray]:
+        s, c = self._index.get(int(vehicle_id), (0, 0))
+        return self.rows[s : s + c], self.cols[s : s + c]
+
+    def crop(self, vehicle_id: int) -> tuple[np.ndarray, tuple[int, int]]:
+        """(mask (h, w) bool, (x0, y0)) crop of one vehicle's amodal silhouette."""
+        r, c = self.pixels(vehicle_id)
+        if len(r) == 0:
+            return np.zeros((0, 0), bool), (0, 0)
+        y0, x0 = int(r.min()), int(c.min())
+        m = np.zeros((int(r.max()) - y0 + 1, int(c.max()) - x0 + 1), bool)
+        m[r - y0, c - x0] = True
+        return m, (x0, y0)
+
+
+def cast_buffers(rayscene, camera) -> Buffers:
+    """Cast one ray per pixel centre; return instance / semantic / depth and hit data."""
+    h, w = camera.height_px, camera.width_px
+    rays = camera._all_rays()
+    hits = rayscene.cast_rays(rays)
+    hit = hits.face >= 0
+    instance = hits.instance_id.astype(np.uint32).reshape(h, w)
+    semantic = hits.label_id.astype(np.uint8).reshape(h, w)
+    t = hits.t
+    depth = np.where(hit, t, np.float32(0.0)).astype(np.float32).reshape(h, w)
+    n = hits.normal
+    # face the camera: flip normals seen from behind
+    flip = (n * rays[:, 3:]).sum(axis=1) > 0
+    n = np.where(flip[:, None], -n, n).astype(np.float32)
+    return Buffers(h, w, instance, semantic, depth, hits.face, t, n, rays)
+
+
+def vehicle_boxes_corners(vehicles) -> np.ndarray:
+    """(k, 8, 3) world corners (metres) of the vehicles' 3-D boxes (length x width x height,
+    standing on (x_m, y_m, z_m), turned by heading_rad)."""
+    k = len(vehicles)
+    if k == 0:
+        return np.zeros((0, 8, 3))
+    x = np.array([v.x_m for v in vehicles])
+    y = np.array([v.y_m for v in vehicles])
+    z = np.array([v.z_m for v in vehicles])
+    h = np.array([v.heading_rad for v in vehicles])
+    ln = np.array([v.length_m for v in vehicles])
+    wd = np.array([v.width_m for v in vehicles])
+    ht = np.array([v.height_m for v in vehicles])
+    sl = np.array([0.5, 0.5, -0.5, -0.5, 0.5, 0.5, -0.5, -0.5])
+    sw = np.array([0.5, -0.5, -0.5, 0.5, 0.5, -0.5, -0.5, 0.5])
+    sz = np.array([0, 0, 0, 0, 1, 1, 1, 1], float)
+    lx = sl * ln[:, None]
+    ly = sw * wd[:, None]
+    c, s = np.cos(h)[:, None], np.sin(h)[:, None]
+    out = np.empty((k, 8, 3))
+    out[..., 0] = x[:, None] + c * lx - s * ly
+    out[..., 1] = y[:, None] + s * lx + c * ly
+    out[..., 2] = z[:, None] + sz * ht[:, None]
+    return out
+
+
+def occluded(rayscene, origins: np.ndarray, directions: np.ndarray, tnear: float = 0.0) -> np.ndarray:
+    """(n,) bool: does a ray from each origin along its direction hit anything?
+
+    Uses Embree's any-hit test (``test_occlusions``) when the RayScene exposes its built
+    scene, otherwise falls back to :meth:`RayScene.cast_rays`.
+    """
+    rays = np.empty((len(origins), 6), np.float32)
+    rays[:, :3] = origins
+    rays[:, 3:] = directions
+    get_built = getattr(rayscene, "_get_built", None)
+    if get_built is not None:
+        try:
+            import open3d as o3d
+
+            sc = get_built(frozenset()).scene
+            return sc.test_occlusions(o3d.core.Tensor.from_numpy(rays), tnear=tnear).numpy().astype(
+                bool
+            )
+        except (AttributeError, TypeError):  # pragma: no cover - older open3d
+            pass
+    if tnear:
+        rays[:, :3] += tnear * rays[:, 3:]
+    return rayscene.cast_rays(rays).face >= 0
+
+
+def _box_xyxy(rows: np.ndarray, cols: np.ndarray) -> tuple[int, int, int, int]:
+    return (int(cols.min()), int(rows.min()), int(cols.max()) + 1, int(rows.max()) + 1)
+
+
+def compute_visibility(
+    rayscene, camera, instance: np.ndarray, vehicles, margin_px: int = 2
+) -> tuple[dict[int, VehicleVisibility], AmodalMasks]:
+    """Visibility of every vehicle in view (see the module docstring).
+
+    instance : (H, W) uint32 primary instance buffer
+    vehicles : iterable of PlacedVehicle-like records (id, x_m, y_m, z_m, heading_rad,
+               length_m, width_m, height_m, cls); they must be in ``rayscene``.
+    Returns ({id: VehicleVisibility}, AmodalMasks) for vehicles with at least one amodal
+    pixel inside the image.
+    """
+    h, w = camera.height_px, camera.width_px
+    vehicles = [v for v in vehicles if int(v.id) in set(rayscene.vehicle_ids)] if vehicles else []
+    empty = AmodalMasks(np.zeros(0, np.int64), np.zeros(0, np.int32), np.zeros(0, np.int32))
+    if not vehicles:
+        return {}, empty
+    corners = vehicle_boxes_corners(vehicles)
+    uv = camera.project(corners.reshape(-1, 3)).reshape(len(vehicles), 8, 2)
+    ok = np.isfinite(uv).all(axis=(1, 2))
+    x0 = np.floor(np.nanmin(uv[..., 0], axis=1)) - margin_px
+    x1 = np.ceil(np.nanmax(uv[..., 0], axis=1)) + margin_px
+    y0 = np.floor(np.nanmin(uv[..., 1], axis=1)) - margin_px
+    y1 = np.ceil(np.nanmax(uv[..., 1], axis=1)) + margin_px
+    inview = ok & (x1 > 0) & (x0 < w) & (y1 > 0) & (y0 < h)
+    sel = np.flatnonzero(inview)
+    if len(sel) == 0:
+        return {}, empty
+    # extended canvas covering every in-view box (boxes may stick out of the image)
+    ex0 = int(min(0, x0[sel].min()))
+    ey0 = int(min(0, y0[sel].min()))
+    ex1 = int(max(w, x1[sel].max()))
+    ey1 = int(max(h, y1[sel].max()))
+    cw, ch = ex1 - ex0, ey1 - ey0
+    cover = np.zeros((ch, cw), np.uint8)
+    for k in sel:
+        cover[int(y0[k]) - ey0 : int(y1[k]) - ey0, int(x0[k]) - ex0 : int(x1[k]) - ex0] += 1
+    flat = np.flatnonzero(cover)
+    rows = (flat // cw + ey0).astype(np.int32)
+    cols = (flat % cw + ex0).astype(np.int32)
+    multi = cover.reshape(-1)[flat] > 1
+    rays = camera.pixel_rays(rows, cols)
+    hits = rayscene.cast_rays(rays, ignore=VEHICLES_ONLY)
+    got = hits.instance_id > 0
+    pair_pix = [np.flatnonzero(got)]
+    pair_id = [hits.instance_id[got]]
+    # peel behind the first vehicle where several boxes overlap
+    idx = np.flatnonzero(got & multi)
+    t_acc = hits.t[idx].astype(np.float64)
+    for _ in range(_MAX_PEELS):
+        if len(idx) == 0:
+            break
+        r = rays[idx].copy()
+        r[:, :3] += ((t_acc + _PEEL_EPS_M)[:, None] * r[:, 3:]).astype(np.float32)
+        hh = rayscene.cast_rays(r, ignore=VEHICLES_ONLY)
+        g = hh.instance_id > 0
+        idx, t_acc = idx[g], t_acc[g] + _PEEL_EPS_M + hh.t[g]
+        pair_pix.append(idx)
+        pair_id.append(hh.instance_id[g])
+    pix = np.concatenate(pair_pix).astype(np.int64)
+    ids = np.concatenate(pair_id).astype(np.int64)
+    key = np.unique(ids << 32 | pix)
+    ids = key >> 32
+    pix = key & 0xFFFFFFFF
+    prow, pcol = rows[pix], cols[pix]
+    inside = (prow >= 0) & (prow < h) & (pcol >= 0) & (pcol < w)
+
+    vis_counts = np.bincount(instance.reshape(-1).astype(np.int64))
+    masks = AmodalMasks(ids[inside], prow[inside], pcol[inside])
+    by_id = {int(v.id): (k, v) for k, v in enumerate(vehicles)}
+    # visible boxes: one pass over vehicle pixels
+    inst = instance.reshape(-1)
+    vpix = np.flatnonzero(inst)
+    vids = inst[vpix].astype(np.int64)
+    order = np.argsort(vids, kind="stable")
+    vpix, vids = vpix[order], vids[order]
+    uvid, vstart, vcount = np.unique(vids, return_index=True, return_counts=True)
+    vis_index = {int(i): (int(s), int(c)) for i, s, c in zip(uvid, vstart, vcount)}
+
+    full_u, full_start, full_count = np.unique(ids, return_index=True, return_counts=True)
+    out: dict[int, VehicleVisibility] = {}
+    centre_world = np.array(
+        [[v.x_m, v.y_m, v.z_m + 0.5 * v.height_m] for v in vehicles], dtype=np.float64
+    )
+    centre_uv = camera.project(centre_world)
+    for vid, s, c in zip(full_u, full_start, full_count):
+        vid = int(vid)
+        ins = inside[s : s + c]
+        n_in = int(ins.sum())
+        if n_in == 0 or vid not in by_id:
+            continue
+        k, v = by_id[vid]
+        r_all, c_all = prow[s : s + c], pcol[s : s + c]
+        r_in, c_in = r_all[ins], c_all[ins]
+        visible = int(vis_counts[vid]) if vid < len(vis_counts) else 0
+        amodal = max(n_in, visible)
+        vb = None
+        if vid in vis_index:
+            vs, vc = vis_index[vid]
+            pp = vpix[vs : vs + vc]
+            vb = _box_xyxy(pp // w, pp % w)
+        out[vid] = VehicleVisibility(
+            id=vid,
+            visible_px=visible,
+            amodal_px=amodal,
+            visible_fraction=min(1.0, visible / amodal),
+            amodal_bbox_xyxy=_box_xyxy(r_in, c_in),
+            truncated=bool(c > n_in),
+            truncated_fraction=float(c - n_in) / float(c),
+            amodal_px_full=int(c),
+            amodal_bbox_full_xyxy=_box_xyxy(r_all, c_all),
+            visible_bbox_xyxy=vb,
+            centre_px=(float(centre_uv[k, 0]), float(centre_uv[k, 1])),
+            cls=str(getattr(v, "cls", "")),
+        )
+    return dict(sorted(out.items())), masks

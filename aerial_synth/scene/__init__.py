@@ -1,0 +1,58 @@
+"""Scenes: labelled triangle meshes in a z-up metric world frame.
+
+Public API (imported lazily; ``import aerial_synth.scene`` loads no open3d, trimesh or
+shapely)::
+
+    load_scene(name_or_path, labels=None, seed=None) -> Scene
+    list_scenes() -> list[str]
+    export_glb(scene, path) -> Path
+    render_map(scene, m_per_px=0.5, rayscene=None) -> MapView
+    Scene, SceneObject, LabelConfig, RayScene
+"""
+
+from __future__ import annotations
+
+import importlib
+
+__all__ = [
+    "load_scene",
+    "list_scenes",
+    "export_glb",
+    "render_map",
+    "MapView",
+    "Scene",
+    "SceneObject",
+    "SceneTruth",
+    "RoadTruth",
+    "LabelConfig",
+    "RayScene",
+    "LABELS",
+]
+
+_LAZY = {
+    "load_scene": "io",
+    "list_scenes": "io",
+    "export_glb": "io",
+    "render_map": "mapview",
+    "MapView": "mapview",
+    "Scene": "model",
+    "SceneObject": "model",
+    "SceneTruth": "model",
+    "RoadTruth": "model",
+    "LabelConfig": "model",
+    "LABELS": "model",
+    "RayScene": "raycast",
+}
+
+
+def __getattr__(name: str):
+    mod = _LAZY.get(name)
+    if mod is None:
+        raise AttributeError(f"module 'aerial_synth.scene' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{mod}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

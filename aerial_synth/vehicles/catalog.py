@@ -1,0 +1,466 @@
+"""Vehicle catalog: models (sizes, class, frequency), colour palette, sampling.
+
+The catalog is a YAML file (the bundled one is ``vehicle_assets/catalog.yaml``)::
+
+    colors:
+      - {name: white, rgb: [0.86, 0.86, 0.84], weight: 0.27}
+    models:
+      - {name: hatchback, pack: 1, body: hatchback, class: small-vehicle,
+         length_m: 4.05, width_m: 1.76, height_m: 1.48, weight: 2.0}
+      - {name: my_van, mesh: meshes/van.glb, scale: 1.0, forward: -z, up: +y,
+         class: small-vehicle, paint_material: Body, weight: 1.0}
+
+A model is either *procedural* (``body`` names one of :data:`BODY_TYPES`; the catalog
+gives length, width and height) or a *user mesh* (``mesh`` is a glTF/GLB/OBJ path inside
+the catalog's folder; its size comes from the mesh bounds after scale and axis change).
+
+Vehicle frame (every mesh): metres, origin at the footprint centre on the ground,
++x forward, +y left, z up.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from ..errors import AssetError
+
+__all__ = [
+    "CLASSES",
+    "BODY_TYPES",
+    "AXES",
+    "VehicleModel",
+    "VehicleColor",
+    "VehicleVariant",
+    "Catalog",
+    "load_catalog",
+    "bundled_catalog_path",
+]
+
+#: Detection classes, as in DOTA and EAGLE.
+CLASSES: tuple[str, ...] = ("small-vehicle", "large-vehicle")
+
+#: Procedural body types understood by :func:`aerial_synth.vehicles.build_mesh`.
+BODY_TYPES: tuple[str, ...] = (
+    "sport",
+    "hatchback",
+    "sedan",
+    "suv",
+    "pickup",
+    "box_truck",
+    "campervan",
+)
+
+#: Axis names accepted for a user mesh's ``forward`` and ``up``.
+AXES: dict[str, tuple[float, float, float]] = {
+    "+x": (1.0, 0.0, 0.0),
+    "-x": (-1.0, 0.0, 0.0),
+    "+y": (0.0, 1.0, 0.0),
+    "-y": (0.0, -1.0, 0.0),
+    "+z": (0.0, 0.0, 1.0),
+    "-z": (0.0, 0.0, -1.0),
+}
+
+MESH_SUFFIXES: tuple[str, ...] = (".glb", ".gltf", ".obj")
+
+_PROCEDURAL_KEYS = {"name", "pack", "body", "class", "length_m", "width_m", "height_m", "weight"}
+_MESH_KEYS = {"name", "pack", "mesh", "scale", "forward", "up", "class", "paint_material", "weight"}
+_COLOR_KEYS = {"name", "rgb", "weight"}
+
+
+def bundled_catalog_path() -> Path:
+    """Path of the bundled catalog, ``<repo>/vehicle_assets/catalog.yaml``."""
+    return Path(__file__).resolve().parents[2] / "vehicle_assets" / "catalog.yaml"
+
+
+# --------------------------------------------------------------------------- records
+@dataclass(frozen=True)
+class VehicleColor:
+    """One paint colour.
+
+    rgb    : 3 floats in [0, 1], linear-ish albedo (same scale as scene materials)
+    weight : relative frequency (>= 0; normalised over the palette)
+    """
+
+    name: str
+    rgb: tuple[float, float, float]
+    weight: float = 1.0
+
+    def __post_init__(self) -> None:
+        rgb = tuple(float(c) for c in self.rgb)
+        if len(rgb) != 3 or not all(0.0 <= c <= 1.0 for c in rgb):
+            raise AssetError(f"colour {self.name!r}: rgb must be 3 floats in [0, 1], got {self.rgb}")
+        if not (self.weight >= 0.0 and math.isfinite(self.weight)):
+            raise AssetError(f"colour {self.name!r}: weight must be >= 0, got {self.weight}")
+        object.__setattr__(self, "rgb", rgb)
+        object.__setattr__(self, "weight", float(self.weight))
+
+
+@dataclass(frozen=True)
+class VehicleModel:
+    """One vehicle model.
+
+    name        : unique in the catalog (e.g. ``"hatchback"``)
+    pack        : asset pack number (1, 2 as in the thesis; 0 for user models by default)
+    length_m, width_m, height_m : bounding-box size in metres (x, y, z of the vehicle frame)
+    cls         : ``"small-vehicle"`` or ``"large-vehicle"``
+    weight      : relative frequency (>= 0; normalised over the catalog)
+    source      : ``"procedural:<body>"`` or ``"mesh:<path relative to the catalog>"``
+    body        : procedural body type (one of :data:`BODY_TYPES`), ``""`` for user meshes
+    mesh_path   : absolute path of a user mesh, or None
+    scale       : user mesh: uniform scale applied to the file's units (to metres)
+    forward, up : user mesh: the file's axes that become +x and +z (e.g. ``"-z"``, ``"+y"``)
+    paint_material : user mesh: material name whose faces take the variant colour
+    """
+
+    name: str
+    pack: int
+    length_m: float
+    width_m: float
+    height_m: float
+    cls: str
+    weight: float = 1.0
+    source: str = ""
+    body: str = ""
+    mesh_path: Path | None = None
+    scale: float = 1.0
+    forward: str = "+x"
+    up: str = "+z"
+    paint_material: str = ""
+
+    def __post_init__(self) -> None:
+        for f in ("length_m", "width_m", "height_m"):
+            v = getattr(self, f)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise AssetError(f"model {self.name!r}: {f} must be a number > 0, got {v!r}")
+            object.__setattr__(self, f, float(v))
+        if self.cls not in CLASSES:
+            raise AssetError(
+                f"model {self.name!r}: class must be one of {', '.join(CLASSES)}, got {self.cls!r}"
+            )
+        if not (math.isfinite(self.weight) and self.weight >= 0):
+            raise AssetError(f"model {self.name!r}: weight must be >= 0, got {self.weight!r}")
+        object.__setattr__(self, "weight", float(self.weight))
+        if not self.source:
+            src = f"procedural:{self.body}" if self.body else "mesh"
+            object.__setattr__(self, "source", src)
+
+    @property
+    def is_procedural(self) -> bool:
+        return self.mesh_path is None
+
+    @property
+    def size_m(self) -> tuple[float, float, float]:
+        """(length, width, height) in metres."""
+        return (self.length_m, self.width_m, self.height_m)
+
+
+@dataclass(frozen=True)
+class VehicleVariant:
+    """One model in one colour."""
+
+    model: VehicleModel
+    color: VehicleColor
+
+    @property
+    def name(self) -> str:
+        return f"{self.model.name}/{self.color.name}"
+
+
+@dataclass(frozen=True)
+class Catalog:
+    """Models and colours of one catalog file (immutable).
+
+    models : tuple of :class:`VehicleModel` (names unique)
+    colors : tuple of :class:`VehicleColor` (names unique)
+    path   : the catalog file (None when built in memory)
+    """
+
+    models: tuple[VehicleModel, ...]
+    colors: tuple[VehicleColor, ...]
+    path: Path | None = None
+    _model_index: dict = field(default_factory=dict, repr=False, compare=False)
+    _color_index: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        where = str(self.path) if self.path else "catalog"
+        object.__setattr__(self, "models", tuple(self.models))
+        object.__setattr__(self, "colors", tuple(self.colors))
+        if not self.models:
+            raise AssetError(f"{where}: models: expected at least one model, got none")
+        if not self.colors:
+            raise AssetError(f"{where}: colors: expected at least one colour, got none")
+        for kind, items, index in (
+            ("models", self.models, self._model_index),
+            ("colors", self.colors, self._color_index),
+        ):
+            for i, it in enumerate(items):
+                if it.name in index:
+                    raise AssetError(f"{where}: {kind}[{i}] name {it.name!r} is used twice")
+                index[it.name] = it
+            if sum(it.weight for it in items) <= 0:
+                raise AssetError(f"{where}: {kind}: weights sum to 0; expected a positive sum")
+
+    # ------------------------------------------------------------------ look-ups
+    def model(self, name: str) -> VehicleModel:
+        try:
+            return self._model_index[name]
+        except KeyError:
+            raise AssetError(
+                f"unknown vehicle model {name!r}; expected one of {', '.join(self._model_index)}"
+            ) from None
+
+    def color(self, name: str) -> VehicleColor:
+        try:
+            return self._color_index[name]
+        except KeyError:
+            raise AssetError(
+                f"unknown vehicle colour {name!r}; expected one of {', '.join(self._color_index)}"
+            ) from None
+
+    @property
+    def model_probabilities(self) -> np.ndarray:
+        """(n_models,) float64, model weights normalised to sum 1 (catalog order)."""
+        w = np.array([m.weight for m in self.models], dtype=np.float64)
+        return w / w.sum()
+
+    @property
+    def color_probabilities(self) -> np.ndarray:
+        """(n_colors,) float64, colour weights normalised to sum 1 (catalog order)."""
+        w = np.array([c.weight for c in self.colors], dtype=np.float64)
+        return w / w.sum()
+
+    # ------------------------------------------------------------------ variants
+    def variants(self) -> list[VehicleVariant]:
+        """Every model x colour combination, models outer, in catalog order."""
+        return [VehicleVariant(m, c) for m in self.models for c in self.colors]
+
+    def sample(self, rng: np.random.Generator, n: int) -> list[VehicleVariant]:
+        """Draw ``n`` variants: model by model weight, colour (independently) by colour weight.
+
+        Deterministic for a seeded ``rng``. Draws the n model indices first, then the n
+        colour indices.
+        """
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+        n = int(n)
+        if n < 0:
+            raise ValueError(f"n must be >= 0, got {n}")
+        mi = rng.choice(len(self.models), size=n, p=self.model_probabilities)
+        ci = rng.choice(len(self.colors), size=n, p=self.color_probabilities)
+        return [VehicleVariant(self.models[i], self.colors[j]) for i, j in zip(mi, ci)]
+
+    def with_models(self, models) -> "Catalog":
+        """A copy restricted to the given models (names or VehicleModel objects)."""
+        picked = [self.model(m) if isinstance(m, str) else m for m in models]
+        return Catalog(models=tuple(picked), colors=self.colors, path=self.path)
+
+
+# --------------------------------------------------------------------------- loading
+def load_catalog(path: str | Path | None = None) -> Catalog:
+    """Load and validate a catalog YAML file.
+
+    path : the catalog file; None = the bundled ``vehicle_assets/catalog.yaml``.
+    Raises :class:`AssetError` (one line: file, entry, field, expected, got) on bad input.
+    """
+    import yaml
+
+    p = bundled_catalog_path() if path is None else Path(path)
+    if not p.is_file():
+        raise AssetError(f"{p}: catalog file not found")
+    try:
+        data = yaml.safe_load(p.read_text(encoding="utf-8"))
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        msg = " ".join(str(exc).split())
+        raise AssetError(f"{p}: not valid YAML: {msg}") from None
+    return catalog_from_mapping(data, path=p)
+
+
+def catalog_from_mapping(data: Any, path: Path | None = None) -> Catalog:
+    """Build a :class:`Catalog` from the parsed YAML mapping. Mesh paths are resolved
+    inside ``path``'s folder (or the current folder when path is None)."""
+    where = str(path) if path is not None else "catalog"
+    if not isinstance(data, Mapping):
+        raise AssetError(
+            f"{where}: expected a mapping with keys 'models' and 'colors', got {type(data).__name__}"
+        )
+    unknown = set(data) - {"models", "colors", "version"}
+    if unknown:
+        raise AssetError(
+            f"{where}: unknown top-level key(s) {sorted(unknown)}; expected models, colors, version"
+        )
+    folder = (path.parent if path is not None else Path(".")).resolve()
+    raw_colors = data.get("colors")
+    raw_models = data.get("models")
+    for key, val in (("colors", raw_colors), ("models", raw_models)):
+        if not isinstance(val, list) or not val:
+            got = "nothing" if val is None else repr(val)[:60]
+            raise AssetError(f"{where}: {key}: expected a non-empty list, got {got}")
+    colors = tuple(_parse_color(where, i, e) for i, e in enumerate(raw_colors))
+    models = tuple(_parse_model(where, folder, i, e) for i, e in enumerate(raw_models))
+    return Catalog(models=models, colors=colors, path=path)
+
+
+def _entry_name(kind: str, i: int, entry: Any) -> str:
+    if isinstance(entry, Mapping) and isinstance(entry.get("name"), str):
+        return f"{kind}[{i}] {entry['name']!r}"
+    return f"{kind}[{i}]"
+
+
+def _number(where: str, ent: str, entry: Mapping, key: str, default=None, positive=False,
+            non_negative=False) -> float:
+    val = entry.get(key, default)
+    if val is None:
+        raise AssetError(f"{where}: {ent} field {key}: expected a number, got nothing")
+    ok = isinstance(val, (int, float)) and not isinstance(val, bool) and math.isfinite(val)
+    if positive and not (ok and val > 0):
+        raise AssetError(f"{where}: {ent} field {key}: expected a number > 0, got {val!r}")
+    if non_negative and not (ok and val >= 0):
+        raise AssetError(f"{where}: {ent} field {key}: expected a number >= 0, got {val!r}")
+    if not ok:
+        raise AssetError(f"{where}: {ent} field {key}: expected a number, got {val!r}")
+    return float(val)
+
+
+def _string(where: str, ent: str, entry: Mapping, key: str, default=None) -> str:
+    val = entry.get(key, default)
+    if not isinstance(val, str) or not val:
+        raise AssetError(f"{where}: {ent} field {key}: expected a non-empty string, got {val!r}")
+    return val
+
+
+def _parse_color(where: str, i: int, entry: Any) -> VehicleColor:
+    ent = _entry_name("colors", i, entry)
+    if not isinstance(entry, Mapping):
+        raise AssetError(f"{where}: {ent}: expected a mapping, got {entry!r}")
+    unknown = set(entry) - _COLOR_KEYS
+    if unknown:
+        raise AssetError(
+            f"{where}: {ent}: unknown field(s) {sorted(unknown)}; expected {sorted(_COLOR_KEYS)}"
+        )
+    name = _string(where, ent, entry, "name")
+    rgb = entry.get("rgb")
+    if (
+        not isinstance(rgb, (list, tuple))
+        or len(rgb) != 3
+        or not all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in rgb)
+        or not all(0.0 <= c <= 1.0 for c in rgb)
+    ):
+        raise AssetError(f"{where}: {ent} field rgb: expected 3 numbers in [0, 1], got {rgb!r}")
+    weight = _number(where, ent, entry, "weight", default=1.0, non_negative=True)
+    return VehicleColor(name=name, rgb=tuple(float(c) for c in rgb), weight=weight)
+
+
+def _parse_model(where: str, folder: Path, i: int, entry: Any) -> VehicleModel:
+    ent = _entry_name("models", i, entry)
+    if not isinstance(entry, Mapping):
+        raise AssetError(f"{where}: {ent}: expected a mapping, got {entry!r}")
+    name = _string(where, ent, entry, "name")
+    is_mesh = "mesh" in entry
+    allowed = _MESH_KEYS if is_mesh else _PROCEDURAL_KEYS
+    unknown = set(entry) - allowed
+    if unknown:
+        hint = (
+            " (a mesh entry takes its size from the mesh bounds; use scale)"
+            if is_mesh and unknown & {"length_m", "width_m", "height_m"}
+            else ""
+        )
+        raise AssetError(
+            f"{where}: {ent}: unknown field(s) {sorted(unknown)}; expected {sorted(allowed)}{hint}"
+        )
+    cls = entry.get("class")
+    if cls not in CLASSES:
+        raise AssetError(
+            f"{where}: {ent} field class: expected one of {', '.join(CLASSES)}, got {cls!r}"
+        )
+    weight = _number(where, ent, entry, "weight", default=1.0, non_negative=True)
+    pack = entry.get("pack", 0)
+    if not isinstance(pack, int) or isinstance(pack, bool) or pack < 0:
+        raise AssetError(f"{where}: {ent} field pack: expected an integer >= 0, got {pack!r}")
+
+    if not is_mesh:
+        body = entry.get("body")
+        if body not in BODY_TYPES:
+            raise AssetError(
+                f"{where}: {ent} field body: expected one of {', '.join(BODY_TYPES)}, got {body!r}"
+            )
+        dims = {
+            k: _number(where, ent, entry, k, positive=True)
+            for k in ("length_m", "width_m", "height_m")
+        }
+        return VehicleModel(name=name, pack=pack, cls=cls, weight=weight, body=body, **dims)
+
+    rel = _string(where, ent, entry, "mesh")
+    mesh_path = resolve_inside(folder, rel, f"{where}: {ent} field mesh")
+    if mesh_path.suffix.lower() not in MESH_SUFFIXES:
+        raise AssetError(
+            f"{where}: {ent} field mesh: expected a {'/'.join(MESH_SUFFIXES)} file, got {rel!r}"
+        )
+    if not mesh_path.is_file():
+        raise AssetError(f"{where}: {ent} field mesh: file not found: {rel!r} (looked in {folder})")
+    scale = _number(where, ent, entry, "scale", default=1.0, positive=True)
+    forward = entry.get("forward", "+x")
+    up = entry.get("up", "+z")
+    for key, val in (("forward", forward), ("up", up)):
+        if val not in AXES:
+            raise AssetError(
+                f"{where}: {ent} field {key}: expected one of {', '.join(AXES)}, got {val!r}"
+            )
+    if abs(float(np.dot(AXES[forward], AXES[up]))) > 0.5:
+        raise AssetError(
+            f"{where}: {ent} fields forward/up: expected two different axes, got {forward} and {up}"
+        )
+    paint = entry.get("paint_material", "")
+    if not isinstance(paint, str):
+        raise AssetError(f"{where}: {ent} field paint_material: expected a string, got {paint!r}")
+
+    from .meshes import load_user_mesh_parts  # trimesh: only when a user mesh is used
+
+    try:
+        parts = load_user_mesh_parts(mesh_path, scale=scale, forward=forward, up=up)
+    except AssetError as exc:
+        raise AssetError(f"{where}: {ent} field mesh: {exc}") from None
+    v = np.concatenate([p.vertices for p in parts])
+    size = v.max(axis=0) - v.min(axis=0)
+    if not np.all(size > 0):
+        raise AssetError(
+            f"{where}: {ent} field mesh: expected a mesh with positive length, width and height, "
+            f"got size {tuple(round(float(s), 4) for s in size)} m"
+        )
+    if paint and not any(p.material_name == paint for p in parts):
+        names = sorted({p.material_name for p in parts if p.material_name})
+        raise AssetError(
+            f"{where}: {ent} field paint_material: no material {paint!r} in {rel!r}; "
+            f"materials there: {', '.join(names) or 'none'}"
+        )
+    return VehicleModel(
+        name=name,
+        pack=pack,
+        length_m=float(size[0]),
+        width_m=float(size[1]),
+        height_m=float(size[2]),
+        cls=cls,
+        weight=weight,
+        source=f"mesh:{rel}",
+        mesh_path=mesh_path,
+        scale=scale,
+        forward=forward,
+        up=up,
+        paint_material=paint,
+    )
+
+
+def resolve_inside(folder: Path, rel: str, what: str) -> Path:
+    """Resolve ``rel`` inside ``folder``; refuse absolute paths and paths that escape it
+    (``..``, or symlinks that lead outside)."""
+    folder = folder.resolve()
+    if Path(rel).is_absolute():
+        raise AssetError(f"{what}: expected a path relative to {folder}, got absolute {rel!r}")
+    p = (folder / rel).resolve()
+    if not p.is_relative_to(folder):
+        raise AssetError(f"{what}: expected a path inside {folder}, got {rel!r} which escapes it")
+    return p

@@ -1,0 +1,697 @@
+"""Vehicle meshes: procedural low-poly bodies and user glTF/GLB/OBJ files.
+
+Vehicle frame: metres, origin at the footprint centre on the ground, +x forward, +y left,
+z up. Every procedural part (body, greenhouse, roof, windscreen, wheels, cargo box, ...) is
+a separate closed convex volume whose triangles are counter-clockwise seen from outside
+(outward normals, positive signed volume). Parts may overlap; a ray always meets the
+outermost surface first, so overlaps never show.
+
+Procedural parts are designed in real metres from the catalog's length, width and height,
+then scaled by a factor close to 1 so the mesh bounds equal the catalog size exactly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import AssetError
+from ..scene.model import DEFAULT_COLOR_FOR_MATERIAL, MATERIAL_IDS
+from .catalog import AXES, VehicleColor, VehicleModel
+
+__all__ = ["VehicleMesh", "build_mesh", "load_user_mesh_parts", "UserPart", "axes_rotation"]
+
+#: Albedo of glass facing the sky (windscreen, rear window): a touch lighter and bluer than
+#: the side glass, as the sky reflects in it seen from above.
+WINDSCREEN_RGB = (0.075, 0.095, 0.125)
+SOLAR_RGB = (0.06, 0.08, 0.17)
+BED_LINER_RGB = (0.07, 0.07, 0.07)
+
+
+@dataclass(frozen=True, eq=False)
+class VehicleMesh:
+    """A vehicle mesh in the vehicle frame (read-only arrays; shared through a cache).
+
+    vertices      : (n, 3) float64, metres, vehicle frame (+x forward, +y left, z up),
+                    origin at the footprint centre on the ground
+    faces         : (m, 3) int64, counter-clockwise seen from outside (outward normals)
+    face_material : (m,) uint8, ids from ``scene.model.MATERIAL_IDS``
+    face_albedo   : (m, 3) float32, RGB in [0, 1]
+    face_part     : (m,) int16, index into ``parts``
+    parts         : part names (``body``, ``greenhouse``, ``roof``, ``windscreen``, ...)
+    model, color  : names of the model and colour
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    face_material: np.ndarray
+    face_albedo: np.ndarray
+    face_part: np.ndarray
+    parts: tuple[str, ...]
+    model: str = ""
+    color: str = ""
+
+    def __post_init__(self) -> None:
+        for name, dt in (
+            ("vertices", np.float64),
+            ("faces", np.int64),
+            ("face_material", np.uint8),
+            ("face_albedo", np.float32),
+            ("face_part", np.int16),
+        ):
+            a = np.ascontiguousarray(getattr(self, name), dtype=dt)
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+
+    @property
+    def n_triangles(self) -> int:
+        return int(len(self.faces))
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """(2, 3) float64: [[xmin, ymin, zmin], [xmax, ymax, zmax]], metres, vehicle frame."""
+        return np.stack([self.vertices.min(axis=0), self.vertices.max(axis=0)])
+
+    def part_faces(self, part: str) -> np.ndarray:
+        """(k,) int64 indices of the faces of one part ('' if unknown -> empty)."""
+        if part not in self.parts:
+            return np.zeros(0, np.int64)
+        return np.flatnonzero(self.face_part == self.parts.index(part))
+
+    def part_mesh(self, part: str) -> tuple[np.ndarray, np.ndarray]:
+        """(vertices (k, 3), faces (j, 3)) of one part, re-indexed compactly."""
+        f = self.faces[self.part_faces(part)]
+        used, inv = np.unique(f.ravel(), return_inverse=True)
+        return self.vertices[used].copy(), inv.reshape(-1, 3).astype(np.int64)
+
+    def to_world(
+        self, x_m: float, y_m: float, z_m: float, heading_rad: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Place the vehicle: rotate about z by ``heading_rad`` (0 = +x, counter-clockwise),
+        then translate its origin to (x_m, y_m, z_m) in the world frame.
+
+        Returns (vertices_world (n, 3) float64 metres, faces (m, 3) int64, a copy).
+        """
+        c, s = np.cos(heading_rad), np.sin(heading_rad)
+        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        v = self.vertices @ rot.T + np.array([x_m, y_m, z_m], dtype=np.float64)
+        return v, self.faces.copy()
+
+
+# --------------------------------------------------------------------------- public
+def build_mesh(model: VehicleModel, color: VehicleColor) -> VehicleMesh:
+    """The mesh of one model in one colour (cached per (model, colour)).
+
+    Procedural models are built from the catalog size and body type; user models are read
+    from their file, turned into the vehicle frame, and the faces of ``paint_material``
+    take the colour.
+    """
+    return _build_mesh_cached(model, color)
+
+
+@lru_cache(maxsize=512)
+def _build_mesh_cached(model: VehicleModel, color: VehicleColor) -> VehicleMesh:
+    if model.is_procedural:
+        parts = _procedural_parts(model)
+        parts = _fit_to_size(parts, model.length_m, model.width_m, model.height_m)
+    else:
+        parts = [
+            _Part(
+                name=p.name,
+                material=("paint" if (model.paint_material and p.material_name == model.paint_material)
+                          else p.material),
+                rgb=(None if (model.paint_material and p.material_name == model.paint_material)
+                     else p.rgb),
+                v=p.vertices,
+                f=p.faces,
+            )
+            for p in load_user_mesh_parts(
+                model.mesh_path, scale=model.scale, forward=model.forward, up=model.up
+            )
+        ]
+    return _assemble(parts, color, model.name)
+
+
+# --------------------------------------------------------------------------- parts
+@dataclass
+class _Part:
+    name: str
+    material: str
+    rgb: tuple[float, float, float] | None  # None = the variant's paint colour
+    v: np.ndarray
+    f: np.ndarray
+
+
+def _assemble(parts: list[_Part], color: VehicleColor, model_name: str) -> VehicleMesh:
+    names: list[str] = []
+    vs, fs, mats, albs, pids = [], [], [], [], []
+    off = 0
+    for p in parts:
+        if p.name not in names:
+            names.append(p.name)
+        m = len(p.f)
+        rgb = color.rgb if p.rgb is None else p.rgb
+        vs.append(p.v)
+        fs.append(p.f + off)
+        mats.append(np.full(m, MATERIAL_IDS[p.material], np.uint8))
+        albs.append(np.tile(np.asarray(rgb, np.float32), (m, 1)))
+        pids.append(np.full(m, names.index(p.name), np.int16))
+        off += len(p.v)
+    return VehicleMesh(
+        vertices=np.concatenate(vs),
+        faces=np.concatenate(fs),
+        face_material=np.concatenate(mats),
+        face_albedo=np.concatenate(albs),
+        face_part=np.concatenate(pids),
+        parts=tuple(names),
+        model=model_name,
+        color=color.name,
+    )
+
+
+def _fit_to_size(parts: list[_Part], length: float, width: float, height: float) -> list[_Part]:
+    """Scale (per axis, factors close to 1) and shift so the bounds are exactly
+    [-L/2, L/2] x [-W/2, W/2] x [0, H]."""
+    allv = np.concatenate([p.v for p in parts])
+    lo, hi = allv.min(axis=0), allv.max(axis=0)
+    scale = np.array([length, width, height]) / (hi - lo)
+    centre = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+    shift = np.array([0.0, 0.0, 0.0])
+    out = []
+    for p in parts:
+        v = (p.v - centre) * scale + shift
+        out.append(_Part(p.name, p.material, p.rgb, v, p.f))
+    return out
+
+
+def _hull(points) -> tuple[np.ndarray, np.ndarray]:
+    """Closed convex hull of points: (vertices (n, 3) float64, faces (m, 3) int64), outward."""
+    import trimesh
+
+    h = trimesh.convex.convex_hull(np.asarray(points, dtype=np.float64))
+    return np.asarray(h.vertices, np.float64), np.asarray(h.faces, np.int64)
+
+
+def _box(x0, x1, y0, y1, z0, z1) -> tuple[np.ndarray, np.ndarray]:
+    pts = [(x, y, z) for x in (x0, x1) for y in (y0, y1) for z in (z0, z1)]
+    return _hull(pts)
+
+
+def _sym(points_xhz) -> list[tuple[float, float, float]]:
+    """Mirror (x, half_width, z) points to both sides: [(x, +hw, z), (x, -hw, z), ...]."""
+    out = []
+    for x, hw, z in points_xhz:
+        out.append((x, hw, z))
+        out.append((x, -hw, z))
+    return out
+
+
+def _wheel(x, y, r, width, sections=14) -> tuple[np.ndarray, np.ndarray]:
+    """A closed cylinder with its axis along y, standing on the ground (z from 0 to 2r)."""
+    ang = np.linspace(0.0, 2 * np.pi, sections, endpoint=False)
+    ring = np.column_stack([x + r * np.cos(ang), r + r * np.sin(ang)])
+    pts = [(px, y + s * width / 2, pz) for px, pz in ring for s in (-1, 1)]
+    return _hull(pts)
+
+
+def _glass_slab(quad, inside_point, offset=0.012, thickness=0.012, inset=0.05):
+    """A thin slab lying on a planar quad (4, 3), pushed ``offset`` outward (away from
+    ``inside_point``) and shrunk by ``inset`` toward the quad centre."""
+    q = np.asarray(quad, np.float64)
+    c = q.mean(axis=0)
+    q = c + (q - c) * (1.0 - inset)
+    n = np.cross(q[1] - q[0], q[2] - q[0])
+    n /= np.linalg.norm(n)
+    if np.dot(n, c - np.asarray(inside_point, float)) < 0:
+        n = -n
+    a = q + n * offset
+    b = q + n * (offset + thickness)
+    return _hull(np.concatenate([a, b]))
+
+
+@dataclass
+class _CarSpec:
+    """Side profile of a car-like body, in metres of the vehicle frame.
+
+    x_rear, x_front : body extent; half_w : half width of the body
+    clear           : body underside height; belt : beltline (bonnet/boot top at the cabin)
+    nose_top, nose_bot, tail_top, tail_bot : heights of the front and rear ends
+    ws_base, ws_top : x of the windscreen's lower and upper edge
+    rw_top, rw_base : x of the rear window's upper and lower edge
+    roof            : roof top height; tumble : inward lean of the side glass at the top
+    """
+
+    x_rear: float
+    x_front: float
+    half_w: float
+    clear: float
+    belt: float
+    nose_top: float
+    nose_bot: float
+    tail_top: float
+    tail_bot: float
+    ws_base: float
+    ws_top: float
+    rw_top: float
+    rw_base: float
+    roof: float
+    tumble: float = 0.12
+    corner: float = 0.14  # plan-view chamfer of the body corners
+    rear_lights: bool = True
+    body_rgb: tuple[float, float, float] | None = None
+    body_material: str = "paint"
+
+
+def _car_like(s: _CarSpec) -> list[_Part]:
+    """Body, greenhouse, roof, windscreen, rear window, front and rear lights."""
+    hw = s.half_w
+    c = s.corner
+    body_pts = _sym(
+        [
+            (s.x_rear, hw - c, s.tail_bot),
+            (s.x_rear, hw - c, s.tail_top - 0.04),
+            (s.x_rear + c, hw, s.clear),
+            (s.x_rear + c, hw, s.tail_top),
+            (s.rw_base, hw, s.clear),
+            (s.rw_base, hw, s.belt),
+            (s.ws_base, hw, s.clear),
+            (s.ws_base, hw, s.belt),
+            (s.x_front - c, hw, s.clear),
+            (s.x_front - c, hw, s.nose_top),
+            (s.x_front, hw - c, s.nose_bot),
+            (s.x_front, hw - c, s.nose_top - 0.05),
+        ]
+    )
+    parts = [_Part("body", s.body_material, s.body_rgb, *_hull(body_pts))]
+
+    roof_t = 0.05  # roof panel thickness
+    g_top = s.roof - roof_t * 0.6
+    hb = hw - 0.04
+    ht = hw - s.tumble
+    gh_pts = _sym(
+        [
+            (s.rw_base, hb, s.belt - 0.06),
+            (s.ws_base, hb, s.belt - 0.06),
+            (s.rw_base, hb, s.belt),
+            (s.ws_base, hb, s.belt),
+            (s.rw_top, ht, g_top),
+            (s.ws_top, ht, g_top),
+        ]
+    )
+    parts.append(_Part("greenhouse", "glass", DEFAULT_COLOR_FOR_MATERIAL["glass"], *_hull(gh_pts)))
+    inside = np.array([(s.rw_base + s.ws_base) / 2, 0.0, (s.belt + g_top) / 2])
+    ws = [(s.ws_base, -hb, s.belt), (s.ws_base, hb, s.belt), (s.ws_top, ht, g_top), (s.ws_top, -ht, g_top)]
+    parts.append(_Part("windscreen", "glass", WINDSCREEN_RGB, *_glass_slab(ws, inside)))
+    if s.rw_top - s.rw_base > 0.05:
+        rw = [(s.rw_base, hb, s.belt), (s.rw_base, -hb, s.belt), (s.rw_top, -ht, g_top), (s.rw_top, ht, g_top)]
+        parts.append(_Part("rear_window", "glass", WINDSCREEN_RGB, *_glass_slab(rw, inside)))
+    else:  # a vertical back (truck cab, campervan cab): a thin dark panel on it
+        rw = [(s.rw_base, hb, s.belt), (s.rw_base, -hb, s.belt), (s.rw_top, -ht, g_top), (s.rw_top, ht, g_top)]
+        parts.append(_Part("rear_window", "glass", WINDSCREEN_RGB, *_glass_slab(rw, inside, offset=0.005)))
+    # roof panel: covers the greenhouse top, slightly rounded edges
+    r0, r1 = s.rw_top + 0.01, s.ws_top - 0.01
+    roof_pts = _sym(
+        [
+            (r0, ht + 0.01, s.roof - roof_t),
+            (r1, ht + 0.01, s.roof - roof_t),
+            (r0 + 0.04, ht - 0.03, s.roof),
+            (r1 - 0.04, ht - 0.03, s.roof),
+        ]
+    )
+    parts.append(_Part("roof", "paint", s.body_rgb, *_hull(roof_pts)))
+
+    # lights: small blocks standing proud of the nose / tail tops
+    lx = 0.16
+    ly0, ly1 = hw - c - 0.36, hw - c - 0.01
+    for side in (1, -1):
+        y0, y1 = sorted((side * ly0, side * ly1))
+        parts.append(
+            _Part(
+                "light_front",
+                "light_front",
+                None if False else DEFAULT_COLOR_FOR_MATERIAL["light_front"],
+                *_box(s.x_front - lx, s.x_front - 0.004, y0, y1, s.nose_top - 0.16, s.nose_top + 0.006),
+            )
+        )
+        if s.rear_lights:
+            parts.append(
+                _Part(
+                    "light_rear",
+                    "light_rear",
+                    DEFAULT_COLOR_FOR_MATERIAL["light_rear"],
+                    *_box(s.x_rear + 0.004, s.x_rear + lx, y0, y1, s.tail_top - 0.16, s.tail_top + 0.006),
+                )
+            )
+    return parts
+
+
+def _wheels(axles, half_w, r, width, inset=0.06, dual_rear=False) -> list[_Part]:
+    """Tyres at the given axle x positions, their outer face ``inset`` inside half_w."""
+    parts = []
+    for k, x in enumerate(axles):
+        w = width * (1.8 if (dual_rear and k > 0) else 1.0)
+        y = half_w - inset - w / 2
+        for side in (1, -1):
+            parts.append(_Part("wheels", "tyre", DEFAULT_COLOR_FOR_MATERIAL["tyre"], *_wheel(x, side * y, r, w)))
+    return parts
+
+
+# ----------------------------------------------------------------- body types
+def _procedural_parts(model: VehicleModel) -> list[_Part]:
+    builder = _BUILDERS.get(model.body)
+    if builder is None:  # the catalog validates body types; this guards hand-made models
+        raise AssetError(
+            f"model {model.name!r}: body must be one of {', '.join(_BUILDERS)}, got {model.body!r}"
+        )
+    return builder(model.length_m, model.width_m, model.height_m)
+
+
+def _car(L, W, H, *, bonnet, ws_run, rw_top_from_rear, rw_base_from_rear, belt, nose_top,
+         tail_top, wheel_r, tumble=0.13, clear=0.16, rails=False) -> list[_Part]:
+    """A passenger car. Lengths in metres; bonnet = nose to windscreen base; ws_run =
+    horizontal run of the windscreen; rw_* = rear window edges measured from the tail."""
+    x0, x1 = -L / 2, L / 2
+    roof_h = H - (0.04 if rails else 0.0)
+    spec = _CarSpec(
+        x_rear=x0,
+        x_front=x1,
+        half_w=W / 2,
+        clear=clear,
+        belt=belt,
+        nose_top=nose_top,
+        nose_bot=clear + 0.12,
+        tail_top=tail_top,
+        tail_bot=clear + 0.14,
+        ws_base=x1 - bonnet,
+        ws_top=x1 - bonnet - ws_run,
+        rw_top=x0 + rw_top_from_rear,
+        rw_base=x0 + rw_base_from_rear,
+        roof=roof_h,
+        tumble=tumble,
+    )
+    parts = _car_like(spec)
+    oh_f, oh_r = 0.2 * L, 0.21 * L
+    parts += _wheels([x1 - oh_f, x0 + oh_r], W / 2, wheel_r, 0.22)
+    if rails:
+        ht = W / 2 - tumble
+        for side in (1, -1):
+            y0, y1 = sorted((side * (ht - 0.10), side * (ht - 0.04)))
+            parts.append(
+                _Part("roof_rails", "trim", DEFAULT_COLOR_FOR_MATERIAL["trim"],
+                      *_box(spec.rw_top + 0.10, spec.ws_top - 0.12, y0, y1, roof_h - 0.02, H))
+            )
+    return parts
+
+
+def _sport(L, W, H):
+    return _car(L, W, H, bonnet=0.36 * L, ws_run=0.62, rw_top_from_rear=0.34 * L,
+                rw_base_from_rear=0.13 * L, belt=0.62 * H, nose_top=0.46 * H, tail_top=0.62 * H,
+                wheel_r=0.33, tumble=0.17, clear=0.12)
+
+
+def _hatchback(L, W, H):
+    return _car(L, W, H, bonnet=0.27 * L, ws_run=0.78, rw_top_from_rear=0.12 * L,
+                rw_base_from_rear=0.03 * L, belt=0.60 * H, nose_top=0.52 * H, tail_top=0.60 * H,
+                wheel_r=0.31)
+
+
+def _sedan(L, W, H):
+    return _car(L, W, H, bonnet=0.29 * L, ws_run=0.80, rw_top_from_rear=0.30 * L,
+                rw_base_from_rear=0.17 * L, belt=0.62 * H, nose_top=0.52 * H, tail_top=0.62 * H,
+                wheel_r=0.32)
+
+
+def _suv(L, W, H):
+    return _car(L, W, H, bonnet=0.26 * L, ws_run=0.62, rw_top_from_rear=0.07 * L,
+                rw_base_from_rear=0.025 * L, belt=0.60 * H, nose_top=0.56 * H, tail_top=0.60 * H,
+                wheel_r=0.37, clear=0.22, rails=True)
+
+
+def _pickup(L, W, H):
+    x0, x1 = -L / 2, L / 2
+    bed_len = 0.33 * L
+    cab_back = x0 + bed_len + 0.06
+    belt = 0.58 * H
+    clear = 0.26
+    spec = _CarSpec(
+        x_rear=cab_back,
+        x_front=x1,
+        half_w=W / 2,
+        clear=clear,
+        belt=belt,
+        nose_top=0.56 * H,
+        nose_bot=clear + 0.14,
+        tail_top=belt,
+        tail_bot=clear + 0.1,
+        ws_base=x1 - 0.23 * L,
+        ws_top=x1 - 0.23 * L - 0.62,
+        rw_top=cab_back + 0.10,
+        rw_base=cab_back + 0.02,
+        roof=H,
+        tumble=0.12,
+        corner=0.04,
+        rear_lights=False,
+    )
+    parts = _car_like(spec)
+    # open bed: base, dark liner floor, four walls
+    b0, b1 = x0, cab_back - 0.04
+    floor = belt - 0.42
+    top = belt - 0.02
+    wt = 0.07
+    hw = W / 2 - 0.02
+    parts.append(_Part("bed", "paint", None, *_box(b0 + 0.02, b1, -hw, hw, clear + 0.05, floor)))
+    parts.append(_Part("bed_floor", "trim", BED_LINER_RGB, *_box(b0 + wt, b1 - wt, -hw + wt, hw - wt, floor, floor + 0.02)))
+    parts.append(_Part("bed", "paint", None, *_box(b0 + 0.02, b1, hw - wt, hw, floor, top)))
+    parts.append(_Part("bed", "paint", None, *_box(b0 + 0.02, b1, -hw, -hw + wt, floor, top)))
+    parts.append(_Part("bed", "paint", None, *_box(b1 - wt, b1, -hw, hw, floor, top)))
+    parts.append(_Part("tailgate", "paint", None, *_box(b0, b0 + wt, -hw, hw, floor - 0.05, top)))
+    for side in (1, -1):
+        y0, y1 = sorted((side * (hw - 0.02), side * (hw - 0.30)))
+        parts.append(_Part("light_rear", "light_rear", DEFAULT_COLOR_FOR_MATERIAL["light_rear"],
+                           *_box(b0 - 0.0, b0 + 0.08, y0, y1, top - 0.30, top + 0.004)))
+    parts += _wheels([x1 - 0.18 * L, x0 + 0.24 * L], W / 2, 0.39, 0.25)
+    return parts
+
+
+def _box_truck(L, W, H):
+    x0, x1 = -L / 2, L / 2
+    cab_len = 1.85
+    cab_h = min(2.6, 0.80 * H)
+    cab_back = x1 - cab_len
+    cab_hw = W / 2 - 0.06
+    spec = _CarSpec(
+        x_rear=cab_back,
+        x_front=x1,
+        half_w=cab_hw,
+        clear=0.50,
+        belt=0.58 * cab_h,
+        nose_top=0.55 * cab_h,
+        nose_bot=0.50,
+        tail_top=0.58 * cab_h,
+        tail_bot=0.55,
+        ws_base=x1 - 0.12,
+        ws_top=x1 - 0.62,
+        rw_top=cab_back + 0.03,
+        rw_base=cab_back + 0.02,
+        roof=cab_h,
+        tumble=0.10,
+        corner=0.12,
+        rear_lights=False,
+    )
+    parts = _car_like(spec)
+    box0, box1 = x0, cab_back - 0.10
+    parts.append(_Part("chassis", "trim", DEFAULT_COLOR_FOR_MATERIAL["trim"],
+                       *_box(x0 + 0.25, cab_back + 0.3, -0.5, 0.5, 0.55, 0.95)))
+    parts.append(_Part("cargo_box", "cargo", DEFAULT_COLOR_FOR_MATERIAL["cargo"],
+                       *_box(box0 + 0.03, box1, -W / 2, W / 2, 0.98, H)))
+    # roof panel seams on the box: thin raised strips every ~1.2 m (read as a box from above)
+    n_seams = max(2, int((box1 - box0) / 1.3))
+    for xs in np.linspace(box0 + 0.6, box1 - 0.6, n_seams):
+        parts.append(_Part("cargo_box_ribs", "metal", (0.70, 0.71, 0.72),
+                           *_box(xs - 0.03, xs + 0.03, -W / 2 + 0.04, W / 2 - 0.04, H - 0.02, H)))
+    parts.append(_Part("bumper_rear", "trim", DEFAULT_COLOR_FOR_MATERIAL["trim"],
+                       *_box(x0, x0 + 0.12, -W / 2 + 0.05, W / 2 - 0.05, 0.55, 0.75)))
+    for side in (1, -1):
+        y0, y1 = sorted((side * (W / 2 - 0.08), side * (W / 2 - 0.38)))
+        parts.append(_Part("light_rear", "light_rear", DEFAULT_COLOR_FOR_MATERIAL["light_rear"],
+                           *_box(x0 + 0.0, x0 + 0.10, y0, y1, 0.75, 0.93)))
+    parts += _wheels([x1 - 1.15, x0 + 0.30 * L], W / 2, 0.46, 0.28, dual_rear=True)
+    return parts
+
+
+def _campervan(L, W, H):
+    x0, x1 = -L / 2, L / 2
+    cab_len = 2.25
+    cab_back = x1 - cab_len
+    cab_h = 2.05
+    cab_hw = W / 2 - 0.13
+    box_h = H - 0.18  # roof-top fittings (air conditioner) reach H
+    spec = _CarSpec(
+        x_rear=cab_back,
+        x_front=x1,
+        half_w=cab_hw,
+        clear=0.32,
+        belt=1.12,
+        nose_top=1.00,
+        nose_bot=0.42,
+        tail_top=1.12,
+        tail_bot=0.45,
+        ws_base=x1 - 0.72,
+        ws_top=x1 - 1.48,
+        rw_top=cab_back + 0.02,
+        rw_base=cab_back + 0.01,
+        roof=cab_h,
+        tumble=0.10,
+        corner=0.16,
+        rear_lights=False,
+    )
+    parts = _car_like(spec)
+    # living box: full width, sloped "aero" front over the cab roof
+    hw = W / 2
+    box_pts = _sym(
+        [
+            (x0 + 0.04, hw, 0.50),
+            (x0 + 0.04, hw, box_h),
+            (x1 - 1.95, hw, box_h),
+            (x1 - 1.52, hw - 0.06, cab_h - 0.04),
+            (cab_back - 0.05, hw, 0.50),
+        ]
+    )
+    parts.append(_Part("living_box", "cargo", (0.88, 0.88, 0.86), *_hull(box_pts)))
+    # roof fittings: two skylights, a solar panel, an air conditioner
+    for xc, sx, sy in ((x1 - 2.45, 0.45, 0.45), (x0 + 1.0, 0.45, 0.45)):
+        parts.append(_Part("skylight", "glass", (0.10, 0.11, 0.12),
+                           *_box(xc - sx / 2, xc + sx / 2, -sy / 2, sy / 2, box_h - 0.01, box_h + 0.06)))
+    xs = (x1 - 2.45 + x0 + 1.0) / 2
+    parts.append(_Part("solar_panel", "glass", SOLAR_RGB,
+                       *_box(xs - 0.90, xs + 0.10, -0.05, hw - 0.18, box_h - 0.01, box_h + 0.05)))
+    parts.append(_Part("air_conditioner", "metal", (0.78, 0.78, 0.76),
+                       *_box(xs + 0.35, xs + 1.05, -hw + 0.40, -0.05, box_h - 0.01, H)))
+    for side in (1, -1):
+        y0, y1 = sorted((side * (hw - 0.05), side * (hw - 0.30)))
+        parts.append(_Part("light_rear", "light_rear", DEFAULT_COLOR_FOR_MATERIAL["light_rear"],
+                           *_box(x0, x0 + 0.08, y0, y1, 0.55, 0.95)))
+    parts += _wheels([x1 - 0.95, x0 + 0.34 * L], hw, 0.36, 0.24, inset=0.17, dual_rear=False)
+    return parts
+
+
+_BUILDERS = {
+    "sport": _sport,
+    "hatchback": _hatchback,
+    "sedan": _sedan,
+    "suv": _suv,
+    "pickup": _pickup,
+    "box_truck": _box_truck,
+    "campervan": _campervan,
+}
+
+
+# --------------------------------------------------------------------------- user meshes
+@dataclass(frozen=True, eq=False)
+class UserPart:
+    """One geometry of a user mesh after the change to the vehicle frame.
+
+    material_name : the file's material name ('' if none)
+    material      : aerial-synth material guessed from the name (paint, glass, tyre, ...)
+    rgb           : the file's base colour, RGB in [0, 1]
+    vertices      : (n, 3) float64, metres, vehicle frame; faces : (m, 3) int64
+    """
+
+    name: str
+    material_name: str
+    material: str
+    rgb: tuple[float, float, float]
+    vertices: np.ndarray
+    faces: np.ndarray
+
+
+def axes_rotation(forward: str, up: str) -> np.ndarray:
+    """(3, 3) rotation taking the file's ``forward`` axis to +x and ``up`` to +z.
+
+    Rows are the file-frame directions of vehicle +x (forward), +y (left = up x forward)
+    and +z (up); apply as ``v_vehicle = v_file @ R.T``. det(R) = +1, so winding is kept.
+    """
+    f = np.asarray(AXES[forward], float)
+    u = np.asarray(AXES[up], float)
+    return np.stack([f, np.cross(u, f), u])
+
+
+def _guess_material(name: str) -> str:
+    n = name.lower()
+    if any(k in n for k in ("glass", "window", "windscreen", "windshield")):
+        return "glass"
+    if any(k in n for k in ("tyre", "tire", "wheel", "rubber")):
+        return "tyre"
+    if any(k in n for k in ("tail", "brake", "rear_light", "rearlight")):
+        return "light_rear"
+    if any(k in n for k in ("light", "lamp")):
+        return "light_front"
+    if any(k in n for k in ("chrome", "metal", "rim")):
+        return "metal"
+    if any(k in n for k in ("trim", "plastic", "bumper", "black")):
+        return "trim"
+    return "paint"
+
+
+def _visual_rgb(mesh) -> tuple[float, float, float]:
+    vis = getattr(mesh, "visual", None)
+    try:
+        mat = getattr(vis, "material", None)
+        if mat is not None:
+            c = np.asarray(mat.main_color, float)[:3] / 255.0
+            return tuple(float(x) for x in np.clip(c, 0, 1))
+        fc = getattr(vis, "face_colors", None)
+        if fc is not None and len(fc):
+            c = np.asarray(fc, float)[:, :3].mean(axis=0) / 255.0
+            return tuple(float(x) for x in np.clip(c, 0, 1))
+    except Exception:  # noqa: BLE001 - odd visuals fall back to grey
+        pass
+    return (0.5, 0.5, 0.5)
+
+
+@lru_cache(maxsize=64)
+def _load_user_mesh_cached(path: Path, mtime_ns: int, scale: float, forward: str, up: str):
+    import trimesh
+
+    try:
+        loaded = trimesh.load(str(path), force="scene", process=False)
+    except Exception as exc:  # noqa: BLE001 - any loader failure is a bad asset
+        msg = " ".join(str(exc).split())[:200]
+        raise AssetError(f"cannot read mesh {path.name!r}: {type(exc).__name__}: {msg}") from None
+    meshes = [g for g in loaded.dump(concatenate=False) if isinstance(g, trimesh.Trimesh)]
+    meshes = [m for m in meshes if len(m.faces)]
+    if not meshes:
+        raise AssetError(f"mesh {path.name!r} holds no triangles")
+    rot = axes_rotation(forward, up)
+    raw = []
+    for k, m in enumerate(meshes):
+        mat = getattr(getattr(m, "visual", None), "material", None)
+        mname = str(getattr(mat, "name", "") or "") if mat is not None else ""
+        v = np.asarray(m.vertices, np.float64) * scale @ rot.T
+        gname = str(m.metadata.get("name", "") or f"part{k}")
+        raw.append((gname, mname, v, np.asarray(m.faces, np.int64), _visual_rgb(m)))
+    allv = np.concatenate([r[2] for r in raw])
+    lo, hi = allv.min(axis=0), allv.max(axis=0)
+    shift = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+    out = []
+    for gname, mname, v, f, rgb in raw:
+        vv = v - shift
+        vv.setflags(write=False)
+        f.setflags(write=False)
+        out.append(UserPart(gname, mname, _guess_material(mname or gname), rgb, vv, f))
+    return tuple(out)
+
+
+def load_user_mesh_parts(path: Path, scale: float = 1.0, forward: str = "+x",
+                         up: str = "+z") -> tuple[UserPart, ...]:
+    """Read a glTF/GLB/OBJ file and bring it into the vehicle frame: multiply by ``scale``,
+    rotate ``forward`` to +x and ``up`` to +z, centre the footprint on the origin and stand
+    it on z = 0. Vertices and faces are kept as in the file otherwise (no merging or
+    re-ordering). Raises :class:`AssetError` when the file cannot be read."""
+    path = Path(path)
+    if not path.is_file():
+        raise AssetError(f"mesh file not found: {path}")
+    return _load_user_mesh_cached(path, path.stat().st_mtime_ns, float(scale), forward, up)
