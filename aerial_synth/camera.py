@@ -15,7 +15,7 @@ horizontal axis at ``tilt_axis_deg`` (0 = the east axis, counter-clockwise).
 
 ``altitude_m`` is the height of the camera above the ground at its target point; the GSD at
 nadir is ``altitude_m / focal_px`` metres per pixel (METHOD.md section 7: 60 m, 0.12 m,
-focal about 500 px, horizontal FOV about 91.6 degrees at 1024 px).
+focal 500 px, horizontal FOV about 91.4 degrees at 1024 px).
 
 Public API
 ----------

@@ -5,10 +5,10 @@ pixel (col j, row i) covers [j, j+1] x [i, i+1] so its centre is (j + 0.5, i + 0
 convention as ``Camera.project``).
 
 Box extraction follows the thesis: per instance mask, dilate with a 3 x 3 kernel, find the
-outer contours with OpenCV, keep the largest region, take the minimum-area rectangle. The
-dilation grows the outline by about one pixel beyond the pixel-centre outline, i.e. half a
-pixel beyond the pixel-edge outline; ``BoxConfig.shrink_px`` (default 0.5) takes that half
-pixel back on every side, so a mask rasterised from a rectangle gives that rectangle back.
+regions, keep the largest, take the minimum-area rectangle. By default (``fit="pixels"``) the
+rectangle is fitted to the largest region's own pixel centres and grown by 0.25 px per side,
+because the dilated outline runs 1 to 1.7 px outside the true one; ``fit="dilated"`` is the
+thesis literally (rectangle of the dilated contour).
 
 Corners are ordered front-left, front-right, rear-right, rear-left of the *vehicle*: that is
 clockwise on screen (positive shoelace area with y down) and starts at the "head" corner that
@@ -48,6 +48,7 @@ __all__ = [
 ]
 
 BOX_MODES: tuple[str, ...] = ("visible", "amodal")
+BOX_FITS: tuple[str, ...] = ("pixels", "dilated")
 STATUSES: tuple[str, ...] = ("kept", "difficult", "dropped")
 
 
@@ -58,7 +59,9 @@ class BoxConfig:
     box                        : "visible" (rectangle of the visible mask, the thesis) or
                                  "amodal" (rectangle of the whole vehicle, occluded parts too)
     kernel_px                  : dilation kernel size (thesis: 3 -> 3 x 3); 1 = no dilation
-    shrink_px                  : taken off every side of the rectangle after dilation, px
+    fit                        : "pixels" (default) or "dilated" (the thesis literally), see
+                                 :func:`mask_to_rect_corners`
+    grow_px                    : added to every side of a "pixels" rectangle, px
     difficult_visible_fraction : difficult when visible fraction < this (default 0.5)
     difficult_if_truncated     : difficult when the vehicle is cut by the image border
     min_visible_fraction       : dropped when visible fraction < this (default 0.1)
@@ -70,7 +73,8 @@ class BoxConfig:
 
     box: str = "visible"
     kernel_px: int = 3
-    shrink_px: float = 0.5
+    fit: str = "pixels"
+    grow_px: float = 0.25
     difficult_visible_fraction: float = 0.5
     difficult_if_truncated: bool = True
     min_visible_fraction: float = 0.1
@@ -83,8 +87,10 @@ class BoxConfig:
             raise ConfigError(f"box: expected one of {', '.join(BOX_MODES)}, got {self.box!r}")
         if not (isinstance(self.kernel_px, (int, np.integer)) and self.kernel_px >= 1):
             raise ConfigError(f"kernel_px: expected an integer >= 1, got {self.kernel_px!r}")
-        if not (0.0 <= self.shrink_px <= 2.0):
-            raise ConfigError(f"shrink_px: expected 0..2 px, got {self.shrink_px!r}")
+        if self.fit not in BOX_FITS:
+            raise ConfigError(f"fit: expected one of {', '.join(BOX_FITS)}, got {self.fit!r}")
+        if not (0.0 <= self.grow_px <= 2.0):
+            raise ConfigError(f"grow_px: expected 0..2 px, got {self.grow_px!r}")
         for name in ("difficult_visible_fraction", "min_visible_fraction"):
             v = getattr(self, name)
             if not (0.0 <= v <= 1.0):
@@ -105,7 +111,8 @@ class BoxConfig:
         return {
             "box": self.box,
             "kernel_px": int(self.kernel_px),
-            "shrink_px": float(self.shrink_px),
+            "fit": self.fit,
+            "grow_px": float(self.grow_px),
             "difficult_visible_fraction": float(self.difficult_visible_fraction),
             "difficult_if_truncated": bool(self.difficult_if_truncated),
             "min_visible_fraction": float(self.min_visible_fraction),
@@ -288,24 +295,36 @@ def shoelace_area(corners_xy) -> float:
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
-def _rect_from_cv(rect, shrink_px: float) -> np.ndarray:
+def _grown_box_points(rect, grow_px: float) -> np.ndarray:
     import cv2
 
     (cx, cy), (w, h), ang = rect
-    w = max(float(w) - 2.0 * shrink_px, 1.0)
-    h = max(float(h) - 2.0 * shrink_px, 1.0)
+    w = max(float(w) + 2.0 * grow_px, 1.0)
+    h = max(float(h) + 2.0 * grow_px, 1.0)
     return cv2.boxPoints(((cx, cy), (w, h), ang)).astype(float)
 
 
 def mask_to_rect_corners(
-    mask: np.ndarray, offset_xy_px=(0, 0), kernel_px: int = 3, shrink_px: float = 0.5
+    mask: np.ndarray,
+    offset_xy_px=(0, 0),
+    kernel_px: int = 3,
+    fit: str = "pixels",
+    grow_px: float = 0.25,
 ) -> np.ndarray | None:
-    """Minimum-area rectangle of the largest region of a (dilated) mask.
+    """Minimum-area rectangle of the largest region of a mask (METHOD.md §9).
 
     mask          : (h, w) bool, the instance's bounding crop
     offset_xy_px  : (x0, y0) int, the crop's top-left pixel in the image
+    kernel_px     : dilation kernel (3 -> 3 x 3); regions are the connected parts of the
+                    dilated mask, so fragments a thin occluder splits stay together
+    fit           : "pixels" -> rectangle of the largest region's own (undilated) pixel
+                    centres, grown by ``grow_px`` on every side; "dilated" -> the thesis
+                    literally: rectangle of the dilated region's outer contour
     returns       : (4, 2) float corners, px, image frame (pixel centres at +0.5), in
                     OpenCV's order (not yet heading-ordered), or None for an empty mask
+
+    The dilated contour runs 1 to 1.7 px outside the true outline (depending on the angle),
+    which costs a car 10 to 20 % of IoU at 12 cm GSD; "pixels" stays within about +-0.25 px.
     """
     import cv2
 
@@ -315,25 +334,27 @@ def mask_to_rect_corners(
     pad = kernel_px // 2 + 1
     img = np.zeros((m.shape[0] + 2 * pad, m.shape[1] + 2 * pad), dtype=np.uint8)
     img[pad:-pad, pad:-pad] = m
-    if kernel_px > 1:
-        img = cv2.dilate(img, np.ones((kernel_px, kernel_px), np.uint8))
-    contours, _ = cv2.findContours(img, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    dil = cv2.dilate(img, np.ones((kernel_px, kernel_px), np.uint8)) if kernel_px > 1 else img
+    n, labels = cv2.connectedComponents(dil, connectivity=8)
+    if n > 2:
+        # Largest region = most original pixels; ties -> lowest label (first in raster order).
+        counts = np.bincount(labels[img > 0], minlength=n)
+        counts[0] = -1
+        keep = int(np.argmax(counts))
+        region = labels == keep
+    else:
+        region = dil > 0
+    if fit == "dilated":
+        src = region.astype(np.uint8)
+        grow = 0.0
+    else:
+        src = (region & (img > 0)).astype(np.uint8)
+        grow = grow_px
+    contours, _ = cv2.findContours(src, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     if not contours:
         return None
-    # Largest region by enclosed area; ties broken by point count, then by first found.
-    best = max(
-        range(len(contours)),
-        key=lambda i: (cv2.contourArea(contours[i]), len(contours[i]), -i),
-    )
-    rect = cv2.minAreaRect(contours[best])
-    if kernel_px <= 1:
-        # Pixel-centre outline lies half a pixel inside the pixel-edge outline.
-        shrink = shrink_px - 0.5
-        (cx, cy), (w, h), ang = rect
-        rect = ((cx, cy), (w - 2 * shrink, h - 2 * shrink), ang)
-        corners = _rect_from_cv(rect, 0.0)
-    else:
-        corners = _rect_from_cv(rect, shrink_px)
+    pts = np.concatenate([c.reshape(-1, 2) for c in contours]).astype(np.float32)
+    corners = _grown_box_points(cv2.minAreaRect(pts), grow)
     x0, y0 = offset_xy_px
     return corners + np.array([x0 - pad + 0.5, y0 - pad + 0.5])
 
@@ -504,12 +525,14 @@ def annotate_instances(
             continue
         x0, y0 = sl[1].start, sl[0].start
         if config.box == "visible":
-            rect = mask_to_rect_corners(crop, (x0, y0), config.kernel_px, config.shrink_px)
+            rect = mask_to_rect_corners(crop, (x0, y0), config.kernel_px, config.fit, config.grow_px)
         else:
             rect = None
             if amodal_mask is not None:
                 am, (ax0, ay0) = amodal_mask(vid)
-                rect = mask_to_rect_corners(am, (ax0, ay0), config.kernel_px, config.shrink_px)
+                rect = mask_to_rect_corners(
+                    am, (ax0, ay0), config.kernel_px, config.fit, config.grow_px
+                )
             if rect is None:
                 rect = points_to_rect_corners(project(cuboid_corners_xyz(veh)))
         if rect is None:

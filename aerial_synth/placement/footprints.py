@@ -37,6 +37,12 @@ class FootprintIndex:
         c = footprint_corners_xy(x, y, heading, length + self.gap_m, width + self.gap_m)
         return shapely.Polygon(c)
 
+    def point_zone(self, xy, radius_m: float = 2.0):
+        """A disc around a seed point: seeds this close to a placed vehicle are skipped."""
+        import shapely
+
+        return shapely.Point(float(xy[0]), float(xy[1])).buffer(radius_m, quad_segs=4)
+
     def collides(self, poly, center_xy=None) -> bool:
         import shapely
 

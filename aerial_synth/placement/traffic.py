@@ -127,12 +127,13 @@ class _Engine:
         theta = np.asarray(theta, float).reshape(-1)
         a1 = theta + self.side * np.pi / 2
         a2 = a1 - self.side * np.radians(cfg.probe.side_angle_deg)
-        pr = self.prober.march(q, np.stack([a1, a2], axis=1))
+        pr = self.prober.march(q, np.stack([a1, a2], axis=1), include_origin=True)
         e1, e2 = pr.edge_xy[:, 0], pr.edge_xy[:, 1]
         t = e2 - e1
         tn = np.linalg.norm(t, axis=1)
-        ok = pr.found.all(axis=1) & (tn > 1e-4)
-        reason = np.where(ok, "", "no_edge").astype(object)
+        on = pr.count[:, 0] >= 0
+        ok = on & pr.found.all(axis=1) & (tn > 1e-4)
+        reason = np.where(ok, "", np.where(on, "no_edge", "off_road")).astype(object)
         tu = t / np.where(tn > 0, tn, 1.0)[:, None]
         head = np.arctan2(tu[:, 1], tu[:, 0])
         foot = e1 + ((q - e1) * tu).sum(axis=1, keepdims=True) * tu
@@ -206,7 +207,7 @@ class _Engine:
         P = len(seeds)
         D = int(cfg.probe.directions)
         ang = np.tile(np.arange(D) * (TWO_PI / D), (P, 1))
-        pr = self.prober.march(seeds, ang)
+        pr = self.prober.march(seeds, ang, first_only=True)
         best = np.argmin(pr.count, axis=1)  # fewest road hits: perpendicular to the edge
         has_edge = pr.found[np.arange(P), best]
         phi = ang[np.arange(P), best]
@@ -228,6 +229,21 @@ class _Engine:
                 c.x[flip], c.y[flip], c.heading[flip] = cf.x, cf.y, cf.heading
                 c.ok[flip] &= cf.ok
                 c.edge_dist[flip] = cf.edge_dist
+        # Check harder than the thesis: at a dead end or where a road leaves the scene the
+        # nearest edge is the road's end, and the heading found runs across the road. A real
+        # road runs further along the heading than across it.
+        sel = np.flatnonzero(c.ok)
+        if len(sel):
+            pos = np.stack([c.x[sel], c.y[sel]], 1)
+            h = c.heading[sel]
+            ext = self.prober.march(
+                pos, np.stack([h, h + np.pi, h - self.side * np.pi / 2], 1), include_origin=True
+            )
+            along = ext.dist_m[:, 0] + ext.dist_m[:, 1]
+            across = cfg.lane_offset_m + ext.dist_m[:, 2]
+            bad = sel[(along <= across) | (ext.count[:, 0] < 0)]
+            c.ok[bad] = False
+            c.reason[bad] = "road_end"
         variants = self.sample_variants(P)
         L = np.array([v.model.length_m for v in variants])
         W = np.array([v.model.width_m for v in variants])
@@ -286,75 +302,94 @@ class _Engine:
         return started
 
     # ------------------------------------------------------------------ advancing
-    def advance(self, active: list[_Line]) -> None:
-        """Advance lines in lock-step until each ends (thesis Fig. 3.12 steps a-e)."""
+    def advance_round(self, active: list[_Line]) -> tuple[list[_Line], list[_Line]]:
+        """One lock-step round for every active line (thesis Fig. 3.12 steps a-e):
+        sample s, step ahead, re-probe two directions, check and place.
+        Returns (still active, finished this round)."""
         cfg = self.cfg
-        active = [ln for ln in active if len(ln.placed) < ln.target]
-        for ln in self.lines:
-            if len(ln.placed) >= ln.target and not ln.reason:
-                ln.reason = "complete"
-        while active and not self.full():
-            n = len(active)
-            s = cfg.spacing.sample(self.rng, n)
-            head = np.array([ln.heading for ln in active])
-            prev = np.array([[ln.x, ln.y] for ln in active])
-            q = prev + unit(head) * s[:, None]
-            on = self.prober.is_road(q)
-            c = self.locate(q, head)
-            c.ok &= on
-            c.reason[~on] = "off_road"
-            turned = _angdiff(c.heading, head) > np.radians(cfg.probe.max_turn_deg)
-            jump = np.abs(c.edge_dist - cfg.lane_offset_m) > cfg.probe.edge_jump_m
-            bad = c.ok & (turned | jump)
-            c.ok[bad] = False
-            c.reason[bad] = "junction"
-            variants = self.sample_variants(n)
-            L = np.array([v.model.length_m for v in variants])
-            W = np.array([v.model.width_m for v in variants])
-            z = self.check_footprints(c, L, W)
-            still = []
-            for i, ln in enumerate(active):
-                if self.full():
-                    ln.reason = ln.reason or "limit"
-                    continue
-                if c.ok[i] and self.accept(c, variants, z, i):
-                    spacing = float(np.hypot(c.x[i] - ln.x, c.y[i] - ln.y))
-                    self.add_vehicle(c, i, variants[i], z[i], ln, spacing)
-                    if len(ln.placed) >= ln.target:
-                        ln.reason = "complete"
-                    else:
-                        still.append(ln)
+        n = len(active)
+        s = cfg.spacing.sample(self.rng, n)
+        head = np.array([ln.heading for ln in active])
+        prev = np.array([[ln.x, ln.y] for ln in active])
+        q = prev + unit(head) * s[:, None]
+        c = self.locate(q, head)
+        turned = _angdiff(c.heading, head) > np.radians(cfg.probe.max_turn_deg)
+        jump = np.abs(c.edge_dist - cfg.lane_offset_m) > cfg.probe.edge_jump_m
+        bad = c.ok & (turned | jump)
+        c.ok[bad] = False
+        c.reason[bad] = "junction"
+        variants = self.sample_variants(n)
+        L = np.array([v.model.length_m for v in variants])
+        W = np.array([v.model.width_m for v in variants])
+        z = self.check_footprints(c, L, W)
+        still, done = [], []
+        for i, ln in enumerate(active):
+            if self.full():
+                ln.reason = ln.reason or "limit"
+                done.append(ln)
+                continue
+            if c.ok[i] and self.accept(c, variants, z, i):
+                spacing = float(np.hypot(c.x[i] - ln.x, c.y[i] - ln.y))
+                self.add_vehicle(c, i, variants[i], z[i], ln, spacing)
+                if len(ln.placed) >= ln.target:
+                    ln.reason = "complete"
+                    done.append(ln)
                 else:
-                    ln.reason = str(c.reason[i]) or "blocked"
-            active = still
+                    still.append(ln)
+            else:
+                ln.reason = str(c.reason[i]) or "blocked"
+                done.append(ln)
+        return still, done
+
+    # ------------------------------------------------------------------ scenarios
+    def run_lines(self, n_vehicles: int | None, n_lines: int | None, in_flight: int = 64) -> None:
+        """Pipelined traffic lines: keep up to ``in_flight`` lines advancing together; a
+        finished line may spawn its opposite lane, and new seeds refill the pool."""
+        self.limit = n_vehicles
+        active: list[_Line] = []
+        fails = 0
+        seeds_exhausted = False
+        while not self.full():
+            n_fwd = sum(1 for ln in self.lines if ln.lane == 0)
+            want = in_flight - len(active)
+            if n_lines is not None:
+                want = min(want, n_lines - n_fwd)
+            if want > 0 and not seeds_exhausted and fails <= 8 * in_flight:
+                seeds = self.next_seeds(want)
+                if not len(seeds):
+                    seeds_exhausted = True
+                else:
+                    free = np.array([not self.index.collides(self.index.point_zone(p)) for p in seeds], bool)
+                    fails += int((~free).sum())
+                    seeds = seeds[free]
+                if len(seeds):
+                    started = self.start_lines(seeds)
+                    fails = 0 if started else fails + len(seeds)
+                    for ln in started:
+                        if ln.target <= 1:
+                            ln.reason = "complete"
+                    active += [ln for ln in started if len(ln.placed) < ln.target]
+                    finished_now = [ln for ln in started if len(ln.placed) >= ln.target]
+                    active += self._opposites(finished_now)
+            if not active:
+                if seeds_exhausted or fails > 8 * in_flight:
+                    break
+                if n_lines is not None and sum(1 for ln in self.lines if ln.lane == 0) >= n_lines:
+                    break
+                continue
+            still, done = self.advance_round(active)
+            active = still + self._opposites([ln for ln in done if ln.lane == 0])
         for ln in active:
             ln.reason = ln.reason or "limit"
 
-    # ------------------------------------------------------------------ scenarios
-    def run_lines(self, n_vehicles: int | None, n_lines: int | None, wave: int = 24) -> None:
-        self.limit = n_vehicles
-        fails = 0
-        while not self.full():
-            n_fwd = sum(1 for ln in self.lines if ln.lane == 0)
-            if n_lines is not None and n_fwd >= n_lines:
-                break
-            want = wave if n_lines is None else min(wave, n_lines - n_fwd)
-            seeds = self.next_seeds(want)
-            if not len(seeds):
-                break
-            seeds = np.array([p for p in seeds if not self.index.collides(self.index.polygon(p[0], p[1], 0.0, 0.1, 0.1))]).reshape(-1, 2)
-            if not len(seeds):
-                fails += want
-                if fails > 20 * wave:
-                    break
-                continue
-            started = self.start_lines(seeds)
-            fails = fails + (len(seeds) - len(started)) if not started else 0
-            self.advance(started)
-            opp = self.start_opposite([ln for ln in started])
-            self.advance(opp)
-            if fails > 20 * wave:  # the roads are full: nothing starts any more
-                break
+    def _opposites(self, finished: list[_Line]) -> list[_Line]:
+        if not finished or self.full():
+            return []
+        opp = self.start_opposite(finished)
+        for ln in opp:
+            if len(ln.placed) >= ln.target:
+                ln.reason = "complete"
+        return [ln for ln in opp if len(ln.placed) < ln.target]
 
     def run_random(self, n_vehicles: int) -> None:
         self.limit = n_vehicles

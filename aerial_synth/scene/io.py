@@ -185,8 +185,10 @@ def _read_yaml(path: Path, what: str) -> Any:
     try:
         return yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        msg = " ".join(str(exc).split())
-        raise SceneError(f"{what} {path}: broken YAML ({msg})") from None
+        mark = getattr(exc, "problem_mark", None)
+        problem = getattr(exc, "problem", None) or " ".join(str(exc).split())
+        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark is not None else ""
+        raise SceneError(f"{what} {path}: broken YAML ({where}{problem})") from None
 
 
 def load_rules(path: str | Path | None) -> LabelRules:
@@ -304,13 +306,22 @@ def _material_and_color(geom) -> tuple[str | None, tuple[float, float, float] | 
 def _trimesh_load(path: Path):
     import trimesh
 
-    try:
-        loaded = trimesh.load(
-            str(path), force="scene", process=False, maintain_order=True, skip_materials=False
-        )
-    except TypeError:
-        loaded = trimesh.load(str(path), force="scene", process=False, maintain_order=True)
-    return loaded
+    kw = {}
+    if path.suffix.lower() == ".obj":
+        # one geometry per `o` object, named after it; no material grouping
+        kw = {"split_objects": True, "group_material": False}
+    return trimesh.load(str(path), force="scene", process=False, maintain_order=True, **kw)
+
+
+def _drop_unused(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Remove vertices no face uses, keeping the order of the others (OBJ objects share
+    one vertex list). v: (n, 3), f: (m, 3) -> compacted copies."""
+    used = np.zeros(len(v), bool)
+    used[f.ravel()] = True
+    if used.all():
+        return v, f
+    new_index = np.cumsum(used) - 1
+    return v[used], new_index[f]
 
 
 def load_mesh_scene(path: str | Path, labels: str | Path | None = None) -> Scene:
@@ -394,6 +405,7 @@ def load_mesh_scene(path: str | Path, labels: str | Path | None = None) -> Scene
                 oname, k = f"{base_name}.{k}", k + 1
             used.add(oname)
             faces = np.asarray(geom.faces, np.int64)
+            v, faces = _drop_unused(v, faces)
             if np.linalg.det(np.asarray(T, float)[:3, :3]) < 0:
                 faces = faces[:, ::-1]  # mirrored node: keep counter-clockwise winding
             try:

@@ -176,6 +176,14 @@ def _markings(r: _Road, others_area, cfg: Mapping):
     return m
 
 
+def _polygonal(g):
+    """The polygon parts of a shapely geometry (drops stray lines/points of a clip)."""
+    import shapely
+
+    parts = [p for p in shapely.get_parts(g) if p.geom_type in ("Polygon", "MultiPolygon")]
+    return shapely.union_all(parts) if parts else shapely.Polygon()
+
+
 # --------------------------------------------------------------------------- assembly
 class _Builder:
     """Collects polygons and meshes, then emits labelled objects and truth."""
@@ -374,7 +382,7 @@ class _Builder:
         water = self.water_area().intersection(self.box)
         sidewalk = self.sidewalk_area()
 
-        ground = self.box.difference(road_area).difference(parking).difference(water)
+        ground = _polygonal(self.box.difference(road_area).difference(parking).difference(water))
         objs.append(polygon_object("ground", "ground", ground, Z_GROUND))
         for i, part in enumerate(shapely.get_parts(road_area)):
             objs.append(polygon_object(f"road_{i:03d}", "road", part, Z_ROAD))
@@ -390,7 +398,7 @@ class _Builder:
             for i, r in enumerate(self.roads):
                 others = [p for j, p in enumerate(self._road_polys) if j != i]
                 others_area = shapely.union_all(others) if others else None
-                m = _markings(r, others_area, mcfg)
+                m = _polygonal(_markings(r, others_area, mcfg).intersection(road_area))
                 if not m.is_empty:
                     objs.append(polygon_object(f"lane_marking_{r.name}", "lane_marking", m, Z_MARKING))
         for i, (poly, hgt) in enumerate(self.buildings):

@@ -84,6 +84,7 @@ class _Built:
     def __init__(self, o3d_scene, geom_face_base: dict[int, np.ndarray]):
         self.scene = o3d_scene
         self.geom_face_base = geom_face_base  # geometry id -> (m_g,) global face index
+        self.lut = None  # (concatenated face maps + sentinel -1, per-geometry offsets)
 
 
 class RayScene:
@@ -217,6 +218,9 @@ class RayScene:
             if vs
             else np.zeros((0, 3), np.uint32)
         )
+        self._face_label_s = np.append(self.face_label, np.int16(0))
+        self._face_instance_s = np.append(self.face_instance, np.int32(0))
+        self._face_object_s = np.append(self.face_object, np.int32(-1))
         self._tables_dirty = False
 
     def _get_built(self, ignore: frozenset[str]) -> _Built:
@@ -251,6 +255,24 @@ class RayScene:
         return built
 
     # ------------------------------------------------------------------ casting
+    def _cast_faces(self, rays: np.ndarray, ignore: frozenset[str]):
+        """Cast and map hits to global face indices (-1 on miss). Returns (ans, face)."""
+        built = self._get_built(ignore)
+        r = np.ascontiguousarray(np.asarray(rays, dtype=np.float32).reshape(-1, 6))
+        o3d = _o3d()
+        ans = built.scene.cast_rays(o3d.core.Tensor.from_numpy(r))
+        gid = ans["geometry_ids"].numpy()
+        pid = ans["primitive_ids"].numpy()
+        if built.lut is None:
+            maps = [built.geom_face_base.get(g, np.zeros(0, np.int64))
+                    for g in range(max(built.geom_face_base, default=-1) + 1)]
+            offs = np.concatenate([[0], np.cumsum([len(m) for m in maps])]).astype(np.int64)
+            built.lut = (np.concatenate(maps + [np.array([-1], np.int64)]), offs)
+        concat, offs = built.lut
+        valid = gid < len(offs) - 1
+        idx = np.where(valid, offs[np.where(valid, gid, 0)] + pid, len(concat) - 1)
+        return ans, concat[idx]
+
     def cast_rays(self, rays: np.ndarray, ignore: Iterable[str] = ()) -> RayHits:
         """Cast arbitrary rays.
 
@@ -258,28 +280,27 @@ class RayScene:
                measured in units of the direction's length.
         ignore : labels to pass through (default: none, the renderer's view)
         """
-        built = self._get_built(frozenset(ignore))
-        r = np.ascontiguousarray(np.asarray(rays, dtype=np.float32).reshape(-1, 6))
-        o3d = _o3d()
-        ans = built.scene.cast_rays(o3d.core.Tensor.from_numpy(r))
-        t = ans["t_hit"].numpy()
-        gid = ans["geometry_ids"].numpy()
-        pid = ans["primitive_ids"].numpy()
-        normal = ans["primitive_normals"].numpy()
-        face = np.full(len(r), -1, np.int64)
-        for g, fidx in built.geom_face_base.items():
-            sel = gid == g
-            if sel.any():
-                face[sel] = fidx[pid[sel].astype(np.int64)]
-        hit = face >= 0
-        fi = np.where(hit, face, 0)
-        if len(self.face_label):
-            label = np.where(hit, self.face_label[fi], 0).astype(np.int16)
-            inst = np.where(hit, self.face_instance[fi], 0).astype(np.int32)
-        else:
-            label = np.zeros(len(r), np.int16)
-            inst = np.zeros(len(r), np.int32)
-        return RayHits(t=t, face=face, label_id=label, instance_id=inst, normal=normal)
+        ans, face = self._cast_faces(rays, frozenset(ignore))
+        self._rebuild_tables()
+        return RayHits(
+            t=ans["t_hit"].numpy(),
+            face=face,
+            label_id=self._face_label_s[face],
+            instance_id=self._face_instance_s[face],
+            normal=ans["primitive_normals"].numpy(),
+        )
+
+    def trace_labels(self, xy: np.ndarray, ignore: Iterable[str] | None = None) -> np.ndarray:
+        """Semantic id of the first surface below each point (the fast path of
+        :meth:`trace_down` for probes). xy : (n, 2) metres. Returns (n,) int16, 0 on miss."""
+        ign = self.label_config.ignore if ignore is None else frozenset(ignore)
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        rays = np.zeros((len(xy), 6), np.float32)
+        rays[:, :2] = xy
+        rays[:, 2] = self.z_top
+        rays[:, 5] = -1.0
+        _, face = self._cast_faces(rays, frozenset(ign))
+        return self._face_label_s[face]
 
     def count_intersections_above(self, xy: np.ndarray, z: np.ndarray, ignore=None) -> np.ndarray:
         """Number of surfaces above points (xy, z), ignoring the ignore-set (default config)."""
@@ -302,28 +323,44 @@ class RayScene:
         """
         ign = self.label_config.ignore if ignore is None else frozenset(ignore)
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-        rays = np.empty((len(xy), 6), np.float32)
+        rays = np.zeros((len(xy), 6), np.float32)
         rays[:, :2] = xy
         rays[:, 2] = self.z_top
-        rays[:, 3:5] = 0.0
         rays[:, 5] = -1.0
-        h = self.cast_rays(rays, ignore=ign)
-        z = np.where(h.hit, self.z_top - h.t.astype(np.float64), np.nan)
+        ans, face = self._cast_faces(rays, frozenset(ign))
+        t = ans["t_hit"].numpy()
+        hit = face >= 0
+        z = np.where(hit, self.z_top - t.astype(np.float64), np.nan)
         # Embree intersects in float32; refine static hits to the exact float64 plane height.
-        st = h.hit & (h.face < len(self._static_faces))
+        plane = self._static_planes()
+        n_static = len(self._static_faces)
+        st = hit & (face < n_static)
         if st.any():
-            tri = self._static_vertices64[self._static_faces[h.face[st]].astype(np.int64)]
+            pl = plane[face[st]]
+            zz = pl[:, 0] * xy[st, 0] + pl[:, 1] * xy[st, 1] + pl[:, 2]
+            z[st] = np.where(np.isfinite(zz), zz, z[st])
+        return TraceResult(
+            z=z,
+            label_id=self._face_label_s[face],
+            object_index=self._face_object_s[face],
+            instance_id=self._face_instance_s[face],
+        )
+
+    def _static_planes(self) -> np.ndarray:
+        """(m_static, 3) float64 plane coefficients z = a x + b y + c per static face (nan for
+        vertical faces), for exact trace heights."""
+        if getattr(self, "_planes", None) is None:
+            tri = self._static_vertices64[self._static_faces.astype(np.int64)]
             n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-            ok = np.abs(n[:, 2]) > 1e-12
-            p0 = tri[:, 0]
-            zz = p0[:, 2] - (
-                n[:, 0] * (xy[st, 0] - p0[:, 0]) + n[:, 1] * (xy[st, 1] - p0[:, 1])
-            ) / np.where(ok, n[:, 2], 1.0)
-            zst = z[st]
-            zst[ok] = zz[ok]
-            z[st] = zst
-        obj = np.where(h.hit, self.face_object[np.where(h.hit, h.face, 0)], -1).astype(np.int32)
-        return TraceResult(z=z, label_id=h.label_id, object_index=obj, instance_id=h.instance_id)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                a = -n[:, 0] / n[:, 2]
+                b = -n[:, 1] / n[:, 2]
+            bad = np.abs(n[:, 2]) < 1e-12 * np.maximum(1.0, np.abs(n).max(axis=1))
+            a[bad] = np.nan
+            b[bad] = np.nan
+            c = tri[:, 0, 2] - a * tri[:, 0, 0] - b * tri[:, 0, 1]
+            self._planes = np.stack([a, b, c], axis=1)
+        return self._planes
 
     def object_names(self, object_index: np.ndarray) -> list[str]:
         return [self.scene.objects[i].name if i >= 0 else "" for i in np.asarray(object_index)]

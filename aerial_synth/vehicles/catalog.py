@@ -93,7 +93,9 @@ class VehicleColor:
     def __post_init__(self) -> None:
         rgb = tuple(float(c) for c in self.rgb)
         if len(rgb) != 3 or not all(0.0 <= c <= 1.0 for c in rgb):
-            raise AssetError(f"colour {self.name!r}: rgb must be 3 floats in [0, 1], got {self.rgb}")
+            raise AssetError(
+                f"colour {self.name!r}: rgb must be 3 floats in [0, 1], got {self.rgb}"
+            )
         if not (self.weight >= 0.0 and math.isfinite(self.weight)):
             raise AssetError(f"colour {self.name!r}: weight must be >= 0, got {self.weight}")
         object.__setattr__(self, "rgb", rgb)
@@ -286,7 +288,8 @@ def catalog_from_mapping(data: Any, path: Path | None = None) -> Catalog:
     where = str(path) if path is not None else "catalog"
     if not isinstance(data, Mapping):
         raise AssetError(
-            f"{where}: expected a mapping with keys 'models' and 'colors', got {type(data).__name__}"
+            f"{where}: expected a mapping with keys 'models' and 'colors', "
+            f"got {type(data).__name__}"
         )
     unknown = set(data) - {"models", "colors", "version"}
     if unknown:

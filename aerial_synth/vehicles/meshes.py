@@ -118,20 +118,21 @@ def _build_mesh_cached(model: VehicleModel, color: VehicleColor) -> VehicleMesh:
         parts = _procedural_parts(model)
         parts = _fit_to_size(parts, model.length_m, model.width_m, model.height_m)
     else:
-        parts = [
-            _Part(
-                name=p.name,
-                material=("paint" if (model.paint_material and p.material_name == model.paint_material)
-                          else p.material),
-                rgb=(None if (model.paint_material and p.material_name == model.paint_material)
-                     else p.rgb),
-                v=p.vertices,
-                f=p.faces,
+        user = load_user_mesh_parts(
+            model.mesh_path, scale=model.scale, forward=model.forward, up=model.up
+        )
+        parts = []
+        for p in user:
+            painted = bool(model.paint_material) and p.material_name == model.paint_material
+            parts.append(
+                _Part(
+                    name=p.name,
+                    material="paint" if painted else p.material,
+                    rgb=None if painted else p.rgb,
+                    v=p.vertices,
+                    f=p.faces,
+                )
             )
-            for p in load_user_mesh_parts(
-                model.mesh_path, scale=model.scale, forward=model.forward, up=model.up
-            )
-        ]
     return _assemble(parts, color, model.name)
 
 
@@ -211,7 +212,8 @@ def _sym(points_xhz) -> list[tuple[float, float, float]]:
 
 def _wheel(x, y, r, width, sections=14) -> tuple[np.ndarray, np.ndarray]:
     """A closed cylinder with its axis along y, standing on the ground (z from 0 to 2r)."""
-    ang = np.linspace(0.0, 2 * np.pi, sections, endpoint=False)
+    # start at the bottom so a vertex touches z = 0
+    ang = -np.pi / 2 + np.linspace(0.0, 2 * np.pi, sections, endpoint=False)
     ring = np.column_stack([x + r * np.cos(ang), r + r * np.sin(ang)])
     pts = [(px, y + s * width / 2, pz) for px, pz in ring for s in (-1, 1)]
     return _hull(pts)
@@ -303,14 +305,15 @@ def _car_like(s: _CarSpec) -> list[_Part]:
     )
     parts.append(_Part("greenhouse", "glass", DEFAULT_COLOR_FOR_MATERIAL["glass"], *_hull(gh_pts)))
     inside = np.array([(s.rw_base + s.ws_base) / 2, 0.0, (s.belt + g_top) / 2])
-    ws = [(s.ws_base, -hb, s.belt), (s.ws_base, hb, s.belt), (s.ws_top, ht, g_top), (s.ws_top, -ht, g_top)]
+    ws = [(s.ws_base, -hb, s.belt), (s.ws_base, hb, s.belt),
+          (s.ws_top, ht, g_top), (s.ws_top, -ht, g_top)]
     parts.append(_Part("windscreen", "glass", WINDSCREEN_RGB, *_glass_slab(ws, inside)))
-    if s.rw_top - s.rw_base > 0.05:
-        rw = [(s.rw_base, hb, s.belt), (s.rw_base, -hb, s.belt), (s.rw_top, -ht, g_top), (s.rw_top, ht, g_top)]
-        parts.append(_Part("rear_window", "glass", WINDSCREEN_RGB, *_glass_slab(rw, inside)))
-    else:  # a vertical back (truck cab, campervan cab): a thin dark panel on it
-        rw = [(s.rw_base, hb, s.belt), (s.rw_base, -hb, s.belt), (s.rw_top, -ht, g_top), (s.rw_top, ht, g_top)]
-        parts.append(_Part("rear_window", "glass", WINDSCREEN_RGB, *_glass_slab(rw, inside, offset=0.005)))
+    rw = [(s.rw_base, hb, s.belt), (s.rw_base, -hb, s.belt),
+          (s.rw_top, -ht, g_top), (s.rw_top, ht, g_top)]
+    # a near-vertical back (truck cab, campervan cab) gets a panel lying closer to it
+    off = 0.012 if s.rw_top - s.rw_base > 0.05 else 0.005
+    rear = _glass_slab(rw, inside, offset=off)
+    parts.append(_Part("rear_window", "glass", WINDSCREEN_RGB, *rear))
     # roof panel: covers the greenhouse top, slightly rounded edges
     r0, r1 = s.rw_top + 0.01, s.ws_top - 0.01
     roof_pts = _sym(
@@ -332,8 +335,9 @@ def _car_like(s: _CarSpec) -> list[_Part]:
             _Part(
                 "light_front",
                 "light_front",
-                None if False else DEFAULT_COLOR_FOR_MATERIAL["light_front"],
-                *_box(s.x_front - lx, s.x_front - 0.004, y0, y1, s.nose_top - 0.16, s.nose_top + 0.006),
+                DEFAULT_COLOR_FOR_MATERIAL["light_front"],
+                *_box(s.x_front - lx, s.x_front - 0.004, y0, y1,
+                      s.nose_top - 0.16, s.nose_top + 0.006),
             )
         )
         if s.rear_lights:
@@ -342,7 +346,8 @@ def _car_like(s: _CarSpec) -> list[_Part]:
                     "light_rear",
                     "light_rear",
                     DEFAULT_COLOR_FOR_MATERIAL["light_rear"],
-                    *_box(s.x_rear + 0.004, s.x_rear + lx, y0, y1, s.tail_top - 0.16, s.tail_top + 0.006),
+                    *_box(s.x_rear + 0.004, s.x_rear + lx, y0, y1,
+                          s.tail_top - 0.16, s.tail_top + 0.006),
                 )
             )
     return parts
@@ -355,7 +360,8 @@ def _wheels(axles, half_w, r, width, inset=0.06, dual_rear=False) -> list[_Part]
         w = width * (1.8 if (dual_rear and k > 0) else 1.0)
         y = half_w - inset - w / 2
         for side in (1, -1):
-            parts.append(_Part("wheels", "tyre", DEFAULT_COLOR_FOR_MATERIAL["tyre"], *_wheel(x, side * y, r, w)))
+            tyre = _wheel(x, side * y, r, w)
+            parts.append(_Part("wheels", "tyre", DEFAULT_COLOR_FOR_MATERIAL["tyre"], *tyre))
     return parts
 
 
@@ -370,7 +376,7 @@ def _procedural_parts(model: VehicleModel) -> list[_Part]:
 
 
 def _car(L, W, H, *, bonnet, ws_run, rw_top_from_rear, rw_base_from_rear, belt, nose_top,
-         tail_top, wheel_r, tumble=0.13, clear=0.16, rails=False) -> list[_Part]:
+         tail_top, wheel_r, tumble=0.10, clear=0.16, rails=False) -> list[_Part]:
     """A passenger car. Lengths in metres; bonnet = nose to windscreen base; ws_run =
     horizontal run of the windscreen; rw_* = rear window edges measured from the tail."""
     x0, x1 = -L / 2, L / 2
@@ -409,7 +415,7 @@ def _car(L, W, H, *, bonnet, ws_run, rw_top_from_rear, rw_base_from_rear, belt, 
 def _sport(L, W, H):
     return _car(L, W, H, bonnet=0.36 * L, ws_run=0.62, rw_top_from_rear=0.34 * L,
                 rw_base_from_rear=0.13 * L, belt=0.62 * H, nose_top=0.46 * H, tail_top=0.62 * H,
-                wheel_r=0.33, tumble=0.17, clear=0.12)
+                wheel_r=0.33, tumble=0.14, clear=0.12)
 
 
 def _hatchback(L, W, H):
@@ -463,7 +469,8 @@ def _pickup(L, W, H):
     wt = 0.07
     hw = W / 2 - 0.02
     parts.append(_Part("bed", "paint", None, *_box(b0 + 0.02, b1, -hw, hw, clear + 0.05, floor)))
-    parts.append(_Part("bed_floor", "trim", BED_LINER_RGB, *_box(b0 + wt, b1 - wt, -hw + wt, hw - wt, floor, floor + 0.02)))
+    liner = _box(b0 + wt, b1 - wt, -hw + wt, hw - wt, floor, floor + 0.02)
+    parts.append(_Part("bed_floor", "trim", BED_LINER_RGB, *liner))
     parts.append(_Part("bed", "paint", None, *_box(b0 + 0.02, b1, hw - wt, hw, floor, top)))
     parts.append(_Part("bed", "paint", None, *_box(b0 + 0.02, b1, -hw, -hw + wt, floor, top)))
     parts.append(_Part("bed", "paint", None, *_box(b1 - wt, b1, -hw, hw, floor, top)))
@@ -564,7 +571,8 @@ def _campervan(L, W, H):
     # roof fittings: two skylights, a solar panel, an air conditioner
     for xc, sx, sy in ((x1 - 2.45, 0.45, 0.45), (x0 + 1.0, 0.45, 0.45)):
         parts.append(_Part("skylight", "glass", (0.10, 0.11, 0.12),
-                           *_box(xc - sx / 2, xc + sx / 2, -sy / 2, sy / 2, box_h - 0.01, box_h + 0.06)))
+                           *_box(xc - sx / 2, xc + sx / 2, -sy / 2, sy / 2,
+                                 box_h - 0.01, box_h + 0.06)))
     xs = (x1 - 2.45 + x0 + 1.0) / 2
     parts.append(_Part("solar_panel", "glass", SOLAR_RGB,
                        *_box(xs - 0.90, xs + 0.10, -0.05, hw - 0.18, box_h - 0.01, box_h + 0.05)))

@@ -81,7 +81,8 @@ def render_top_down(
     sun = _sun_direction(sun_azimuth_deg, sun_elevation_deg)
     lam = np.clip(normal @ sun, 0.0, None)
     # cast shadows: a ray from just above each hit toward the sun
-    pts = rays[:, :3].astype(np.float64) + np.array([0, 0, -1.0]) * hits.t[:, None].astype(np.float64)
+    pts = rays[:, :3].astype(np.float64)
+    pts[:, 2] -= hits.t.astype(np.float64)
     pts = np.where(ok[:, None], pts + normal * 2e-3, 0.0)
     srays = np.zeros_like(rays)
     srays[:, :3] = pts
@@ -127,25 +128,32 @@ def render_contact_sheet(
         sun_azimuth_deg=sun_azimuth_deg, sun_elevation_deg=sun_elevation_deg,
     )
     img = cv2.cvtColor(img, cv2.COLOR_RGB2BGR)
+    # at coarse GSDs, enlarge the pixels (nearest) so every row and column has room for labels
+    up = max(1, int(np.ceil(max(60.0 / (min(row_h_m) / gsd_m), 160.0 / (cell_w_m / gsd_m)))))
+    if up > 1:
+        img = cv2.resize(img, None, fx=up, fy=up, interpolation=cv2.INTER_NEAREST)
+    px_per_m = up / gsd_m
     h, w = img.shape[:2]
     font = cv2.FONT_HERSHEY_SIMPLEX
     left, top = 230, 34
     sheet = np.full((h + top, w + left, 3), 255, np.uint8)
     sheet[top:, left:] = img
-    # column headers: colour name and a swatch
+    wsum = sum(k.weight for k in colors)
+    # column headers: colour swatch, name and share
     for j, c in enumerate(colors):
-        x0 = left + int(round(cell_w_m * j / gsd_m))
+        x0 = left + int(round(cell_w_m * j * px_per_m))
         sw = (np.array(c.rgb[::-1]) ** (1 / 2.2) * 255).astype(int).tolist()
         cv2.rectangle(sheet, (x0 + 6, 8), (x0 + 24, 26), sw, -1)
         cv2.rectangle(sheet, (x0 + 6, 8), (x0 + 24, 26), (0, 0, 0), 1)
-        cv2.putText(sheet, f"{c.name} {c.weight / sum(k.weight for k in colors):.0%}",
-                    (x0 + 30, 24), font, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
+        share = c.weight / wsum
+        txt = f"{c.name} {share:.0%}" if share >= 0.01 else f"{c.name} {share:.1%}"
+        cv2.putText(sheet, txt, (x0 + 30, 24), font, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
         if j:
             cv2.line(sheet, (x0, top), (x0, h + top), (255, 255, 255), 1)
     # row headers: model name, size, class, pack
     y = top
     for m, rh in zip(models, row_h_m):
-        rpx = int(round(rh / gsd_m))
+        rpx = int(round(rh * px_per_m))
         lines = [m.name, f"{m.length_m:.2f} x {m.width_m:.2f} x {m.height_m:.2f} m",
                  f"{m.cls}, pack {m.pack}"]
         for k, t in enumerate(lines):

@@ -42,7 +42,8 @@ def test_order_corners_clockwise_from_front_left(fwd):
     c = np.array([50.0, 60.0])
     # rectangle 40 long x 16 wide, corners shuffled
     pts = [c + s * 20 * f + t * 8 * left for s, t in ((1, 1), (-1, 1), (1, -1), (-1, -1))]
-    out = order_corners(np.array(pts)[[2, 0, 1, 3]][[0, 1, 3, 2]], f)
+    ring = np.array(pts)[[1, 0, 2, 3]]  # RL, FL, FR, RR: around the rectangle, rotated
+    out = order_corners(ring[::-1], f)  # and counter-clockwise
     assert shoelace_area(out) > 0
     np.testing.assert_allclose(out[0], c + 20 * f + 8 * left, atol=1e-9)  # front-left
     np.testing.assert_allclose(out[1], c + 20 * f - 8 * left, atol=1e-9)  # front-right
@@ -63,8 +64,10 @@ def test_mask_to_rect_axis_aligned_exact():
     m[5:15, 3:33] = True  # 30 x 10 px block at x 3..33, y 5..15
     c = mask_to_rect_corners(m, (100, 200))
     lo, hi = c.min(0), c.max(0)
-    np.testing.assert_allclose(lo, [103, 205], atol=1e-6)
-    np.testing.assert_allclose(hi, [133, 215], atol=1e-6)
+    np.testing.assert_allclose(lo, [103.25, 205.25], atol=1e-6)  # pixel centres + 0.25 px
+    np.testing.assert_allclose(hi, [132.75, 214.75], atol=1e-6)
+    lit = mask_to_rect_corners(m, (100, 200), fit="dilated")  # thesis: dilated contour
+    np.testing.assert_allclose(lit.min(0), [102.5, 204.5], atol=1e-6)
 
 
 def test_mask_largest_region_kept():
@@ -127,7 +130,7 @@ def test_flags_difficult_dropped_and_reasons():
     cam = NadirCamera(width_px=256, height_px=256)
     vs = {i: vehicle(i, x=-8 + 6 * (i - 1), heading_deg=90) for i in (1, 2, 3, 4)}
     vs[5] = vehicle(5, x=15.0, y=0.0, heading_deg=0)  # cut by the right border (256 px ~ 15 m)
-    inst = render_instance(cam, vs.values())
+    inst = render_instance(cam, [v for i, v in vs.items() if i != 4])  # 4 is hidden
     counts = {i: int((inst == i).sum()) for i in vs}
     vis = {
         1: _Vis(counts[1], counts[1]),  # fully visible
@@ -168,7 +171,7 @@ def test_occlusion_keeps_largest_region():
 def test_amodal_box_covers_hidden_part():
     cam = NadirCamera(width_px=256, height_px=256)
     car = vehicle(1, heading_deg=30)
-    roof = vehicle(2, x=1.5, heading_deg=30, length=3.0, width=3.0, height=4.0)
+    roof = vehicle(2, x=1.5, y=1.0, heading_deg=30, length=3.0, width=3.0, height=4.0)
     inst = render_instance(cam, [car, roof])
     vs = {1: car, 2: roof}
     vis_box = _by_id(annotate_instances(inst, vs, cam.project))[1].box

@@ -1,0 +1,40 @@
+"""Shared bits of the label formats."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import ExportError
+
+__all__ = ["CATEGORIES", "LabelFormatError", "fmt_num", "parse_float", "polygon4"]
+
+#: Detection classes, in class-index order (YOLO index 0.., COCO id 1..), as DOTA/EAGLE name them.
+CATEGORIES: tuple[str, ...] = ("small-vehicle", "large-vehicle")
+
+
+class LabelFormatError(ExportError):
+    """A label file does not follow its format (names the file/line and what was expected)."""
+
+
+def fmt_num(x: float, decimals: int) -> str:
+    """Fixed-point text with ``decimals`` digits; never "-0.00"."""
+    s = f"{float(x):.{decimals}f}"
+    if s.startswith("-") and float(s) == 0.0:
+        s = s[1:]
+    return s
+
+
+def parse_float(token: str, where: str) -> float:
+    try:
+        v = float(token)
+    except ValueError:
+        raise LabelFormatError(f"{where}: expected a number, got {token!r}") from None
+    if not np.isfinite(v):
+        raise LabelFormatError(f"{where}: expected a finite number, got {token!r}")
+    return v
+
+
+def polygon4(points) -> tuple[tuple[float, float], ...]:
+    """(4, 2) array-like -> tuple of 4 (x, y) float tuples."""
+    p = np.asarray(points, dtype=float).reshape(4, 2)
+    return tuple((float(x), float(y)) for x, y in p)

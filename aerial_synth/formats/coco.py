@@ -1,0 +1,188 @@
+"""COCO instances JSON (one file per split), with the oriented box and heading as extra fields.
+
+Standard fields: ``images`` (id, file_name, width, height), ``categories`` (id from 1,
+name, supercategory "vehicle"), ``annotations`` (id, image_id, category_id, bbox [x, y, w, h]
+of the visible mask in px, area = visible mask pixels, iscrowd 0, segmentation = compressed
+RLE of the visible mask as made by pycocotools, counts as ASCII text).
+Extra annotation fields: ``obb_xyxyxyxy`` (8 floats, px, front-left first, clockwise on
+screen), ``heading_img_deg``, ``difficult``, ``orientation_unclear``, ``vehicle_id``,
+``visible_fraction``, ``truncated``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..io_utils import atomic_write_text, dumps_json
+from ._common import CATEGORIES, LabelFormatError
+
+__all__ = [
+    "CocoImage",
+    "CocoObject",
+    "rle_from_crop",
+    "object_from_annotation",
+    "to_dict",
+    "from_dict",
+    "write",
+    "read",
+]
+
+
+@dataclass(frozen=True)
+class CocoImage:
+    id: int
+    file_name: str
+    width: int
+    height: int
+
+
+@dataclass(frozen=True)
+class CocoObject:
+    """One annotation; ``segmentation`` is a compressed RLE dict {"size": [h, w], "counts": str}."""
+
+    image_id: int
+    category: str
+    bbox_xywh: tuple[float, float, float, float]
+    area: int
+    segmentation: dict
+    obb_xyxyxyxy: tuple[float, ...]
+    heading_img_deg: float
+    difficult: int = 0
+    orientation_unclear: int = 0
+    vehicle_id: int = 0
+    visible_fraction: float = 1.0
+    truncated: int = 0
+    iscrowd: int = 0
+
+
+def rle_from_crop(crop: np.ndarray, offset_xy_px, height_px: int, width_px: int) -> dict:
+    """Compressed COCO RLE of a full (height, width) mask that is ``crop`` at ``offset``
+    and empty elsewhere, built from the crop alone (column-major runs).
+
+    crop : (h, w) bool; offset_xy_px : (x0, y0) int
+    """
+    from pycocotools import mask as mask_utils
+
+    rows, cols = np.nonzero(np.asarray(crop, dtype=bool))
+    x0, y0 = int(offset_xy_px[0]), int(offset_xy_px[1])
+    flat = np.sort((cols.astype(np.int64) + x0) * height_px + (rows.astype(np.int64) + y0))
+    total = int(height_px) * int(width_px)
+    if len(flat) == 0:
+        counts = [total]
+    else:
+        brk = np.nonzero(np.diff(flat) != 1)[0]
+        starts = flat[np.r_[0, brk + 1]]
+        ends = flat[np.r_[brk, len(flat) - 1]] + 1
+        counts = np.empty(2 * len(starts) + 1, dtype=np.int64)
+        counts[0] = starts[0]
+        counts[1::2] = ends - starts
+        counts[2:-1:2] = starts[1:] - ends[:-1]
+        counts[-1] = total - ends[-1]
+        counts = counts.tolist()
+        if counts[-1] == 0:
+            counts = counts[:-1]
+    rle = mask_utils.frPyObjects({"size": [int(height_px), int(width_px)], "counts": counts},
+                                 int(height_px), int(width_px))
+    return {"size": [int(height_px), int(width_px)], "counts": rle["counts"].decode("ascii")}
+
+
+def object_from_annotation(annotation, image_id: int, rle: dict) -> CocoObject:
+    """A kept :class:`~aerial_synth.annotate.VehicleAnnotation` and its visible-mask RLE."""
+    from pycocotools import mask as mask_utils
+
+    enc = {"size": rle["size"], "counts": rle["counts"].encode("ascii")}
+    x, y, w, h = (float(v) for v in mask_utils.toBbox(enc))
+    return CocoObject(
+        image_id=int(image_id),
+        category=annotation.cls,
+        bbox_xywh=(x, y, w, h),
+        area=int(mask_utils.area(enc)),
+        segmentation=dict(rle),
+        obb_xyxyxyxy=tuple(round(float(v), 3) for v in annotation.box.xyxyxyxy),
+        heading_img_deg=round(float(annotation.heading_img_deg) % 360.0, 3),
+        difficult=int(annotation.difficult),
+        orientation_unclear=int(annotation.orientation_unclear),
+        vehicle_id=int(annotation.vehicle_id),
+        visible_fraction=round(float(annotation.visible_fraction), 4),
+        truncated=int(annotation.truncated),
+    )
+
+
+def to_dict(images, objects, categories=CATEGORIES, info: dict | None = None) -> dict:
+    """COCO instances dict; annotation ids 1.. in the given order, category ids 1.. in
+    ``categories`` order."""
+    cat_id = {name: i + 1 for i, name in enumerate(categories)}
+    anns = []
+    for k, o in enumerate(objects, start=1):
+        if o.category not in cat_id:
+            raise LabelFormatError(f"COCO category: expected one of {', '.join(categories)}, got {o.category!r}")
+        anns.append(
+            {
+                "id": k,
+                "image_id": int(o.image_id),
+                "category_id": cat_id[o.category],
+                "bbox": [float(v) for v in o.bbox_xywh],
+                "area": int(o.area),
+                "iscrowd": int(o.iscrowd),
+                "segmentation": {"size": list(o.segmentation["size"]), "counts": o.segmentation["counts"]},
+                "obb_xyxyxyxy": [float(v) for v in o.obb_xyxyxyxy],
+                "heading_img_deg": float(o.heading_img_deg),
+                "difficult": int(o.difficult),
+                "orientation_unclear": int(o.orientation_unclear),
+                "vehicle_id": int(o.vehicle_id),
+                "visible_fraction": float(o.visible_fraction),
+                "truncated": int(o.truncated),
+            }
+        )
+    return {
+        "info": dict(info or {"description": "aerial-synth"}),
+        "licenses": [],
+        "categories": [
+            {"id": cat_id[n], "name": n, "supercategory": "vehicle"} for n in categories
+        ],
+        "images": [
+            {"id": int(i.id), "file_name": i.file_name, "width": int(i.width), "height": int(i.height)}
+            for i in images
+        ],
+        "annotations": anns,
+    }
+
+
+def from_dict(d: dict, where: str = "<coco>") -> tuple[list[CocoImage], list[CocoObject]]:
+    try:
+        names = {int(c["id"]): str(c["name"]) for c in d["categories"]}
+        images = [CocoImage(int(i["id"]), str(i["file_name"]), int(i["width"]), int(i["height"]))
+                  for i in d["images"]]
+        objects = [
+            CocoObject(
+                image_id=int(a["image_id"]),
+                category=names[int(a["category_id"])],
+                bbox_xywh=tuple(float(v) for v in a["bbox"]),
+                area=int(a["area"]),
+                segmentation=dict(a["segmentation"]),
+                obb_xyxyxyxy=tuple(float(v) for v in a.get("obb_xyxyxyxy", ())),
+                heading_img_deg=float(a.get("heading_img_deg", float("nan"))),
+                difficult=int(a.get("difficult", 0)),
+                orientation_unclear=int(a.get("orientation_unclear", 0)),
+                vehicle_id=int(a.get("vehicle_id", 0)),
+                visible_fraction=float(a.get("visible_fraction", 1.0)),
+                truncated=int(a.get("truncated", 0)),
+                iscrowd=int(a.get("iscrowd", 0)),
+            )
+            for a in d["annotations"]
+        ]
+    except (KeyError, TypeError, ValueError) as exc:
+        raise LabelFormatError(f"{where}: not a COCO instances file ({type(exc).__name__}: {exc})") from None
+    return images, objects
+
+
+def write(path, d: dict) -> Path:
+    return atomic_write_text(path, dumps_json(d))
+
+
+def read(path) -> tuple[list[CocoImage], list[CocoObject]]:
+    return from_dict(json.loads(Path(path).read_text(encoding="utf-8")), where=str(path))

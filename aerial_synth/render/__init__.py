@@ -1,0 +1,56 @@
+"""Renderer: frame buffers, visibility and shaded RGB from the RayScene.
+
+Public API::
+
+    from aerial_synth.render import render_frame, Frame, RenderConfig, VehicleVisibility
+    from aerial_synth.render import add_placement
+    frame = render_frame(rayscene, camera, placement, rng, config=RenderConfig())
+    frame.instance (H, W) uint32   # 0 = background, ids = placement ids
+    frame.semantic (H, W) uint8    # aerial_synth.scene.model.LABEL_IDS
+    frame.depth    (H, W) float32  # z-depth along the optical axis, metres (0 = no hit)
+    frame.rgb      (H, W, 3) uint8 # RGB order
+    frame.visibility {id: VehicleVisibility}; frame.amodal_mask(id) -> (mask, (x0, y0))
+    frame.factors dict; frame.to_meta() -> dict
+
+Submodules: ``raycast`` (buffers, visibility), ``shading`` (RGB, RenderConfig),
+``world`` (placement -> vehicle meshes in the RayScene), ``pyrender_backend`` (optional
+EGL rasteriser for RGB), ``io`` (writing a frame's files), ``cli`` (``aerial-synth render``).
+Names are imported lazily so ``aerial-synth --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+__all__ = [
+    "render_frame",
+    "Frame",
+    "RenderConfig",
+    "VehicleVisibility",
+    "add_placement",
+    "write_frame",
+    "instance_colors",
+]
+
+_LAZY = {
+    "render_frame": "frame",
+    "Frame": "frame",
+    "RenderConfig": "shading",
+    "VehicleVisibility": "raycast",
+    "add_placement": "world",
+    "write_frame": "io",
+    "instance_colors": "io",
+}
+
+
+def __getattr__(name: str):
+    mod = _LAZY.get(name)
+    if mod is None:
+        raise AttributeError(f"module 'aerial_synth.render' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{mod}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

@@ -1,0 +1,102 @@
+"""``render_frame``: one camera view of a world -> buffers, visibility, factors and RGB."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .raycast import AmodalMasks, VehicleVisibility, cast_buffers, compute_visibility
+from .shading import RenderConfig, sample_factors, shade
+
+__all__ = ["Frame", "render_frame"]
+
+
+@dataclass
+class Frame:
+    """One rendered frame.
+
+    instance : (H, W) uint32 vehicle ids (placement ids; 0 = background)
+    semantic : (H, W) uint8 semantic ids (``aerial_synth.scene.model.LABEL_IDS``)
+    depth    : (H, W) float32 z-depth along the optical axis, metres (0 = nothing hit)
+    rgb      : (H, W, 3) uint8, RGB order
+    visibility : {id: VehicleVisibility} for every vehicle with amodal pixels in the image
+    factors  : influence factors drawn for this frame (sun, haze, overcast, wet, sensor)
+    camera   : the :class:`aerial_synth.camera.Camera`
+    timings_s: seconds per stage (not part of the metadata: not deterministic)
+    """
+
+    instance: np.ndarray
+    semantic: np.ndarray
+    depth: np.ndarray
+    rgb: np.ndarray
+    visibility: dict[int, VehicleVisibility]
+    factors: dict
+    camera: object
+    amodal: AmodalMasks
+    timings_s: dict = field(default_factory=dict)
+
+    @property
+    def height_px(self) -> int:
+        return int(self.instance.shape[0])
+
+    @property
+    def width_px(self) -> int:
+        return int(self.instance.shape[1])
+
+    def amodal_mask(self, vehicle_id: int) -> tuple[np.ndarray, tuple[int, int]]:
+        """(mask (h, w) bool, (x0, y0)): crop of the vehicle's unoccluded silhouette,
+        clipped to the image; ``mask[r, c]`` is pixel (row y0 + r, column x0 + c).
+        A vehicle not in view gives an empty (0, 0) mask."""
+        return self.amodal.crop(vehicle_id)
+
+    def visible_mask(self, vehicle_id: int) -> np.ndarray:
+        """(H, W) bool visible pixels of one vehicle."""
+        return self.instance == np.uint32(vehicle_id)
+
+    def to_meta(self) -> dict:
+        """JSON-ready metadata: image size, camera, factors, visible vehicles."""
+        return {
+            "image": {"width_px": self.width_px, "height_px": self.height_px},
+            "camera": self.camera.to_dict(),
+            "factors": dict(self.factors),
+            "depth": "z-depth along the optical axis, metres; 0 = nothing hit",
+            "vehicles": [v.to_dict() for v in self.visibility.values()],
+        }
+
+
+def render_frame(rayscene, camera, placement, rng: np.random.Generator, config: RenderConfig | None = None) -> Frame:
+    """Render one frame of ``rayscene`` (which must already hold the placement's vehicles,
+    see :func:`aerial_synth.render.world.add_placement`) seen by ``camera``.
+
+    placement : the Placement (its vehicles give ids, boxes and classes for visibility);
+                None skips visibility.
+    rng       : draws the influence factors and sensor noise (deterministic per seed).
+    """
+    cfg = config or RenderConfig()
+    t0 = time.perf_counter()
+    factors = sample_factors(cfg, rng)
+    buf = cast_buffers(rayscene, camera)
+    t1 = time.perf_counter()
+    vehicles = placement.vehicles if placement is not None else []
+    vis, amodal = compute_visibility(rayscene, camera, buf.instance, vehicles)
+    t2 = time.perf_counter()
+    if cfg.backend == "pyrender":
+        from .pyrender_backend import render_rgb
+
+        rgb = render_rgb(rayscene, camera, factors)
+    else:
+        rgb = shade(rayscene, camera, buf, factors, rng)
+    t3 = time.perf_counter()
+    return Frame(
+        instance=buf.instance,
+        semantic=buf.semantic,
+        depth=buf.depth,
+        rgb=rgb,
+        visibility=vis,
+        factors=factors,
+        camera=camera,
+        amodal=amodal,
+        timings_s={"buffers": t1 - t0, "visibility": t2 - t1, "rgb": t3 - t2, "total": t3 - t0},
+    )

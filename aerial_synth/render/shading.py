@@ -1,0 +1,360 @@
+"""Shaded RGB from the primary hits: albedo, procedural texture, sun + sky, shadows, sensor.
+
+The shader only decides colour; every label comes from the ray cast.
+
+Model (all vectorised over pixels, float32):
+
+- **Albedo** from the RayScene's per-face tables (``face_albedo``, ``face_material``), with
+  procedural texture: fractal noise tiles looked up by the hit's *world* position (so a
+  surface keeps its pattern across frames and overlapping tiles), at three scales (0.1 m,
+  0.4 m, 2 m texels) and amplitudes per material (asphalt grain, grass patches, leafy crowns,
+  nearly clean paint). The noise tiles depend only on ``RenderConfig.texture_seed``.
+- **Light**: Lambert sun term times a hard shadow from one shadow ray per hit pixel
+  (Embree any-hit test towards the sun; trees and buildings shade roads and vehicles,
+  vehicles shade the road), plus sky ambient weighted by the normal's up component.
+  Overcast dims the sun, raises the sky and softens shadow edges.
+- **Specular**: Blinn-Phong sun highlight and a Fresnel sky reflection per material
+  (glossy paint, dark reflective glass, matte tyres and trim, water); wet roads darken and
+  gain sheen and puddles.
+- **Atmosphere and sensor**: haze towards a grey-blue veil, exposure and white balance,
+  vignetting, a tone curve, Gaussian blur, luminance-dependent noise, optional JPEG.
+
+Sun azimuth is in degrees clockwise from north (90 = east), elevation above the horizon.
+Every factor is drawn from the ranges of :class:`RenderConfig` with the frame's generator and
+recorded in ``Frame.factors``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from functools import lru_cache
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..scene.model import MATERIAL_IDS, MATERIALS
+
+__all__ = ["RenderConfig", "sample_factors", "shade", "sun_direction"]
+
+
+def _range(name: str, value, lo: float, hi: float) -> tuple[float, float]:
+    try:
+        a, b = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"render config {name}: expected (low, high), got {value!r}") from None
+    if not (math.isfinite(a) and math.isfinite(b) and lo <= a <= b <= hi):
+        raise ConfigError(
+            f"render config {name}: expected {lo:g} <= low <= high <= {hi:g}, got ({a:g}, {b:g})"
+        )
+    return (a, b)
+
+
+def _prob(name: str, value) -> float:
+    v = float(value)
+    if not 0.0 <= v <= 1.0:
+        raise ConfigError(f"render config {name}: expected a probability in [0, 1], got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class RenderConfig:
+    """Ranges of the influence factors (each drawn uniformly per frame) and switches.
+
+    A fixed value is a range with low == high, e.g. ``sun_elevation_deg=(40, 40)``.
+    overcast / wet / jpeg apply with their probability, then their strength is drawn.
+    """
+
+    sun_azimuth_deg: tuple[float, float] = (0.0, 360.0)
+    sun_elevation_deg: tuple[float, float] = (25.0, 70.0)
+    haze: tuple[float, float] = (0.0, 0.3)
+    overcast_probability: float = 0.25
+    overcast: tuple[float, float] = (0.3, 1.0)
+    wet_probability: float = 0.15
+    wet: tuple[float, float] = (0.4, 1.0)
+    exposure: tuple[float, float] = (0.9, 1.1)
+    white_balance: tuple[float, float] = (-0.04, 0.04)
+    blur_sigma_px: tuple[float, float] = (0.4, 0.8)
+    noise_sigma: tuple[float, float] = (0.004, 0.012)
+    jpeg_probability: float = 0.5
+    jpeg_quality: tuple[float, float] = (70.0, 95.0)
+    vignetting: tuple[float, float] = (0.0, 0.15)
+    shadows: bool = True
+    texture: bool = True
+    texture_seed: int = 0
+    backend: str = "raycast"
+
+    def __post_init__(self) -> None:
+        s = object.__setattr__
+        s(self, "sun_azimuth_deg", _range("sun_azimuth_deg", self.sun_azimuth_deg, 0, 360))
+        s(self, "sun_elevation_deg", _range("sun_elevation_deg", self.sun_elevation_deg, 1, 90))
+        s(self, "haze", _range("haze", self.haze, 0, 1))
+        s(self, "overcast", _range("overcast", self.overcast, 0, 1))
+        s(self, "wet", _range("wet", self.wet, 0, 1))
+        s(self, "exposure", _range("exposure", self.exposure, 0.05, 20))
+        s(self, "white_balance", _range("white_balance", self.white_balance, -0.5, 0.5))
+        s(self, "blur_sigma_px", _range("blur_sigma_px", self.blur_sigma_px, 0, 10))
+        s(self, "noise_sigma", _range("noise_sigma", self.noise_sigma, 0, 0.5))
+        s(self, "jpeg_quality", _range("jpeg_quality", self.jpeg_quality, 1, 100))
+        s(self, "vignetting", _range("vignetting", self.vignetting, 0, 0.9))
+        for p in ("overcast_probability", "wet_probability", "jpeg_probability"):
+            s(self, p, _prob(p, getattr(self, p)))
+        if self.backend not in ("raycast", "pyrender"):
+            raise ConfigError(
+                f"render config backend: expected one of raycast, pyrender, got {self.backend!r}"
+            )
+        s(self, "texture_seed", int(self.texture_seed))
+
+    def to_dict(self) -> dict:
+        out = {}
+        for f in fields(self):
+            v = getattr(self, f.name)
+            out[f.name] = list(v) if isinstance(v, tuple) else v
+        return out
+
+    @classmethod
+    def from_mapping(cls, data) -> "RenderConfig":
+        if not data:
+            return cls()
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown:
+            raise ConfigError(
+                f"render config: unknown key(s) {unknown}; expected {', '.join(sorted(names))}"
+            )
+        kw = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
+        return cls(**kw)
+
+
+def sample_factors(cfg: RenderConfig, rng: np.random.Generator) -> dict:
+    """Draw every influence factor for one frame (fixed draw order: deterministic)."""
+    u = rng.uniform
+    f = {
+        "sun_azimuth_deg": float(u(*cfg.sun_azimuth_deg)),
+        "sun_elevation_deg": float(u(*cfg.sun_elevation_deg)),
+        "haze": float(u(*cfg.haze)),
+    }
+    oc_on, oc = rng.random() < cfg.overcast_probability, float(u(*cfg.overcast))
+    f["overcast"] = oc if oc_on else 0.0
+    wet_on, wet = rng.random() < cfg.wet_probability, float(u(*cfg.wet))
+    f["wet"] = wet if wet_on else 0.0
+    f["exposure"] = float(u(*cfg.exposure))
+    f["white_balance"] = float(u(*cfg.white_balance))
+    f["blur_sigma_px"] = float(u(*cfg.blur_sigma_px))
+    f["noise_sigma"] = float(u(*cfg.noise_sigma))
+    jp_on, q = rng.random() < cfg.jpeg_probability, int(round(u(*cfg.jpeg_quality)))
+    f["jpeg_quality"] = q if jp_on else None
+    f["vignetting"] = float(u(*cfg.vignetting))
+    f["shadows"] = bool(cfg.shadows)
+    f["texture_seed"] = cfg.texture_seed if cfg.texture else None
+    return f
+
+
+def sun_direction(azimuth_deg: float, elevation_deg: float) -> np.ndarray:
+    """(3,) unit vector towards the sun, world (x east, y north, z up)."""
+    a, e = math.radians(azimuth_deg), math.radians(elevation_deg)
+    return np.array([math.sin(a) * math.cos(e), math.cos(a) * math.cos(e), math.sin(e)])
+
+
+# ----------------------------------------------------------------------- materials
+def _table(default: float, **values: float) -> np.ndarray:
+    t = np.full(len(MATERIALS), default, np.float32)
+    for k, v in values.items():
+        t[MATERIAL_IDS[k]] = v
+    return t
+
+
+# texture amplitudes (relative albedo change per unit of noise, noise std ~ 1)
+_FINE = _table(0.04, asphalt=0.09, marking=0.07, concrete=0.06, paving=0.07, grass=0.12,
+               soil=0.12, water=0.02, roof=0.05, wall=0.05, foliage=0.16, bark=0.1,
+               paint=0.008, glass=0.0, tyre=0.05, trim=0.02, cargo=0.015, metal=0.03)
+_MID = _table(0.02, asphalt=0.04, grass=0.12, soil=0.1, foliage=0.28, roof=0.04, water=0.03,
+              marking=0.05, paving=0.03, concrete=0.04, paint=0.0, glass=0.0, cargo=0.01)
+_COARSE = _table(0.04, asphalt=0.08, grass=0.16, soil=0.12, foliage=0.15, roof=0.08,
+                 water=0.1, paint=0.0, glass=0.0, tyre=0.0, trim=0.0, cargo=0.02)
+# hue shift with coarse noise: grass/foliage drift towards dry yellow-brown
+_DRY = _table(0.0, grass=0.35, foliage=0.2, soil=0.1)
+# specular strength / shininess / sky reflection at normal incidence (F0)
+_SPEC = _table(0.0, paint=0.35, glass=0.9, water=0.8, metal=0.3, roof=0.03, cargo=0.1,
+               light_front=0.5, light_rear=0.4, trim=0.05, marking=0.02)
+_SHINE = _table(20.0, paint=80.0, glass=300.0, water=400.0, metal=40.0, light_front=100.0,
+                light_rear=100.0)
+_F0 = _table(0.0, paint=0.05, glass=0.09, water=0.06, metal=0.2, light_front=0.05,
+             light_rear=0.05, cargo=0.02)
+# how strongly wetness darkens and glosses a material
+_WETK = _table(0.0, asphalt=1.0, marking=0.7, concrete=0.9, paving=0.9, soil=0.6, roof=0.4,
+               grass=0.2)
+
+_PEEL = 0.03  # shadow-ray origin offset along the normal, metres
+
+
+@lru_cache(maxsize=4)
+def _noise_tiles(seed: int) -> np.ndarray:
+    """(3, 256, 256) float32 periodic fractal noise tiles, zero mean, unit std."""
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0x7E47]))
+    n = 256
+    fy = np.fft.fftfreq(n)[:, None]
+    fx = np.fft.rfftfreq(n)[None, :]
+    f = np.sqrt(fx * fx + fy * fy)
+    f[0, 0] = 1.0
+    out = np.empty((3, n, n), np.float32)
+    for i, beta in enumerate((1.2, 1.6, 2.2)):
+        spec = np.fft.rfft2(rng.standard_normal((n, n)))
+        spec *= f ** (-beta)
+        spec[0, 0] = 0
+        t = np.fft.irfft2(spec, s=(n, n))
+        out[i] = ((t - t.mean()) / t.std()).astype(np.float32)
+    out.setflags(write=False)
+    return out
+
+
+def _lookup(tile: np.ndarray, x: np.ndarray, y: np.ndarray, texel_m: float) -> np.ndarray:
+    ix = np.floor(x * np.float32(1.0 / texel_m)).astype(np.int64) & 255
+    iy = np.floor(y * np.float32(1.0 / texel_m)).astype(np.int64) & 255
+    return tile[iy, ix]
+
+
+def _coarse_field(tile, pts_img: np.ndarray, texel_m: float, step: int = 8) -> np.ndarray:
+    """Smooth noise evaluated on a coarse pixel grid and upsampled (cheap low frequencies)."""
+    import cv2
+
+    h, w = pts_img.shape[:2]
+    sub = pts_img[step // 2 :: step, step // 2 :: step]
+    # bilinear sample of the tile on the coarse grid
+    gx = sub[..., 0] / texel_m
+    gy = sub[..., 1] / texel_m
+    x0, y0 = np.floor(gx), np.floor(gy)
+    fx, fy = (gx - x0).astype(np.float32), (gy - y0).astype(np.float32)
+    x0 = x0.astype(np.int64) & 255
+    y0 = y0.astype(np.int64) & 255
+    x1, y1 = (x0 + 1) & 255, (y0 + 1) & 255
+    v = (tile[y0, x0] * (1 - fx) + tile[y0, x1] * fx) * (1 - fy) + (
+        tile[y1, x0] * (1 - fx) + tile[y1, x1] * fx
+    ) * fy
+    return cv2.resize(v.astype(np.float32), (w, h), interpolation=cv2.INTER_LINEAR)
+
+
+def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator) -> np.ndarray:
+    """Shaded RGB (H, W, 3) uint8 for the primary hits in ``buffers`` under ``factors``."""
+    import cv2
+
+    h, w = buffers.height_px, buffers.width_px
+    n = h * w
+    face = buffers.face
+    hit = face >= 0
+    fi = np.where(hit, face, 0)
+    mat = rayscene.face_material[fi] if len(rayscene.face_material) else np.zeros(n, np.uint8)
+    alb = rayscene.face_albedo[fi] if len(rayscene.face_albedo) else np.zeros((n, 3), np.float32)
+    alb = np.ascontiguousarray(alb, dtype=np.float32)
+    nrm = buffers.normal
+    pts = buffers.world_points()
+    dirs = buffers.rays[:, 3:]
+    inv_len = (1.0 / np.sqrt((dirs * dirs).sum(axis=1))).astype(np.float32)
+    view = -dirs * inv_len[:, None]  # towards the camera
+
+    oc = np.float32(factors["overcast"])
+    wet = np.float32(factors["wet"])
+    L = sun_direction(factors["sun_azimuth_deg"], factors["sun_elevation_deg"]).astype(np.float32)
+
+    # ---------------------------------------------------------------- albedo + texture
+    if factors.get("texture_seed") is not None:
+        tiles = _noise_tiles(int(factors["texture_seed"]))
+        # use a vertical-offset so stacked surfaces (roof vs ground) decorrelate
+        px = pts[:, 0] + np.float32(0.37) * pts[:, 2]
+        py = pts[:, 1] - np.float32(0.53) * pts[:, 2]
+        nf = _lookup(tiles[0], px, py, 0.1)
+        nm = _lookup(tiles[1], px + np.float32(31.0), py, 0.4)
+        img_pts = np.stack([px, py], axis=1).reshape(h, w, 2)
+        nc = _coarse_field(tiles[2], img_pts, 2.0).reshape(-1)
+        nd = _coarse_field(tiles[1], img_pts + np.float32(57.0), 6.0).reshape(-1)
+        gain = 1.0 + _FINE[mat] * nf + _MID[mat] * nm + _COARSE[mat] * nc
+        alb *= np.clip(gain, 0.3, 2.0)[:, None]
+        dry = (_DRY[mat] * np.clip(nd, 0.0, 3.0))[:, None]
+        alb += dry * (np.array([0.42, 0.36, 0.20], np.float32) - alb) * 0.5
+    else:
+        nc = np.zeros(n, np.float32)
+    # wetness: darker porous surfaces, puddles where the coarse noise is high
+    wk = _WETK[mat] * wet
+    puddle = np.zeros(n, np.float32)
+    if wet > 0:
+        alb *= (1.0 - 0.45 * wk)[:, None]
+        puddle = np.clip((nc - (1.6 - 1.2 * wet)) * 2.0, 0.0, 1.0) * (_WETK[mat] > 0.5)
+        alb *= (1.0 - 0.5 * puddle)[:, None]
+
+    # ---------------------------------------------------------------- light
+    ndl = np.clip(nrm @ L, 0.0, None).astype(np.float32)
+    lit = np.ones(n, np.float32)
+    if factors.get("shadows", True):
+        from .raycast import occluded
+
+        cand = np.flatnonzero(hit & (ndl > 0))
+        if len(cand):
+            o = pts[cand] + _PEEL * nrm[cand]
+            occ = occluded(rayscene, o, np.broadcast_to(L, (len(cand), 3)))
+            lit[cand[occ]] = 0.0
+        if oc > 0.02:
+            sig = 0.5 + 6.0 * float(oc)
+            lit = cv2.GaussianBlur(lit.reshape(h, w), (0, 0), sig).reshape(-1)
+    elev = math.radians(factors["sun_elevation_deg"])
+    warm = max(0.0, 1.0 - elev / math.radians(45.0))
+    sun_col = np.array([1.0, 0.96 - 0.05 * warm, 0.90 - 0.12 * warm], np.float32)
+    sky_col = np.array([0.60, 0.68, 0.85], np.float32)
+    sky_col = sky_col + oc * (np.array([0.85, 0.86, 0.88], np.float32) - sky_col)
+    e_sun = np.float32(1.15 * (1.0 - 0.85 * oc))
+    e_sky = np.float32(0.30 + 0.45 * oc)
+    direct = (e_sun * ndl * lit)[:, None] * sun_col
+    amb = (e_sky * (0.55 + 0.45 * np.clip(nrm[:, 2], -1, 1)))[:, None] * sky_col
+    col = alb * (direct + amb)
+
+    # ---------------------------------------------------------------- specular + reflection
+    spec_k = _SPEC[mat] + 0.5 * wk
+    f0 = _F0[mat] + 0.04 * wk + 0.06 * puddle
+    glossy = np.flatnonzero(hit & ((spec_k > 0) | (f0 > 0)))
+    if len(glossy):
+        nn = nrm[glossy]
+        vv = view[glossy]
+        hv = vv + L
+        hv /= np.linalg.norm(hv, axis=1, keepdims=True)
+        ndh = np.clip((nn * hv).sum(axis=1), 0.0, 1.0)
+        shine = np.where(wk[glossy] > 0, 60.0, _SHINE[mat[glossy]]).astype(np.float32)
+        sp = spec_k[glossy] * np.power(ndh, shine) * (1.0 - 0.9 * oc) * lit[glossy]
+        ndv = np.clip((nn * vv).sum(axis=1), 0.0, 1.0)
+        fres = f0[glossy] + (1.0 - f0[glossy]) * np.power(1.0 - ndv, 5) * (f0[glossy] > 0)
+        col[glossy] += sp[:, None] * sun_col * 1.5 + (fres * 0.9)[:, None] * sky_col
+    col[~hit] = sky_col * 0.25
+
+    # ---------------------------------------------------------------- atmosphere + camera
+    haze = np.float32(factors["haze"])
+    if haze > 0:
+        alt = max(float(camera.altitude_m), 1.0)
+        dz = np.clip(buffers.depth.reshape(-1) / np.float32(alt), 0.7, 1.4)
+        hz = (haze * dz)[:, None]
+        veil = np.array([0.62, 0.66, 0.72], np.float32) * (0.8 + 0.4 * e_sky)
+        col = col * (1.0 - hz) + veil * hz
+    wb = factors["white_balance"]
+    gainv = np.array([1.0 + wb, 1.0, 1.0 - wb], np.float32) * np.float32(factors["exposure"])
+    col *= gainv
+    img = col.reshape(h, w, 3)
+    vig = factors.get("vignetting", 0.0)
+    if vig > 0:
+        yy = (np.arange(h, dtype=np.float32) + 0.5 - h / 2) / (h / 2)
+        xx = (np.arange(w, dtype=np.float32) + 0.5 - w / 2) / (w / 2)
+        r2 = (yy[:, None] ** 2 + xx[None, :] ** 2) * 0.5
+        img *= (1.0 - np.float32(vig) * r2)[..., None]
+    # tone curve: gentle shoulder, display gamma
+    img = img / (1.0 + 0.25 * img)
+    img = np.power(np.clip(img * 1.25, 0.0, 1.0), np.float32(1 / 2.2))
+    sig = factors["blur_sigma_px"]
+    if sig > 0.05:
+        img = cv2.GaussianBlur(img, (0, 0), sig)
+    ns = factors["noise_sigma"]
+    if ns > 0:
+        lum_noise = rng.standard_normal((h, w), dtype=np.float32)
+        img += (np.float32(ns) * (0.5 + 0.5 * np.sqrt(img.mean(axis=2))) * lum_noise)[..., None]
+    out = np.clip(img * 255.0 + 0.5, 0, 255).astype(np.uint8)
+    q = factors.get("jpeg_quality")
+    if q:
+        ok, enc = cv2.imencode(".jpg", out[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, int(q)])
+        if ok:
+            out = np.ascontiguousarray(cv2.imdecode(enc, cv2.IMREAD_COLOR)[..., ::-1])
+    return out

@@ -1,0 +1,111 @@
+"""Bundled procedural scenes: determinism, coverage of the road truth, layout invariants."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+import shapely
+
+from aerial_synth.scene import RayScene, list_scenes, load_scene
+
+BUNDLED = ("city_park", "suburb", "highway")
+
+
+@functools.lru_cache(maxsize=None)
+def _scene(name):
+    return load_scene(name)
+
+
+@functools.lru_cache(maxsize=None)
+def _rayscene(name):
+    return RayScene(_scene(name))
+
+
+def _sample_in(poly, n, rng):
+    minx, miny, maxx, maxy = poly.bounds
+    out = []
+    shapely.prepare(poly)
+    while sum(len(o) for o in out) < n:
+        pts = np.column_stack([rng.uniform(minx, maxx, 4 * n), rng.uniform(miny, maxy, 4 * n)])
+        out.append(pts[shapely.contains_xy(poly, pts[:, 0], pts[:, 1])])
+    return np.concatenate(out)[:n]
+
+
+def test_bundled_list():
+    assert set(BUNDLED) <= set(list_scenes())
+
+
+def test_determinism_city_park():
+    a = load_scene("city_park")
+    b = load_scene("city_park")
+    c = load_scene("city_park", seed=8)
+    assert a.vertex_hash() == b.vertex_hash()
+    assert a.vertex_hash() != c.vertex_hash()
+    assert load_scene("city_park", seed=0).vertex_hash() != a.vertex_hash()  # 0 is a seed
+
+
+@pytest.mark.parametrize("name", BUNDLED)
+def test_road_truth_is_drivable(name):
+    sc = _scene(name)
+    assert sc.truth is not None and sc.truth.roads
+    assert sc.n_triangles < 400_000
+    rs = _rayscene(name)
+    pts = _sample_in(sc.truth.road_area, 20_000, np.random.default_rng(1))
+    tr = rs.trace_down(pts)
+    ok = tr.is_label(sc.label_config.drivable)
+    assert ok.mean() >= 0.999, (name, ok.mean())
+    # the road itself (not markings, not parking) is at the road height
+    on_road = tr.is_label({"road"})
+    np.testing.assert_allclose(tr.z[on_road], 0.05, atol=1e-9)
+
+
+@pytest.mark.parametrize("name", BUNDLED)
+def test_layout_invariants(name):
+    sc = _scene(name)
+    road = sc.truth.road_area
+    labels = sc.labels_present()
+    assert {"road", "ground", "tree", "trunk"} <= labels
+    for o in sc.objects:
+        if o.label in ("trunk", "pole", "building"):
+            inside = shapely.contains_xy(road, o.vertices[:, 0], o.vertices[:, 1])
+            assert not inside.any(), (name, o.name)
+        if o.label == "sidewalk":
+            tops = o.vertices[o.vertices[:, 2] > 0.1]
+            # sidewalk vertices may touch the road edge but never lie strictly inside
+            assert not shapely.contains_xy(road.buffer(-0.01), tops[:, 0], tops[:, 1]).any()
+        if o.label == "lane_marking":
+            assert shapely.contains_xy(road.buffer(1e-6), o.vertices[:, 0], o.vertices[:, 1]).all()
+
+
+def test_city_park_features():
+    sc = _scene("city_park")
+    road = sc.truth.road_area
+    crowns = np.concatenate([o.vertices for o in sc.objects if o.label == "tree"])
+    assert shapely.contains_xy(road, crowns[:, 0], crowns[:, 1]).any()  # crowns overhang
+    assert {"water", "building", "lane_marking", "sidewalk", "pole"} <= sc.labels_present()
+    widths = [r.width_m for r in sc.truth.roads]
+    assert min(widths) <= 5.0 and max(widths) >= 11.0
+
+
+def test_highway_carriageways_oneway_right_hand():
+    sc = _scene("highway")
+    roads = {r.name: r for r in sc.truth.roads}
+    e, w = roads["eastbound"], roads["westbound"]
+    assert e.oneway and w.oneway
+    ce, cw = np.asarray(e.centerline.coords), np.asarray(w.centerline.coords)
+    assert ce[-1, 0] > ce[0, 0] and cw[-1, 0] < cw[0, 0]
+    # right-hand traffic: eastbound runs south of westbound
+    assert e.centerline.centroid.y < w.centerline.centroid.y
+    # median between them is not road
+    mid = (np.asarray(e.centerline.interpolate(0.3, normalized=True).coords)
+           + np.asarray(w.centerline.interpolate(0.7, normalized=True).coords)) / 2
+    assert not sc.truth.road_area.contains(shapely.Point(mid[0]))
+
+
+def test_suburb_parking_is_not_road():
+    sc = _scene("suburb")
+    assert sc.truth.parking_area is not None
+    assert sc.truth.parking_area.intersection(sc.truth.road_area).area < 1e-6
+    assert "parking" in sc.labels_present()

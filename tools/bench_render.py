@@ -1,0 +1,90 @@
+"""Benchmark: one 1024 x 1024 frame of city_park with >= 300 vehicles.
+
+Times render_frame (instance, semantic, depth, visibility, shaded RGB with shadow rays)
+against the bare ``RayScene.cast_rays`` for the same primary rays, after a warm-up frame
+(the Embree scenes are built once per placement and reported separately).
+
+    .venv/bin/python tools/bench_render.py [--scene city_park] [--vehicles 400] [--repeat 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from aerial_synth.camera import CameraConfig, sample_pose_targeted  # noqa: E402
+from aerial_synth.placement import place  # noqa: E402
+from aerial_synth.render import RenderConfig, add_placement, render_frame  # noqa: E402
+from aerial_synth.scene import load_scene  # noqa: E402
+from aerial_synth.scene.raycast import RayScene  # noqa: E402
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scene", default="city_park")
+    ap.add_argument("--scenario", default="jam")
+    ap.add_argument("--vehicles", type=int, default=400)
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--jpeg", action="store_true", help="include JPEG round trip in every frame")
+    a = ap.parse_args(argv)
+
+    t = time.perf_counter()
+    scene = load_scene(a.scene)
+    rs = RayScene(scene)
+    t_load = time.perf_counter() - t
+    t = time.perf_counter()
+    pl = place(rs, a.scenario, np.random.default_rng(a.seed), n_vehicles=a.vehicles)
+    t_place = time.perf_counter() - t
+    t = time.perf_counter()
+    add_placement(rs, pl)
+    t_add = time.perf_counter() - t
+    cfg = CameraConfig()
+    rcfg = RenderConfig(jpeg_probability=1.0 if a.jpeg else 0.0, overcast_probability=0.0)
+    t = time.perf_counter()
+    rs.cast_rays(np.zeros((1, 6), np.float32) + [0, 0, 100, 0, 0, -1])
+    rs.cast_rays(np.zeros((1, 6), np.float32) + [0, 0, 100, 0, 0, -1],
+                 ignore=[n for n in ("unknown", "road", "lane_marking", "sidewalk", "parking",
+                                     "ground", "water", "building", "tree", "trunk", "pole")])
+    t_bvh = time.perf_counter() - t
+
+    frames, bare, stages, in_view = [], [], [], []
+    for i in range(a.repeat + 1):
+        rng = np.random.default_rng(np.random.SeedSequence([a.seed, i]))
+        cam = sample_pose_targeted(cfg, pl, rng)
+        rays = cam.pixel_rays()
+        t = time.perf_counter()
+        rs.cast_rays(rays)
+        t_bare = time.perf_counter() - t
+        t = time.perf_counter()
+        fr = render_frame(rs, cam, pl, rng, rcfg)
+        t_frame = time.perf_counter() - t
+        if i == 0:
+            continue  # warm-up
+        bare.append(t_bare)
+        frames.append(t_frame)
+        stages.append(fr.timings_s)
+        in_view.append(len(fr.visibility))
+    med_f, med_b = statistics.median(frames), statistics.median(bare)
+    print(f"scene {scene.name}: {scene.n_triangles} triangles, load {t_load:.2f} s; "
+          f"placement {len(pl.vehicles)} vehicles ({a.scenario}) {t_place:.2f} s; "
+          f"add meshes {t_add:.2f} s; Embree builds {t_bvh:.2f} s")
+    print(f"vehicles in view per frame: {in_view}")
+    for k in ("buffers", "visibility", "rgb"):
+        print(f"  {k:10s} median {statistics.median(s[k] for s in stages) * 1000:7.1f} ms")
+    print(f"frame 1024x1024 median {med_f * 1000:.1f} ms (min {min(frames) * 1000:.1f}); "
+          f"bare cast_rays median {med_b * 1000:.1f} ms; ratio {med_f / med_b:.2f}")
+    ok = med_f <= 0.5 and med_f <= 2 * med_b
+    print("targets (<= 0.5 s, <= 2x bare cast):", "met" if ok else "NOT met")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
