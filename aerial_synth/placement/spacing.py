@@ -9,9 +9,11 @@ distribution's mean and standard deviation are the table's mu and sigma, truncat
 Why this reading matches Table 3.1: the table gives a skewness *parameter* of +30 / 0 / -30
 together with mean and sd. Taken as a moment skewness, 30 is impossible for any unimodal
 law with that mean and sd; taken as the skew-normal shape parameter it gives a strongly
-right-skewed jam law (mode ~9.6 m, inside the stated 8-10 m, never below ~9.3 m), a
-symmetric normal law, and a left-skewed sparse law (mode ~36.9 m, the stated 36 m, never
-above ~38.1 m < d_max). With the table's bounds the truncation removes < 1e-9 of the mass,
+right-skewed jam law (mode ~9.5 m, inside the stated 8-10 m, never below ~9.2 m), a
+symmetric normal law, and a left-skewed sparse law (never above ~38.4 m < d_max). The
+thesis states a sparse mode of 36 m; with the table's mean of 36 m and a negative skew the
+mode must lie above the mean (here ~37.8 m). We keep the table's mean, sd and skew sign,
+which the thesis gives as parameters, over the prose mode. With the table's bounds the truncation removes < 1e-9 of the mass,
 so mean and sd are the table's. When a user's bounds do cut the law, location and scale
 are re-solved numerically so the *truncated* law keeps the requested mean and sd
 (where that is possible; otherwise a ConfigError says so).
@@ -107,21 +109,23 @@ class SpacingSampler:
         m, s, w = _truncated_moments(loc, scale, a, lo, hi)
         if w > 1 - 1e-9:
             return loc, scale
-        # The bounds cut the law: adjust loc/scale so the truncated law keeps mean and sd.
-        for _ in range(200):
-            if not np.isfinite(m) or s <= 0:
-                break
-            loc += self.mean_m - m
-            scale *= float(np.clip(self.sd_m / s, 0.5, 2.0))
-            m, s, w = _truncated_moments(loc, scale, a, lo, hi)
-            if abs(m - self.mean_m) < 1e-5 and abs(s - self.sd_m) < 1e-5 * self.sd_m:
-                return loc, scale
-        if not (np.isfinite(m) and abs(m - self.mean_m) < 0.05 and abs(s - self.sd_m) < 0.05 * self.sd_m):
+        # The bounds cut the law: solve loc/scale so the truncated law keeps mean and sd.
+        from scipy.optimize import root
+
+        def resid(p):
+            m_, s_, w_ = _truncated_moments(p[0], np.exp(p[1]), a, lo, hi)
+            if not np.isfinite(m_) or w_ <= 0:
+                return [1e3, 1e3]
+            return [(m_ - self.mean_m) / self.sd_m, np.log(max(s_, 1e-12) / self.sd_m)]
+
+        sol = root(resid, [loc, np.log(scale)], method="hybr")
+        r = np.abs(resid(sol.x))
+        if not (np.all(np.isfinite(r)) and r[0] < 1e-3 and r[1] < 1e-3):
             raise ConfigError(
                 f"spacing: no skew-normal law with skewness {self.skewness}, mean {self.mean_m} m and "
                 f"sd {self.sd_m} m fits inside [{lo}, {hi}] m"
             )
-        return loc, scale
+        return float(sol.x[0]), float(np.exp(sol.x[1]))
 
     def _build_table(self):
         loc, scale = self._solve_params()

@@ -234,9 +234,23 @@ def _coarse_field(tile, pts_img: np.ndarray, texel_m: float, step: int = 8) -> n
     return cv2.resize(v.astype(np.float32), (w, h), interpolation=cv2.INTER_LINEAR)
 
 
-def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator) -> np.ndarray:
-    """Shaded RGB (H, W, 3) uint8 for the primary hits in ``buffers`` under ``factors``."""
+def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator,
+          timings: dict | None = None) -> np.ndarray:
+    """Shaded RGB (H, W, 3) uint8 for the primary hits in ``buffers`` under ``factors``.
+
+    timings : optional dict that receives seconds per shading stage (for benchmarks).
+    """
+    import time
+
     import cv2
+
+    tick = [time.perf_counter()]
+
+    def mark(name):
+        if timings is not None:
+            now = time.perf_counter()
+            timings[name] = timings.get(name, 0.0) + now - tick[0]
+            tick[0] = now
 
     h, w = buffers.height_px, buffers.width_px
     n = h * w
@@ -256,6 +270,7 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator) ->
     wet = np.float32(factors["wet"])
     L = sun_direction(factors["sun_azimuth_deg"], factors["sun_elevation_deg"]).astype(np.float32)
 
+    mark("setup")
     # ---------------------------------------------------------------- albedo + texture
     if factors.get("texture_seed") is not None:
         tiles = _noise_tiles(int(factors["texture_seed"]))
@@ -281,6 +296,7 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator) ->
         puddle = np.clip((nc - (1.6 - 1.2 * wet)) * 2.0, 0.0, 1.0) * (_WETK[mat] > 0.5)
         alb *= (1.0 - 0.5 * puddle)[:, None]
 
+    mark("texture")
     # ---------------------------------------------------------------- light
     ndl = np.clip(nrm @ L, 0.0, None).astype(np.float32)
     lit = np.ones(n, np.float32)
@@ -292,6 +308,7 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator) ->
             o = pts[cand] + _PEEL * nrm[cand]
             occ = occluded(rayscene, o, np.broadcast_to(L, (len(cand), 3)))
             lit[cand[occ]] = 0.0
+            mark("shadow_rays")
         if oc > 0.02:
             sig = 0.5 + 6.0 * float(oc)
             lit = cv2.GaussianBlur(lit.reshape(h, w), (0, 0), sig).reshape(-1)
@@ -306,6 +323,7 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator) ->
     amb = (e_sky * (0.55 + 0.45 * np.clip(nrm[:, 2], -1, 1)))[:, None] * sky_col
     col = alb * (direct + amb)
 
+    mark("light")
     # ---------------------------------------------------------------- specular + reflection
     spec_k = _SPEC[mat] + 0.5 * wk
     f0 = _F0[mat] + 0.04 * wk + 0.06 * puddle
@@ -323,6 +341,7 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator) ->
         col[glossy] += sp[:, None] * sun_col * 1.5 + (fres * 0.9)[:, None] * sky_col
     col[~hit] = sky_col * 0.25
 
+    mark("specular")
     # ---------------------------------------------------------------- atmosphere + camera
     haze = np.float32(factors["haze"])
     if haze > 0:
@@ -344,6 +363,7 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator) ->
     # tone curve: gentle shoulder, display gamma
     img = img / (1.0 + 0.25 * img)
     img = np.power(np.clip(img * 1.25, 0.0, 1.0), np.float32(1 / 2.2))
+    mark("tone")
     sig = factors["blur_sigma_px"]
     if sig > 0.05:
         img = cv2.GaussianBlur(img, (0, 0), sig)
@@ -352,9 +372,11 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator) ->
         lum_noise = rng.standard_normal((h, w), dtype=np.float32)
         img += (np.float32(ns) * (0.5 + 0.5 * np.sqrt(img.mean(axis=2))) * lum_noise)[..., None]
     out = np.clip(img * 255.0 + 0.5, 0, 255).astype(np.uint8)
+    mark("sensor")
     q = factors.get("jpeg_quality")
     if q:
         ok, enc = cv2.imencode(".jpg", out[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, int(q)])
         if ok:
             out = np.ascontiguousarray(cv2.imdecode(enc, cv2.IMREAD_COLOR)[..., ::-1])
+    mark("jpeg")
     return out

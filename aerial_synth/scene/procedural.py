@@ -22,7 +22,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..errors import SceneError
-from .build import cylinder, ellipsoid, flat_polygon, merge_meshes, polygon_object, prism
+from .build import cylinder, ellipsoid, merge_meshes, polygon_object, prism
 from .model import LabelConfig, RoadTruth, Scene, SceneObject, SceneTruth
 
 __all__ = ["generate", "GENERATORS", "Z_GROUND", "Z_ROAD", "Z_MARKING", "Z_SIDEWALK"]
@@ -338,7 +338,6 @@ class _Builder:
     def add_poles_along(self, r: _Road, spacing_m: float, height_m: float, side_offset_m: float):
         import shapely
 
-        L = r.line.length
         for sign in (1.0, -1.0):
             off = _offset(r.line, sign * (r.width_m / 2 + side_offset_m))
             if off.is_empty:
@@ -354,7 +353,6 @@ class _Builder:
             for (x, y), good in zip(pts, ok):
                 if good:
                     self.poles.append((float(x), float(y), float(height_m)))
-        del L
 
     def _road_prepared(self):
         import shapely
@@ -522,8 +520,6 @@ def _random_buildings(b: _Builder, spec: Mapping, region=None):
 
 
 def _gen_city_park(b: _Builder, spec: Mapping):
-    import shapely
-
     _spec_roads(b, spec.get("roads", []), 8.0)
     for lk in spec.get("lakes", []) or []:
         _lake(b, lk)
@@ -549,7 +545,6 @@ def _gen_city_park(b: _Builder, spec: Mapping):
         if r.width_m >= float(p.get("min_road_width_m", 8.0)):
             b.add_poles_along(r, float(p.get("spacing_m", 35.0)), float(p.get("height_m", 8.0)),
                               r.sidewalk_m + float(p.get("offset_m", 0.6)))
-    del shapely
 
 
 def _gen_suburb(b: _Builder, spec: Mapping):

@@ -56,7 +56,10 @@ def format_table(catalog) -> str:
         if k == 0:
             lines.append("  ".join("-" * w for w in widths))
     pc = catalog.color_probabilities
-    cols = ", ".join(f"{c.name} {p:.0%}" for c, p in zip(catalog.colors, pc))
+    cols = ", ".join(
+        f"{c.name} {p:.0%}" if p >= 0.01 else f"{c.name} {p:.1%}"
+        for c, p in zip(catalog.colors, pc)
+    )
     lines.append("")
     lines.append(f"colours ({len(catalog.colors)}): {cols}")
     lines.append(f"variants: {len(catalog.models)} models x {len(catalog.colors)} colours = "

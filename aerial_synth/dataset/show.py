@@ -1,0 +1,147 @@
+"""``aerial-synth show``: draw labels over images, and a contact sheet.
+
+Reads an aerial-synth dataset (``meta/*.json`` plus any format's images) or a plain DOTA
+folder (``images/`` + ``labelTxt/``). Draws each box's polygon, a heading arrow from the box
+centre to the middle of its front edge (corner 1 -> corner 2), the class, kept boxes in green
+(small vehicles) / cyan (large vehicles) and difficult ones in orange.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ExportError
+from ..io_utils import atomic_write_bytes
+
+__all__ = ["Drawn", "draw_labels", "contact_sheet", "show_dataset"]
+
+# BGR
+COLOURS = {"small-vehicle": (80, 220, 80), "large-vehicle": (230, 200, 40)}
+DIFFICULT = (0, 140, 255)
+SHORT = {"small-vehicle": "SV", "large-vehicle": "LV"}
+
+
+@dataclass(frozen=True)
+class Drawn:
+    """One box to draw: polygon (4, 2) px, front-left first; class; difficult."""
+
+    polygon_xy_px: tuple
+    category: str
+    difficult: bool
+
+
+def draw_labels(bgr: np.ndarray, boxes, label: bool = True) -> np.ndarray:
+    """A copy of ``bgr`` (H, W, 3) uint8 with the boxes drawn."""
+    import cv2
+
+    img = np.ascontiguousarray(bgr.copy())
+    scale = max(1, round(max(img.shape[:2]) / 1024))
+    for b in boxes:
+        p = np.asarray(b.polygon_xy_px, dtype=float).reshape(4, 2)
+        col = DIFFICULT if b.difficult else COLOURS.get(b.category, (255, 0, 255))
+        pts = np.round(p * 4).astype(np.int32)  # 2 fractional bits
+        cv2.polylines(img, [pts], True, col, scale, cv2.LINE_AA, shift=2)
+        centre = p.mean(axis=0)
+        front = (p[0] + p[1]) / 2.0
+        tip = centre + 1.4 * (front - centre)
+        cv2.arrowedLine(img, tuple(np.round(centre * 4).astype(int)), tuple(np.round(tip * 4).astype(int)),
+                        col, scale, cv2.LINE_AA, shift=2, tipLength=0.3)
+        cv2.circle(img, tuple(np.round(p[0] * 4).astype(int)), 2 * scale, col, -1, cv2.LINE_AA, shift=2)
+        if label:
+            text = SHORT.get(b.category, b.category) + ("*" if b.difficult else "")
+            org = (int(p[:, 0].min()), max(int(p[:, 1].min()) - 3, 10))
+            cv2.putText(img, text, org, cv2.FONT_HERSHEY_SIMPLEX, 0.35 * scale, col, scale, cv2.LINE_AA)
+    return img
+
+
+def contact_sheet(images: list[np.ndarray], thumb_px: int = 256, cols: int | None = None) -> np.ndarray:
+    """Grid of thumbnails (BGR uint8), ``cols`` per row (default ~square)."""
+    import cv2
+
+    if not images:
+        raise ExportError("contact sheet: no images to draw")
+    n = len(images)
+    cols = cols or max(1, math.ceil(math.sqrt(n)))
+    rows = math.ceil(n / cols)
+    sheet = np.full((rows * thumb_px, cols * thumb_px, 3), 32, np.uint8)
+    for k, im in enumerate(images):
+        h, w = im.shape[:2]
+        s = thumb_px / max(h, w)
+        t = cv2.resize(im, (max(1, round(w * s)), max(1, round(h * s))), interpolation=cv2.INTER_AREA)
+        r, c = divmod(k, cols)
+        sheet[r * thumb_px: r * thumb_px + t.shape[0], c * thumb_px: c * thumb_px + t.shape[1]] = t
+    return sheet
+
+
+def _items_from_dataset(root: Path):
+    from ..formats import meta
+
+    for mp in sorted((root / "meta").glob("*.json")):
+        rec = meta.read(mp)
+        sp, fn = rec.split, rec.file_name
+        cands = [root / "dota" / sp / "images" / fn, root / "eagle" / sp / "images" / fn,
+                 root / "yolo-obb" / "images" / sp / fn, root / "coco" / "images" / sp / fn]
+        img = next((c for c in cands if c.is_file()), None)
+        boxes = [
+            Drawn(a.box.corners_xy_px, a.cls, a.difficult)
+            for a in rec.annotations
+            if a.kept and a.box is not None
+        ]
+        yield rec.name, img, boxes
+
+
+def _items_from_dota(root: Path):
+    from ..formats import dota
+
+    for lp in sorted((root / "labelTxt").glob("*.txt")):
+        lab = dota.read(lp, categories=None)
+        img = None
+        for ext in ("png", "jpg", "jpeg", "tif", "bmp"):
+            cand = root / "images" / f"{lp.stem}.{ext}"
+            if cand.is_file():
+                img = cand
+                break
+        yield lp.stem, img, [Drawn(o.polygon_xy_px, o.category, bool(o.difficult)) for o in lab.objects]
+
+
+def show_dataset(root, out_dir, limit: int | None = None, thumb_px: int = 256) -> list[Path]:
+    """Draw every labelled image of ``root`` into ``out_dir`` plus ``contact_sheet.jpg``.
+    Returns the written paths (sheet last)."""
+    import cv2
+
+    root, out = Path(root), Path(out_dir)
+    if not root.is_dir():
+        raise ExportError(f"show {root}: no such folder")
+    if (root / "meta").is_dir():
+        items = _items_from_dataset(root)
+    elif (root / "labelTxt").is_dir():
+        items = _items_from_dota(root)
+    else:
+        raise ExportError(
+            f"show {root}: expected an aerial-synth dataset (meta/) or a DOTA folder (labelTxt/)"
+        )
+    written, thumbs = [], []
+    for k, (name, img_path, boxes) in enumerate(items):
+        if limit is not None and k >= limit:
+            break
+        if img_path is None:
+            raise ExportError(f"show {root}: no image found for {name}")
+        bgr = cv2.imread(str(img_path), cv2.IMREAD_COLOR)
+        if bgr is None:
+            raise ExportError(f"show {img_path}: cannot read the image")
+        drawn = draw_labels(bgr, boxes)
+        ok, buf = cv2.imencode(".jpg", drawn, [cv2.IMWRITE_JPEG_QUALITY, 90])
+        written.append(atomic_write_bytes(out / f"{name}.jpg", buf.tobytes()))
+        h, w = drawn.shape[:2]
+        f = thumb_px / max(h, w)
+        thumbs.append(cv2.resize(drawn, (max(1, round(w * f)), max(1, round(h * f))),
+                                 interpolation=cv2.INTER_AREA))
+    if not thumbs:
+        raise ExportError(f"show {root}: no labelled images found")
+    ok, buf = cv2.imencode(".jpg", contact_sheet(thumbs, thumb_px), [cv2.IMWRITE_JPEG_QUALITY, 90])
+    written.append(atomic_write_bytes(out / "contact_sheet.jpg", buf.tobytes()))
+    return written

@@ -1,0 +1,80 @@
+import numpy as np
+import pytest
+import scipy.stats as st
+
+from aerial_synth.errors import ConfigError
+from aerial_synth.placement import load_scenario
+
+TABLE_3_1 = {  # scenario: (skew sign, mean, sd, d_min, d_max)
+    "jam": (+1, 10.4, 0.8, 7.5, 23.5),
+    "normal": (0, 24.0, 1.6, 11.5, 37.9),
+    "sparse": (-1, 36.0, 1.6, 25.0, 40.0),
+}
+
+
+@pytest.mark.parametrize("name", sorted(TABLE_3_1))
+def test_spacing_matches_table_3_1(name):
+    sign, mean, sd, lo, hi = TABLE_3_1[name]
+    sampler = load_scenario(name).spacing
+    x = sampler.sample(np.random.default_rng(123), 100_000)
+    assert abs(x.mean() - mean) < 0.1
+    assert abs(x.std() - sd) < 0.1 * sd
+    skew = st.skew(x)
+    if sign > 0:
+        assert skew > 0.5
+    elif sign < 0:
+        assert skew < -0.5
+    else:
+        assert abs(skew) < 0.05
+    assert x.min() >= lo and x.max() <= hi
+    if name == "jam":
+        assert x.min() >= 8.0  # the fixed 8 m distance: two vans in a row
+        # stated mode 8-10 m
+        hist, edges = np.histogram(x, bins=np.arange(7.5, 23.6, 0.25))
+        mode = edges[np.argmax(hist)] + 0.125
+        assert 8.0 <= mode <= 10.0
+    if name == "sparse":
+        # left skew: the mode lies above the mean (the thesis states 36 m; with mean 36 m and
+        # a negative skew the law's mode is ~37.8 m, documented in spacing.py)
+        hist, edges = np.histogram(x, bins=np.arange(25, 40.01, 0.25))
+        mode = edges[np.argmax(hist)] + 0.125
+        assert 36.0 < mode < 38.5
+
+
+def test_sampler_is_deterministic_and_cdf_consistent():
+    s = load_scenario("jam").spacing
+    a = s.sample(np.random.default_rng(5), 1000)
+    b = s.sample(np.random.default_rng(5), 1000)
+    assert np.array_equal(a, b)
+    x = s.sample(np.random.default_rng(6), 20000)
+    assert st.kstest(x, s.cdf).pvalue > 0.01
+
+
+def test_truncation_that_cuts_the_law_keeps_mean_and_sd():
+    s = load_scenario("normal", {"spacing": {"min_m": 21.5, "max_m": 30.0}}).spacing
+    x = s.sample(np.random.default_rng(0), 100_000)
+    assert abs(x.mean() - 24.0) < 0.05
+    assert abs(x.std() - 1.6) < 0.05 * 1.6
+    assert x.min() >= 21.5 and x.max() <= 30.0
+    assert s.loc_m != 24.0  # the law was re-solved, not just cut
+
+
+@pytest.mark.parametrize(
+    "over, match",
+    [
+        ({"spacing": {"min_m": 30.0}}, "d_min"),
+        ({"spacing": {"sd_m": -1.0}}, "sd_m"),
+        ({"spacing": {"mean_m": 50.0}}, "mean_m"),
+        ({"traffic": "middle"}, "traffic"),
+        ({"double_lane_probability": 2}, "double_lane_probability"),
+        ({"bogus": 1}, "unknown scenario field"),
+    ],
+)
+def test_impossible_truncation_is_refused():
+    with pytest.raises(ConfigError, match="no skew-normal law"):
+        load_scenario("normal", {"spacing": {"min_m": 21.0, "max_m": 26.0}})
+
+
+def test_bad_scenario_values(over, match):
+    with pytest.raises(ConfigError, match=match):
+        load_scenario("jam", over)
