@@ -6,8 +6,8 @@ Model (all vectorised over pixels, float32):
 
 - **Albedo** from the RayScene's per-face tables (``face_albedo``, ``face_material``), with
   procedural texture: fractal noise tiles looked up by the hit's *world* position (so a
-  surface keeps its pattern across frames and overlapping tiles), at three scales (0.1 m,
-  0.4 m, 2 m texels) and amplitudes per material (asphalt grain, grass patches, leafy crowns,
+  surface keeps its pattern across frames and overlapping tiles), at a fine fractal scale (0.1 m
+  texels) and two smooth ones (2 m, 6 m) and amplitudes per material (asphalt grain, grass patches, leafy crowns,
   nearly clean paint). The noise tiles depend only on ``RenderConfig.texture_seed``.
 - **Light**: Lambert sun term times a hard shadow from one shadow ray per hit pixel
   (Embree any-hit test towards the sun; trees and buildings shade roads and vehicles,
@@ -165,11 +165,9 @@ def _table(default: float, **values: float) -> np.ndarray:
 
 
 # texture amplitudes (relative albedo change per unit of noise, noise std ~ 1)
-_FINE = _table(0.04, asphalt=0.09, marking=0.07, concrete=0.06, paving=0.07, grass=0.12,
-               soil=0.12, water=0.02, roof=0.05, wall=0.05, foliage=0.16, bark=0.1,
-               paint=0.008, glass=0.0, tyre=0.05, trim=0.02, cargo=0.015, metal=0.03)
-_MID = _table(0.02, asphalt=0.04, grass=0.12, soil=0.1, foliage=0.28, roof=0.04, water=0.03,
-              marking=0.05, paving=0.03, concrete=0.04, paint=0.0, glass=0.0, cargo=0.01)
+_FINE = _table(0.05, asphalt=0.10, marking=0.09, concrete=0.08, paving=0.08, grass=0.2,
+               soil=0.18, water=0.04, roof=0.07, wall=0.06, foliage=0.35, bark=0.12,
+               paint=0.008, glass=0.0, tyre=0.05, trim=0.02, cargo=0.02, metal=0.03)
 _COARSE = _table(0.04, asphalt=0.08, grass=0.16, soil=0.12, foliage=0.15, roof=0.08,
                  water=0.1, paint=0.0, glass=0.0, tyre=0.0, trim=0.0, cargo=0.02)
 # hue shift with coarse noise: grass/foliage drift towards dry yellow-brown
@@ -198,7 +196,7 @@ def _noise_tiles(seed: int) -> np.ndarray:
     f = np.sqrt(fx * fx + fy * fy)
     f[0, 0] = 1.0
     out = np.empty((3, n, n), np.float32)
-    for i, beta in enumerate((1.2, 1.6, 2.2)):
+    for i, beta in enumerate((1.5, 1.6, 2.2)):
         spec = np.fft.rfft2(rng.standard_normal((n, n)))
         spec *= f ** (-beta)
         spec[0, 0] = 0
@@ -208,21 +206,13 @@ def _noise_tiles(seed: int) -> np.ndarray:
     return out
 
 
-def _lookup(tile: np.ndarray, x: np.ndarray, y: np.ndarray, texel_m: float) -> np.ndarray:
-    ix = np.floor(x * np.float32(1.0 / texel_m)).astype(np.int64) & 255
-    iy = np.floor(y * np.float32(1.0 / texel_m)).astype(np.int64) & 255
-    return tile[iy, ix]
-
-
-def _coarse_field(tile, pts_img: np.ndarray, texel_m: float, step: int = 8) -> np.ndarray:
-    """Smooth noise evaluated on a coarse pixel grid and upsampled (cheap low frequencies)."""
+def _coarse_field(tile, sub_xy: np.ndarray, texel_m: float, shape_hw) -> np.ndarray:
+    """Smooth noise sampled bilinearly at a coarse grid of world xy (k, l, 2) and resized to
+    ``shape_hw`` (cheap low frequencies)."""
     import cv2
 
-    h, w = pts_img.shape[:2]
-    sub = pts_img[step // 2 :: step, step // 2 :: step]
-    # bilinear sample of the tile on the coarse grid
-    gx = sub[..., 0] / texel_m
-    gy = sub[..., 1] / texel_m
+    gx = sub_xy[..., 0] / np.float32(texel_m)
+    gy = sub_xy[..., 1] / np.float32(texel_m)
     x0, y0 = np.floor(gx), np.floor(gy)
     fx, fy = (gx - x0).astype(np.float32), (gy - y0).astype(np.float32)
     x0 = x0.astype(np.int64) & 255
@@ -231,14 +221,67 @@ def _coarse_field(tile, pts_img: np.ndarray, texel_m: float, step: int = 8) -> n
     v = (tile[y0, x0] * (1 - fx) + tile[y0, x1] * fx) * (1 - fy) + (
         tile[y1, x0] * (1 - fx) + tile[y1, x1] * fx
     ) * fy
+    h, w = shape_hw
     return cv2.resize(v.astype(np.float32), (w, h), interpolation=cv2.INTER_LINEAR)
 
 
+def _tone_lut() -> np.ndarray:
+    """12-bit linear (0..4 in steps of 1/1024) -> 8-bit display value: soft shoulder + gamma."""
+    x = np.arange(4096, dtype=np.float64) / 1024.0
+    y = x / (1.0 + 0.25 * x) * 1.25
+    return np.clip(np.power(np.clip(y, 0, 1), 1 / 2.2) * 255.0 + 0.5, 0, 255).astype(np.uint8)
+
+
+_LUT = _tone_lut()
+
+
+def _shadow_mask(rayscene, buffers, pts, nrm, need, L, step: int) -> np.ndarray:
+    """(n,) float32 1 = sunlit, 0 = in shadow, for pixels in ``need`` (others 1).
+
+    With step > 1, shadow rays are cast for one pixel per step x step block and for every
+    pixel whose surface differs from its block's sample (another label or a depth jump), so
+    object edges stay exact and only shadow edges inside one surface are coarser.
+    """
+    import cv2
+
+    from .raycast import occluded
+
+    h, w = buffers.height_px, buffers.width_px
+    lit = np.ones(h * w, np.float32)
+    if step <= 1:
+        idx = np.flatnonzero(need)
+    else:
+        sem = buffers.semantic
+        dep = buffers.depth
+        sem_s = sem[::step, ::step]
+        dep_s = dep[::step, ::step]
+        sem_up = cv2.resize(sem_s, (w, h), interpolation=cv2.INTER_NEAREST)
+        dep_up = cv2.resize(dep_s, (w, h), interpolation=cv2.INTER_NEAREST)
+        # cv2 maps dst x -> floor(x * src / dst); make that the block's first pixel
+        sample = np.zeros((h, w), bool)
+        sample[::step, ::step] = True
+        differs = (sem != sem_up) | (np.abs(dep - dep_up) > 0.2)
+        own = (sample | differs).reshape(-1) & need
+        idx = np.flatnonzero(own)
+    if len(idx):
+        o = pts[idx] + _PEEL * nrm[idx]
+        occ = occluded(rayscene, o, np.broadcast_to(L, (len(idx), 3)))
+        lit[idx[occ]] = 0.0
+    if step > 1:
+        blk = lit.reshape(h, w)[::step, ::step]
+        up = cv2.resize(np.ascontiguousarray(blk), (w, h), interpolation=cv2.INTER_NEAREST)
+        lit = np.where(own, lit, up.reshape(-1))
+        lit[~need] = 1.0
+    return lit
+
+
 def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator,
-          timings: dict | None = None) -> np.ndarray:
+          timings: dict | None = None, shadow_step: int = 2) -> np.ndarray:
     """Shaded RGB (H, W, 3) uint8 for the primary hits in ``buffers`` under ``factors``.
 
     timings : optional dict that receives seconds per shading stage (for benchmarks).
+    shadow_step : 1 = one shadow ray per pixel; k = one per k x k block plus every pixel at
+                  an object edge (see :func:`_shadow_mask`).
     """
     import time
 
@@ -257,121 +300,159 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator,
     face = buffers.face
     hit = face >= 0
     fi = np.where(hit, face, 0)
-    mat = rayscene.face_material[fi] if len(rayscene.face_material) else np.zeros(n, np.uint8)
-    alb = rayscene.face_albedo[fi] if len(rayscene.face_albedo) else np.zeros((n, 3), np.float32)
-    alb = np.ascontiguousarray(alb, dtype=np.float32)
+    if len(rayscene.face_material):
+        mat = rayscene.face_material[fi]
+        alb = rayscene.face_albedo[fi]
+    else:
+        mat = np.zeros(n, np.uint8)
+        alb = np.zeros((n, 3), np.float32)
     nrm = buffers.normal
-    pts = buffers.world_points()
-    dirs = buffers.rays[:, 3:]
-    inv_len = (1.0 / np.sqrt((dirs * dirs).sum(axis=1))).astype(np.float32)
-    view = -dirs * inv_len[:, None]  # towards the camera
+    rays = buffers.rays
+    t = np.where(hit, buffers.t, np.float32(0.0))
+    px = rays[:, 0] + t * rays[:, 3]
+    py = rays[:, 1] + t * rays[:, 4]
+    pz = rays[:, 2] + t * rays[:, 5]
 
     oc = np.float32(factors["overcast"])
     wet = np.float32(factors["wet"])
     L = sun_direction(factors["sun_azimuth_deg"], factors["sun_elevation_deg"]).astype(np.float32)
-
     mark("setup")
+
     # ---------------------------------------------------------------- albedo + texture
     if factors.get("texture_seed") is not None:
         tiles = _noise_tiles(int(factors["texture_seed"]))
-        # use a vertical-offset so stacked surfaces (roof vs ground) decorrelate
-        px = pts[:, 0] + np.float32(0.37) * pts[:, 2]
-        py = pts[:, 1] - np.float32(0.53) * pts[:, 2]
-        nf = _lookup(tiles[0], px, py, 0.1)
-        nm = _lookup(tiles[1], px + np.float32(31.0), py, 0.4)
-        img_pts = np.stack([px, py], axis=1).reshape(h, w, 2)
-        nc = _coarse_field(tiles[2], img_pts, 2.0).reshape(-1)
-        nd = _coarse_field(tiles[1], img_pts + np.float32(57.0), 6.0).reshape(-1)
-        gain = 1.0 + _FINE[mat] * nf + _MID[mat] * nm + _COARSE[mat] * nc
-        alb *= np.clip(gain, 0.3, 2.0)[:, None]
-        dry = (_DRY[mat] * np.clip(nd, 0.0, 3.0))[:, None]
-        alb += dry * (np.array([0.42, 0.36, 0.20], np.float32) - alb) * 0.5
+        # shift by height so stacked surfaces (roof over ground) get different patterns
+        qx = px + np.float32(0.37) * pz
+        qy = py - np.float32(0.53) * pz
+        ix = (qx * np.float32(10.0)).astype(np.int32)
+        iy = (qy * np.float32(10.0)).astype(np.int32)
+        iy &= 255
+        iy <<= 8
+        ix &= 255
+        iy |= ix
+        nf = tiles[0].ravel()[iy]  # fractal detail, 0.1 m texels (25.6 m period)
+        sub = np.stack(
+            [qx.reshape(h, w)[4::8, 4::8], qy.reshape(h, w)[4::8, 4::8]], axis=2
+        )
+        nc = _coarse_field(tiles[2], sub, 2.0, (h, w)).reshape(-1)
+        gain = _FINE[mat] * nf
+        gain += _COARSE[mat] * nc
+        gain += np.float32(1.0)
+        np.clip(gain, 0.3, 2.0, out=gain)
+        alb = alb * gain[:, None]
+        dry_k = _DRY[mat]
+        j = np.flatnonzero(dry_k > 0)
+        if len(j):
+            nd = _coarse_field(tiles[1], sub + np.float32(57.0), 6.0, (h, w)).reshape(-1)
+            d = (dry_k[j] * np.clip(nd[j], 0.0, 3.0) * 0.5)[:, None]
+            alb[j] += d * (np.array([0.42, 0.36, 0.20], np.float32) - alb[j])
     else:
         nc = np.zeros(n, np.float32)
+        alb = alb.copy()
     # wetness: darker porous surfaces, puddles where the coarse noise is high
     wk = _WETK[mat] * wet
-    puddle = np.zeros(n, np.float32)
+    puddle = None
     if wet > 0:
-        alb *= (1.0 - 0.45 * wk)[:, None]
         puddle = np.clip((nc - (1.6 - 1.2 * wet)) * 2.0, 0.0, 1.0) * (_WETK[mat] > 0.5)
-        alb *= (1.0 - 0.5 * puddle)[:, None]
-
+        alb *= ((1.0 - 0.45 * wk) * (1.0 - 0.5 * puddle))[:, None]
     mark("texture")
-    # ---------------------------------------------------------------- light
-    ndl = np.clip(nrm @ L, 0.0, None).astype(np.float32)
-    lit = np.ones(n, np.float32)
-    if factors.get("shadows", True):
-        from .raycast import occluded
 
-        cand = np.flatnonzero(hit & (ndl > 0))
-        if len(cand):
-            o = pts[cand] + _PEEL * nrm[cand]
-            occ = occluded(rayscene, o, np.broadcast_to(L, (len(cand), 3)))
-            lit[cand[occ]] = 0.0
-            mark("shadow_rays")
+    # ---------------------------------------------------------------- light
+    ndl = nrm @ L
+    np.maximum(ndl, 0.0, out=ndl)
+    lit = None
+    if factors.get("shadows", True):
+        lit = _shadow_mask(rayscene, buffers, np.stack([px, py, pz], 1), nrm, hit & (ndl > 0), L,
+                           shadow_step)
+        mark("shadow_rays")
         if oc > 0.02:
             sig = 0.5 + 6.0 * float(oc)
             lit = cv2.GaussianBlur(lit.reshape(h, w), (0, 0), sig).reshape(-1)
     elev = math.radians(factors["sun_elevation_deg"])
     warm = max(0.0, 1.0 - elev / math.radians(45.0))
+    wb = factors["white_balance"]
+    cam_gain = np.array([1.0 + wb, 1.0, 1.0 - wb], np.float32) * np.float32(factors["exposure"])
     sun_col = np.array([1.0, 0.96 - 0.05 * warm, 0.90 - 0.12 * warm], np.float32)
     sky_col = np.array([0.60, 0.68, 0.85], np.float32)
     sky_col = sky_col + oc * (np.array([0.85, 0.86, 0.88], np.float32) - sky_col)
     e_sun = np.float32(1.15 * (1.0 - 0.85 * oc))
     e_sky = np.float32(0.30 + 0.45 * oc)
-    direct = (e_sun * ndl * lit)[:, None] * sun_col
-    amb = (e_sky * (0.55 + 0.45 * np.clip(nrm[:, 2], -1, 1)))[:, None] * sky_col
-    col = alb * (direct + amb)
-
-    mark("light")
-    # ---------------------------------------------------------------- specular + reflection
-    spec_k = _SPEC[mat] + 0.5 * wk
-    f0 = _F0[mat] + 0.04 * wk + 0.06 * puddle
-    glossy = np.flatnonzero(hit & ((spec_k > 0) | (f0 > 0)))
-    if len(glossy):
-        nn = nrm[glossy]
-        vv = view[glossy]
-        hv = vv + L
-        hv /= np.linalg.norm(hv, axis=1, keepdims=True)
-        ndh = np.clip((nn * hv).sum(axis=1), 0.0, 1.0)
-        shine = np.where(wk[glossy] > 0, 60.0, _SHINE[mat[glossy]]).astype(np.float32)
-        sp = spec_k[glossy] * np.power(ndh, shine) * (1.0 - 0.9 * oc) * lit[glossy]
-        ndv = np.clip((nn * vv).sum(axis=1), 0.0, 1.0)
-        fres = f0[glossy] + (1.0 - f0[glossy]) * np.power(1.0 - ndv, 5) * (f0[glossy] > 0)
-        col[glossy] += sp[:, None] * sun_col * 1.5 + (fres * 0.9)[:, None] * sky_col
-    col[~hit] = sky_col * 0.25
-
-    mark("specular")
-    # ---------------------------------------------------------------- atmosphere + camera
-    haze = np.float32(factors["haze"])
+    # per-pixel scalar factors: haze transmission and vignetting fold into the light
+    haze = float(factors["haze"])
+    trans = np.float32(1.0)
+    veil = None
     if haze > 0:
         alt = max(float(camera.altitude_m), 1.0)
-        dz = np.clip(buffers.depth.reshape(-1) / np.float32(alt), 0.7, 1.4)
-        hz = (haze * dz)[:, None]
-        veil = np.array([0.62, 0.66, 0.72], np.float32) * (0.8 + 0.4 * e_sky)
-        col = col * (1.0 - hz) + veil * hz
-    wb = factors["white_balance"]
-    gainv = np.array([1.0 + wb, 1.0, 1.0 - wb], np.float32) * np.float32(factors["exposure"])
-    col *= gainv
-    img = col.reshape(h, w, 3)
-    vig = factors.get("vignetting", 0.0)
+        hz = np.float32(haze) * np.clip(buffers.depth.reshape(-1) / np.float32(alt), 0.7, 1.4)
+        trans = 1.0 - hz
+        veil = np.array([0.62, 0.66, 0.72], np.float32) * np.float32(0.8 + 0.4 * e_sky)
+    vig = float(factors.get("vignetting", 0.0))
     if vig > 0:
         yy = (np.arange(h, dtype=np.float32) + 0.5 - h / 2) / (h / 2)
         xx = (np.arange(w, dtype=np.float32) + 0.5 - w / 2) / (w / 2)
-        r2 = (yy[:, None] ** 2 + xx[None, :] ** 2) * 0.5
-        img *= (1.0 - np.float32(vig) * r2)[..., None]
-    # tone curve: gentle shoulder, display gamma
-    img = img / (1.0 + 0.25 * img)
-    img = np.power(np.clip(img * 1.25, 0.0, 1.0), np.float32(1 / 2.2))
+        vmap = (1.0 - np.float32(vig) * 0.5 * (yy[:, None] ** 2 + xx[None, :] ** 2)).reshape(-1)
+        trans = trans * vmap
+    s_sun = e_sun * ndl
+    if lit is not None:
+        s_sun *= lit
+    s_sky = e_sky * (np.float32(0.55) + np.float32(0.45) * nrm[:, 2])
+    if not np.isscalar(trans) and not isinstance(trans, np.float32):
+        s_sun *= trans
+        s_sky *= trans
+    else:
+        s_sun *= trans
+        s_sky *= trans
+    col = alb * (s_sun[:, None] * (sun_col * cam_gain) + s_sky[:, None] * (sky_col * cam_gain))
+    mark("light")
+
+    # ---------------------------------------------------------------- specular + reflection
+    spec_k = _SPEC[mat]
+    f0 = _F0[mat]
+    if wet > 0:
+        spec_k = spec_k + 0.5 * wk
+        f0 = f0 + 0.04 * wk + 0.06 * puddle
+    glossy = np.flatnonzero(hit & ((spec_k > 0) | (f0 > 0)))
+    if len(glossy):
+        nn = nrm[glossy]
+        vv = -rays[glossy, 3:]
+        vv /= np.linalg.norm(vv, axis=1, keepdims=True)
+        hv = vv + L
+        hv /= np.linalg.norm(hv, axis=1, keepdims=True)
+        ndh = np.clip((nn * hv).sum(axis=1), 0.0, 1.0)
+        shine = _SHINE[mat[glossy]]
+        if wet > 0:
+            shine = np.where(wk[glossy] > 0, np.float32(60.0), shine)
+        sp = spec_k[glossy] * np.power(ndh, shine) * (1.0 - 0.9 * oc)
+        if lit is not None:
+            sp *= lit[glossy]
+        ndv = np.clip((nn * vv).sum(axis=1), 0.0, 1.0)
+        fg = f0[glossy]
+        fres = (fg + (1.0 - fg) * np.power(1.0 - ndv, 5)) * (fg > 0)
+        tg = trans if np.ndim(trans) == 0 else trans[glossy]
+        add = (sp * 1.5 * tg)[:, None] * (sun_col * cam_gain) + (fres * 0.9 * tg)[:, None] * (
+            sky_col * cam_gain
+        )
+        col[glossy] += add
+    if not hit.all():
+        col[~hit] = sky_col * 0.25
+    if veil is not None:
+        col += (hz[:, None] * (veil * cam_gain))
+    mark("specular")
+
+    # ---------------------------------------------------------------- tone + sensor
+    q = np.minimum(col * np.float32(1024.0), np.float32(4095.0))
+    np.maximum(q, 0.0, out=q)
+    out = _LUT[q.astype(np.uint16)].reshape(h, w, 3)
     mark("tone")
     sig = factors["blur_sigma_px"]
     if sig > 0.05:
-        img = cv2.GaussianBlur(img, (0, 0), sig)
+        out = cv2.GaussianBlur(out, (0, 0), sig)
     ns = factors["noise_sigma"]
     if ns > 0:
-        lum_noise = rng.standard_normal((h, w), dtype=np.float32)
-        img += (np.float32(ns) * (0.5 + 0.5 * np.sqrt(img.mean(axis=2))) * lum_noise)[..., None]
-    out = np.clip(img * 255.0 + 0.5, 0, 255).astype(np.uint8)
+        noise = rng.standard_normal((h, w), dtype=np.float32)
+        noise *= np.float32(ns * 255.0)
+        out = cv2.add(out.astype(np.int16), np.repeat(noise.astype(np.int16)[..., None], 3, 2))
+        out = np.clip(out, 0, 255).astype(np.uint8)
     mark("sensor")
     q = factors.get("jpeg_quality")
     if q:
@@ -379,4 +460,4 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator,
         if ok:
             out = np.ascontiguousarray(cv2.imdecode(enc, cv2.IMREAD_COLOR)[..., ::-1])
     mark("jpeg")
-    return out
+    return np.ascontiguousarray(out)

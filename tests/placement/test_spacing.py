@@ -59,6 +59,11 @@ def test_truncation_that_cuts_the_law_keeps_mean_and_sd():
     assert s.loc_m != 24.0  # the law was re-solved, not just cut
 
 
+def test_impossible_truncation_is_refused():
+    with pytest.raises(ConfigError, match="no skew-normal law"):
+        load_scenario("normal", {"spacing": {"min_m": 21.0, "max_m": 26.0}})
+
+
 @pytest.mark.parametrize(
     "over, match",
     [
@@ -70,11 +75,6 @@ def test_truncation_that_cuts_the_law_keeps_mean_and_sd():
         ({"bogus": 1}, "unknown scenario field"),
     ],
 )
-def test_impossible_truncation_is_refused():
-    with pytest.raises(ConfigError, match="no skew-normal law"):
-        load_scenario("normal", {"spacing": {"min_m": 21.0, "max_m": 26.0}})
-
-
 def test_bad_scenario_values(over, match):
     with pytest.raises(ConfigError, match=match):
         load_scenario("jam", over)
