@@ -354,7 +354,7 @@ class _Engine:
             want = in_flight - len(active)
             if n_lines is not None:
                 want = min(want, n_lines - n_fwd)
-            if want > 0 and not seeds_exhausted and fails <= 8 * in_flight:
+            if want > 0 and not seeds_exhausted and fails <= 4 * in_flight:
                 seeds = self.next_seeds(want)
                 if not len(seeds):
                     seeds_exhausted = True
@@ -372,7 +372,7 @@ class _Engine:
                     finished_now = [ln for ln in started if len(ln.placed) >= ln.target]
                     active += self._opposites(finished_now)
             if not active:
-                if seeds_exhausted or fails > 8 * in_flight:
+                if seeds_exhausted or fails > 4 * in_flight:
                     break
                 if n_lines is not None and sum(1 for ln in self.lines if ln.lane == 0) >= n_lines:
                     break
@@ -476,7 +476,8 @@ def place(
         "lines": sum(1 for ln in eng.lines if ln.lane == 0),
         "opposite_lanes": sum(1 for ln in eng.lines if ln.lane == 1),
         "line_end_reasons": dict(sorted(reasons.items())),
-        "complete_lines": [[ln.line_id, ln.lane] for ln in eng.lines if ln.reason == "complete"],
+        # per line: [line id, lane, why it ended, vehicles]
+        "line_table": [[ln.line_id, ln.lane, ln.reason or "complete", len(ln.placed)] for ln in eng.lines],
         "spacing_m": {
             "n": int(len(spac)),
             "mean": round(float(spac.mean()), 4) if len(spac) else None,

@@ -248,11 +248,12 @@ def compute_visibility(
         return {}, empty
     corners = vehicle_boxes_corners(vehicles)
     uv = camera.project(corners.reshape(-1, 3)).reshape(len(vehicles), 8, 2)
-    ok = np.isfinite(uv).all(axis=(1, 2))
-    x0 = np.floor(np.nanmin(uv[..., 0], axis=1)) - margin_px
-    x1 = np.ceil(np.nanmax(uv[..., 0], axis=1)) + margin_px
-    y0 = np.floor(np.nanmin(uv[..., 1], axis=1)) - margin_px
-    y1 = np.ceil(np.nanmax(uv[..., 1], axis=1)) + margin_px
+    ok = np.isfinite(uv).all(axis=(1, 2))  # boxes partly behind the camera are out of view
+    uv = np.where(ok[:, None, None], uv, 0.0)
+    x0 = np.floor(uv[..., 0].min(axis=1)) - margin_px
+    x1 = np.ceil(uv[..., 0].max(axis=1)) + margin_px
+    y0 = np.floor(uv[..., 1].min(axis=1)) - margin_px
+    y1 = np.ceil(uv[..., 1].max(axis=1)) + margin_px
     inview = ok & (x1 > 0) & (x0 < w) & (y1 > 0) & (y0 < h)
     sel = np.flatnonzero(inview)
     if len(sel) == 0:

@@ -183,6 +183,7 @@ _F0 = _table(0.0, paint=0.05, glass=0.09, water=0.06, metal=0.2, light_front=0.0
 _WETK = _table(0.0, asphalt=1.0, marking=0.7, concrete=0.9, paving=0.9, soil=0.6, roof=0.4,
                grass=0.2)
 
+_FOLIAGE = MATERIAL_IDS["foliage"]
 _PEEL = 0.03  # shadow-ray origin offset along the normal, metres
 
 
@@ -196,7 +197,7 @@ def _noise_tiles(seed: int) -> np.ndarray:
     f = np.sqrt(fx * fx + fy * fy)
     f[0, 0] = 1.0
     out = np.empty((3, n, n), np.float32)
-    for i, beta in enumerate((1.5, 1.6, 2.2)):
+    for i, beta in enumerate((1.0, 1.6, 2.2)):
         spec = np.fft.rfft2(rng.standard_normal((n, n)))
         spec *= f ** (-beta)
         spec[0, 0] = 0
@@ -331,6 +332,16 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator,
         ix &= 255
         iy |= ix
         nf = tiles[0].ravel()[iy]  # fractal detail, 0.1 m texels (25.6 m period)
+        # leafy crowns: perturb foliage normals with the noise so facets break into clumps
+        leaf = np.flatnonzero(mat == _FOLIAGE)
+        if len(leaf):
+            t1 = tiles[1].ravel()
+            k = iy[leaf]
+            bump = np.stack([t1[k], t1[(k + 12345) & 0xFFFF], np.zeros(len(k), np.float32)], 1)
+            nl = nrm[leaf] + np.float32(0.45) * bump
+            nl /= np.linalg.norm(nl, axis=1, keepdims=True)
+            nrm = nrm.copy()
+            nrm[leaf] = nl
         sub = np.stack(
             [qx.reshape(h, w)[4::8, 4::8], qy.reshape(h, w)[4::8, 4::8]], axis=2
         )

@@ -1,0 +1,69 @@
+#!/usr/bin/env python
+"""Placement speed: N jam vehicles on a bundled scene (default 1,000 on city_park).
+
+Prints wall time per placement (after one warm-up run that builds the Embree BVH and the
+vehicle catalog), vehicles/s, rays/s and casts, plus the bare cast_rays time for the same
+number of vertical traces so the engine's overhead over Embree is visible.
+
+    .venv/bin/python tools/bench_place.py [--scene city_park] [--scenario jam] [--vehicles 1000] [--repeat 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+import warnings
+
+import numpy as np
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scene", default="city_park")
+    ap.add_argument("--scenario", default="jam")
+    ap.add_argument("--vehicles", type=int, default=1000)
+    ap.add_argument("--repeat", type=int, default=5)
+    args = ap.parse_args()
+
+    from aerial_synth.placement import place
+    from aerial_synth.placement.traffic import PlacementWarning
+    from aerial_synth.scene import load_scene
+    from aerial_synth.scene.raycast import RayScene
+    from aerial_synth.vehicles import load_catalog
+
+    t0 = time.perf_counter()
+    scene = load_scene(args.scene)
+    rs = RayScene(scene)
+    cat = load_catalog()
+    warnings.simplefilter("ignore", PlacementWarning)
+    place(rs, args.scenario, seed=12345, catalog=cat, n_vehicles=args.vehicles)  # warm-up
+    print(f"setup (scene, BVH, catalog, warm-up): {time.perf_counter() - t0:.2f} s")
+    times, vps, rays, casts, counts = [], [], [], [], []
+    for seed in range(args.repeat):
+        t = time.perf_counter()
+        p = place(rs, args.scenario, seed=seed, catalog=cat, n_vehicles=args.vehicles)
+        dt = time.perf_counter() - t
+        times.append(dt)
+        counts.append(len(p.vehicles))
+        rays.append(p.stats["rays"])
+        casts.append(p.stats["casts"])
+        vps.append(len(p.vehicles) / dt)
+        print(f"seed {seed}: {len(p.vehicles)} vehicles in {dt:.3f} s  "
+              f"({len(p.vehicles) / dt:.0f} vehicles/s, {p.stats['rays'] / dt / 1e6:.2f} M rays/s, "
+              f"{p.stats['rays']:,} rays in {p.stats['casts']} casts)")
+    n_rays = int(np.median(rays))
+    xy = np.random.default_rng(0).uniform(scene.bounds()[0, :2], scene.bounds()[1, :2], (n_rays, 2))
+    rs.trace_labels(xy)
+    t = time.perf_counter()
+    rs.trace_labels(xy)
+    bare = time.perf_counter() - t
+    med = float(np.median(times))
+    print(f"\n{args.scenario} on {args.scene}: median {med:.3f} s for {int(np.median(counts))} vehicles "
+          f"(min {min(times):.3f} s); {np.median(vps):.0f} vehicles/s; "
+          f"{n_rays / med / 1e6:.2f} M rays/s through the engine")
+    print(f"bare trace of the same {n_rays:,} rays in one cast: {bare:.3f} s "
+          f"({n_rays / bare / 1e6:.1f} M rays/s); engine/bare = {med / bare:.1f}x")
+
+
+if __name__ == "__main__":
+    main()
