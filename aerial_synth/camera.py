@@ -398,6 +398,8 @@ def sample_pose_targeted(
     rng: np.random.Generator,
     ground_z: float | None = None,
     jitter_frac: float = 0.25,
+    within_xy=None,
+    max_tries: int = 50,
 ) -> Camera:
     """A camera centred near a random placed vehicle (the thesis's sampler).
 
@@ -405,19 +407,32 @@ def sample_pose_targeted(
     ``jitter_frac`` of the image's ground footprint half-width, so the vehicle is in view.
     Yaw ~ U[0, 360), tilt ~ U[-max_tilt, max_tilt] about a horizontal axis at U[0, 180) deg.
     ground_z : ground height of the target (metres); default: the vehicle's ``z_m``.
+    within_xy : optional [[xmin, ymin], [xmax, ymax]] (e.g. the scene bounds): vehicles and
+               offsets are redrawn (up to ``max_tries``) until the image's ground footprint
+               lies inside, so frames do not show the void beyond the scene edge; if no
+               draw fits, the last one is used.
     A placement without vehicles raises :class:`CameraError`.
     """
     vehicles = list(getattr(placement, "vehicles", placement))
     if not vehicles:
         raise CameraError("targeted camera pose: the placement has no vehicles to aim at")
-    v = vehicles[int(rng.integers(len(vehicles)))]
     half = 0.5 * min(cfg.width_px, cfg.height_px) * cfg.nadir_gsd_m
-    off = rng.uniform(-1.0, 1.0, 2) * jitter_frac * half
-    gz = float(v.z_m) if ground_z is None else float(ground_z)
-    yaw, tilt, axis = _sample_angles(cfg, rng)
-    return Camera.look_at_ground(
-        cfg, (v.x_m + off[0], v.y_m + off[1], gz), yaw_deg=yaw, tilt_deg=tilt, tilt_axis_deg=axis
-    )
+    box = None if within_xy is None else np.asarray(within_xy, dtype=np.float64)[:, :2]
+    for _ in range(max(1, int(max_tries)) if box is not None else 1):
+        v = vehicles[int(rng.integers(len(vehicles)))]
+        off = rng.uniform(-1.0, 1.0, 2) * jitter_frac * half
+        gz = float(v.z_m) if ground_z is None else float(ground_z)
+        yaw, tilt, axis = _sample_angles(cfg, rng)
+        cam = Camera.look_at_ground(
+            cfg, (v.x_m + off[0], v.y_m + off[1], gz), yaw_deg=yaw, tilt_deg=tilt,
+            tilt_axis_deg=axis,
+        )
+        if box is None:
+            break
+        fp = cam.ground_footprint_xy(gz)
+        if (fp >= box[0]).all() and (fp <= box[1]).all():
+            break
+    return cam
 
 
 def grid_poses(

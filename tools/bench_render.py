@@ -58,7 +58,7 @@ def main(argv=None) -> int:
     frames, bare, stages, in_view = [], [], [], []
     for i in range(a.repeat + 1):
         rng = np.random.default_rng(np.random.SeedSequence([a.seed, i]))
-        cam = sample_pose_targeted(cfg, pl, rng)
+        cam = sample_pose_targeted(cfg, pl, rng, within_xy=scene.bounds()[:, :2])
         rays = cam.pixel_rays()
         t = time.perf_counter()
         rs.cast_rays(rays)

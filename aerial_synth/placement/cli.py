@@ -37,7 +37,8 @@ def register(sub) -> None:
                    "--set double_lane_probability=1 (repeatable)")
     p.add_argument("--catalog", default=None, metavar="FILE", help="vehicle catalog YAML")
     p.add_argument("--out", default="out/place", metavar="DIR", help="output folder (default: out/place)")
-    p.add_argument("--m-per-px", type=float, default=0.25, help="placement.png resolution (default 0.25)")
+    p.add_argument("--m-per-px", type=float, default=None,
+                   help="placement.png resolution (default 0.25, coarser for scenes over 1 km)")
     p.add_argument("--no-png", action="store_true", help="skip placement.png")
     p.set_defaults(func=run)
 
@@ -93,7 +94,11 @@ def run(args: argparse.Namespace) -> int:
         from ..scene.mapview import render_map
         from .draw import draw_placement
 
-        view = render_map(scene, m_per_px=args.m_per_px, rayscene=rs)
+        m_per_px = args.m_per_px
+        if m_per_px is None:
+            ext = scene.bounds()[1, :2] - scene.bounds()[0, :2]
+            m_per_px = max(0.25, float(ext.max()) / 4000.0)
+        view = render_map(scene, m_per_px=m_per_px, rayscene=rs)
         img = draw_placement(view, placement, title=f"{scene.name} / {cfg.name} / seed {args.seed}: "
                              f"{len(placement.vehicles)} vehicles")
         ok, buf = cv2.imencode(".png", img)

@@ -64,7 +64,7 @@ class ProbeConfig:
     max_distance_m: float = 16.0
     side_angle_deg: float = 10.0
     refine_steps: int = 6
-    median_max_m: float = 8.0
+    median_max_m: float = 14.0
     max_turn_deg: float = 30.0
     edge_jump_m: float = 1.5
 
@@ -115,6 +115,9 @@ class ScenarioConfig:
                         road, uniformly random heading)
     spacing           : centre-to-centre spacing law (ignored by "random")
     lane_offset_m     : d, distance from the road edge to the vehicle centre (half a 3.5 m lane)
+    lane_offsets_m    : optional list of d values for multi-lane roads (thesis §6 future work):
+                        each seeded line picks one lane, e.g. [1.75, 5.25, 8.75] for three
+                        3.5 m lanes per direction; null = every line uses lane_offset_m
     traffic           : "right" (edge on the vehicle's right) or "left"
     double_lane_probability : chance that a finished line gets an opposite lane
     gap_m             : clearance kept between footprints (each footprint grows by gap/2)
@@ -127,6 +130,7 @@ class ScenarioConfig:
     spacing: SpacingSampler | None = None
     vehicles_per_line: LinesConfig = field(default_factory=LinesConfig)
     lane_offset_m: float = 1.75
+    lane_offsets_m: tuple[float, ...] | None = None
     traffic: str = "right"
     double_lane_probability: float = 0.8
     gap_m: float = 0.5
@@ -145,6 +149,14 @@ class ScenarioConfig:
         if self.traffic not in ("right", "left"):
             raise ConfigError(f"scenario {self.name!r} traffic: expected 'right' or 'left', got {self.traffic!r}")
         _positive(f"scenario {self.name!r} lane_offset_m", self.lane_offset_m)
+        if self.lane_offsets_m is not None:
+            offs = tuple(float(v) for v in self.lane_offsets_m) if isinstance(
+                self.lane_offsets_m, (list, tuple)) else None
+            if not offs or any(not (v > 0) for v in offs):
+                raise ConfigError(
+                    f"scenario {self.name!r} lane_offsets_m: expected a non-empty list of positive "
+                    f"distances or null, got {self.lane_offsets_m!r}")
+            object.__setattr__(self, "lane_offsets_m", offs)
         if self.gap_m < 0:
             raise ConfigError(f"scenario {self.name!r} gap_m: expected >= 0, got {self.gap_m}")
         if not (0 <= self.double_lane_probability <= 1):

@@ -51,6 +51,7 @@ class _Line:
     y: float
     heading: float
     edge_dist: float = 0.0
+    offset: float = 1.75  # distance d of this line's lane from the road edge
     placed: list = field(default_factory=list)  # indices into the vehicle list
     reason: str = ""
 
@@ -114,7 +115,7 @@ class _Engine:
         return np.concatenate(out) if out else np.zeros((0, 2))
 
     # ------------------------------------------------------------------ geometry
-    def locate(self, q: np.ndarray, theta: np.ndarray) -> _Cand:
+    def locate(self, q: np.ndarray, theta: np.ndarray, offset=None) -> _Cand:
         """Two-direction re-probe (thesis Fig. 3.11) from points q with heading guesses theta.
 
         Directions: perpendicular to theta towards the traffic-side edge, and that turned by
@@ -138,7 +139,8 @@ class _Engine:
         head = np.arctan2(tu[:, 1], tu[:, 0])
         foot = e1 + ((q - e1) * tu).sum(axis=1, keepdims=True) * tu
         inward = unit(head - self.side * np.pi / 2)  # towards the road's interior
-        pos = foot + cfg.lane_offset_m * inward
+        d = cfg.lane_offset_m if offset is None else np.asarray(offset, float).reshape(-1, 1)
+        pos = foot + d * inward
         return _Cand(pos[:, 0], pos[:, 1], _wrap(head), ok, reason, pr.dist_m[:, 0])
 
     def check_footprints(self, c: _Cand, L: np.ndarray, W: np.ndarray) -> np.ndarray:
@@ -212,20 +214,28 @@ class _Engine:
         has_edge = pr.found[np.arange(P), best]
         phi = ang[np.arange(P), best]
         theta0 = phi - self.side * np.pi / 2  # the edge lies on the traffic side
+        if cfg.lane_offsets_m:
+            offs = self.rng.choice(np.asarray(cfg.lane_offsets_m, float), size=P)
+        else:
+            offs = np.full(P, cfg.lane_offset_m)
         # refine with the two-direction probe from the seed itself
-        c = self.locate(seeds, theta0)
+        c = self.locate(seeds, theta0, offs)
         c.ok &= has_edge
         # divided road: a median beyond the traffic-side edge means we face the wrong way
         sel = np.flatnonzero(c.ok)
         if len(sel) and cfg.probe.median_max_m > 0:
             pos = np.stack([c.x[sel], c.y[sel]], 1)
-            far, crossed, _ = self.prober.road_runs(
-                pos, c.heading[sel] + self.side * np.pi / 2,
-                cfg.lane_offset_m + cfg.probe.median_max_m + 2.0, cfg.probe.median_max_m,
+            n = len(sel)
+            toward = np.concatenate([c.heading[sel] + self.side * np.pi / 2,   # traffic side
+                                     c.heading[sel] - self.side * np.pi / 2])  # far side
+            _, crossed, _ = self.prober.road_runs(
+                np.concatenate([pos, pos]), toward,
+                cfg.probe.max_distance_m + cfg.probe.median_max_m + 2.0, cfg.probe.median_max_m,
             )
-            flip = sel[crossed]
+            # road beyond a narrow gap on the traffic side only: that gap is our median
+            flip = sel[crossed[:n] & ~crossed[n:]]
             if len(flip):
-                cf = self.locate(np.stack([c.x[flip], c.y[flip]], 1), c.heading[flip] + np.pi)
+                cf = self.locate(np.stack([c.x[flip], c.y[flip]], 1), c.heading[flip] + np.pi, offs[flip])
                 c.x[flip], c.y[flip], c.heading[flip] = cf.x, cf.y, cf.heading
                 c.ok[flip] &= cf.ok
                 c.edge_dist[flip] = cf.edge_dist
@@ -240,10 +250,22 @@ class _Engine:
                 pos, np.stack([h, h + np.pi, h - self.side * np.pi / 2], 1), include_origin=True
             )
             along = ext.dist_m[:, 0] + ext.dist_m[:, 1]
-            across = cfg.lane_offset_m + ext.dist_m[:, 2]
+            across = offs[sel] + ext.dist_m[:, 2]
             bad = sel[(along <= across) | (ext.count[:, 0] < 0)]
             c.ok[bad] = False
             c.reason[bad] = "road_end"
+            # Multi-lane: an inner lane beyond the middle of the road is only right where a
+            # median lies on the far side (a divided carriageway); on an undivided road it
+            # would be the opposite lane, driven the wrong way.
+            inner = (offs[sel] > cfg.lane_offset_m + 1e-9) & (ext.dist_m[:, 2] < offs[sel]) & c.ok[sel]
+            if inner.any():
+                ii = sel[inner]
+                far, crossed, _ = self.prober.road_runs(
+                    np.stack([c.x[ii], c.y[ii]], 1), c.heading[ii] - self.side * np.pi / 2,
+                    float(offs.max()) + cfg.probe.median_max_m + 2.0, cfg.probe.median_max_m)
+                wrong = ii[~crossed]
+                c.ok[wrong] = False
+                c.reason[wrong] = "opposite_half"
         variants = self.sample_variants(P)
         L = np.array([v.model.length_m for v in variants])
         W = np.array([v.model.width_m for v in variants])
@@ -256,7 +278,7 @@ class _Engine:
                 continue
             line = _Line(
                 line_id=len(self.lines), lane=0, target=cfg.vehicles_per_line.sample(self.rng),
-                x=c.x[i], y=c.y[i], heading=c.heading[i], edge_dist=cfg.lane_offset_m,
+                x=c.x[i], y=c.y[i], heading=c.heading[i], edge_dist=offs[i], offset=offs[i],
             )
             self.lines.append(line)
             self.add_vehicle(c, i, variants[i], z[i], line, float("nan"))
@@ -278,9 +300,10 @@ class _Engine:
         toward = new_head + self.side * np.pi / 2  # the new traffic side = the old far side
         reach = 2 * cfg.probe.max_distance_m + cfg.probe.median_max_m
         far, _, found = self.prober.road_runs(pos, toward, reach, cfg.probe.median_max_m)
-        q = pos + unit(toward) * np.maximum(far - cfg.lane_offset_m, 0.0)[:, None]
-        c = self.locate(q, new_head)
-        c.ok &= found & (far > cfg.lane_offset_m)
+        offs = np.array([ln.offset for ln, _ in picks])
+        q = pos + unit(toward) * np.maximum(far - offs, 0.0)[:, None]
+        c = self.locate(q, new_head, offs)
+        c.ok &= found & (far > offs)
         c.reason[~found] = "no_edge"
         variants = self.sample_variants(len(picks))
         L = np.array([v.model.length_m for v in variants])
@@ -294,7 +317,7 @@ class _Engine:
                 continue
             opp = _Line(
                 line_id=ln.line_id, lane=1, target=cfg.vehicles_per_line.sample(self.rng),
-                x=c.x[i], y=c.y[i], heading=c.heading[i], edge_dist=cfg.lane_offset_m,
+                x=c.x[i], y=c.y[i], heading=c.heading[i], edge_dist=ln.offset, offset=ln.offset,
             )
             self.lines.append(opp)
             self.add_vehicle(c, i, variants[i], z[i], opp, float("nan"))
@@ -312,9 +335,10 @@ class _Engine:
         head = np.array([ln.heading for ln in active])
         prev = np.array([[ln.x, ln.y] for ln in active])
         q = prev + unit(head) * s[:, None]
-        c = self.locate(q, head)
+        offs = np.array([ln.offset for ln in active])
+        c = self.locate(q, head, offs)
         turned = _angdiff(c.heading, head) > np.radians(cfg.probe.max_turn_deg)
-        jump = np.abs(c.edge_dist - cfg.lane_offset_m) > cfg.probe.edge_jump_m
+        jump = np.abs(c.edge_dist - offs) > cfg.probe.edge_jump_m
         bad = c.ok & (turned | jump)
         c.ok[bad] = False
         c.reason[bad] = "junction"

@@ -170,7 +170,7 @@ def cast_buffers(rayscene, camera) -> Buffers:
     depth = np.where(hit, t, np.float32(0.0)).astype(np.float32).reshape(h, w)
     n = hits.normal
     # face the camera: flip normals seen from behind
-    flip = (n * rays[:, 3:]).sum(axis=1) > 0
+    flip = np.einsum("ij,ij->i", n, rays[:, 3:]) > 0
     n = np.where(flip[:, None], -n, n).astype(np.float32)
     return Buffers(h, w, instance, semantic, depth, hits.face, t, n, rays)
 

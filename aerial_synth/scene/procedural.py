@@ -569,13 +569,17 @@ def _gen_suburb(b: _Builder, spec: Mapping):
         b.roads.append(_Road(f"ns_{i}", LineString([(x, -H / 2), (x, H / 2)]), w, sidewalk_m=side))
     for j, y in enumerate(ys):
         b.roads.append(_Road(f"ew_{j}", LineString([(-W / 2, y), (W / 2, y)]), sw, sidewalk_m=side))
-    # a cul-de-sac into one block
+    # a cul-de-sac running north into the block east of street ``street`` (from the middle of
+    # that block's south side, a T-junction on the east-west street ``from_ew``)
     cds = g.get("cul_de_sac")
     if cds:
-        x0 = float(xs[int(cds["street"])])
+        i = int(cds["street"])
+        x0 = float(xs[i])
+        x1 = float(xs[i + 1]) if i + 1 < len(xs) else W / 2
+        xm = 0.5 * (x0 + x1)
         y0 = float(ys[int(cds.get("from_ew", 0))])
         L = float(cds.get("length_m", 50))
-        b.roads.append(_Road("cul_de_sac", LineString([(x0, y0), (x0 + L, y0 + 0.001)]), 6.0,
+        b.roads.append(_Road("cul_de_sac", LineString([(xm, y0), (xm + 0.001, y0 + L)]), 6.0,
                              dead_end=True, centre="none", sidewalk_m=0.0))
     ra = b.road_area()
     # parking lots
@@ -680,11 +684,12 @@ def _gen_highway(b: _Builder, spec: Mapping):
     # the carriageway's left side (towards the median) carries the narrow shoulder
     b.roads.append(_Road("eastbound", east, cw, oneway=True, lanes=lanes, shoulder_left_m=sh_l))
     b.roads.append(_Road("westbound", west, cw, oneway=True, lanes=lanes, shoulder_left_m=sh_l))
-    # crossing road (two-way) at x = junction_x, with four slip ramps (diamond junction)
-    jx = float(hw.get("junction_x_m", 0.0))
+    # crossing roads (two-way) at x = junction_x_m (a number or a list), each with four slip
+    # ramps (diamond junction); the first junction's roads are named crossing, ramp_e_off,
+    # ..., further ones get a suffix _2, _3, ...
+    jxs = hw.get("junction_x_m", 0.0)
+    jxs = [float(v) for v in (jxs if isinstance(jxs, (list, tuple)) else [jxs])]
     cr_w = float(hw.get("crossing_width_m", 9.0))
-    cross = LineString([(jx, -H / 2), (jx, H / 2)])
-    b.roads.append(_Road("crossing", cross, cr_w, lanes=1, sidewalk_m=0.0))
     rw = float(hw.get("ramp_width_m", 5.5))
     rl = float(hw.get("ramp_length_m", 160.0))
     ry = float(hw.get("ramp_offset_m", 45.0))
@@ -693,20 +698,26 @@ def _gen_highway(b: _Builder, spec: Mapping):
         seg = line.intersection(LineString([(x, -H), (x, H)]))
         return float(shapely.get_coordinates(seg)[:, 1].mean())
 
-    ye, yw = y_at(east, jx - rl), y_at(west, jx - rl)
-    ye2, yw2 = y_at(east, jx + rl), y_at(west, jx + rl)
-    ramps = [
-        # eastbound off-ramp (leaves before the crossing, joins the crossing road south)
-        ("ramp_e_off", [(jx - rl, ye - cw / 2 + 1.0), (jx - rl / 2, ye - cw / 2 - 8), (jx - 20, ye - ry), (jx, ye - ry - 10)]),
-        # eastbound on-ramp (from the crossing road south, joins after the crossing)
-        ("ramp_e_on", [(jx, ye2 - ry - 10), (jx + 20, ye2 - ry), (jx + rl / 2, ye2 - cw / 2 - 8), (jx + rl, ye2 - cw / 2 + 1.0)]),
-        # westbound off-ramp (traffic runs -x): leaves east of the crossing, joins north
-        ("ramp_w_off", [(jx + rl, yw2 + cw / 2 - 1.0), (jx + rl / 2, yw2 + cw / 2 + 8), (jx + 20, yw2 + ry), (jx, yw2 + ry + 10)]),
-        ("ramp_w_on", [(jx, yw + ry + 10), (jx - 20, yw + ry), (jx - rl / 2, yw + cw / 2 + 8), (jx - rl, yw + cw / 2 - 1.0)]),
-    ]
-    for name, pts in ramps:
-        line = LineString(_chaikin(np.asarray(pts, float), 3))
-        b.roads.append(_Road(name, line, rw, oneway=True, lanes=1))
+    crossings = []
+    for k, jx in enumerate(jxs):
+        sfx = "" if k == 0 else f"_{k + 1}"
+        cross = _Road(f"crossing{sfx}", LineString([(jx, -H / 2), (jx, H / 2)]), cr_w, lanes=1)
+        b.roads.append(cross)
+        crossings.append(cross)
+        ye, yw = y_at(east, jx - rl), y_at(west, jx - rl)
+        ye2, yw2 = y_at(east, jx + rl), y_at(west, jx + rl)
+        ramps = [
+            # eastbound off-ramp (leaves before the crossing, joins the crossing road south)
+            ("ramp_e_off", [(jx - rl, ye - cw / 2 + 1.0), (jx - rl / 2, ye - cw / 2 - 8), (jx - 20, ye - ry), (jx, ye - ry - 10)]),
+            # eastbound on-ramp (from the crossing road south, joins after the crossing)
+            ("ramp_e_on", [(jx, ye2 - ry - 10), (jx + 20, ye2 - ry), (jx + rl / 2, ye2 - cw / 2 - 8), (jx + rl, ye2 - cw / 2 + 1.0)]),
+            # westbound off-ramp (traffic runs -x): leaves east of the crossing, joins north
+            ("ramp_w_off", [(jx + rl, yw2 + cw / 2 - 1.0), (jx + rl / 2, yw2 + cw / 2 + 8), (jx + 20, yw2 + ry), (jx, yw2 + ry + 10)]),
+            ("ramp_w_on", [(jx, yw + ry + 10), (jx - 20, yw + ry), (jx - rl / 2, yw + cw / 2 + 8), (jx - rl, yw + cw / 2 - 1.0)]),
+        ]
+        for name, pts in ramps:
+            line = LineString(_chaikin(np.asarray(pts, float), 3))
+            b.roads.append(_Road(name + sfx, line, rw, oneway=True, lanes=1))
     b.freeze_areas()
     # median stays grass (ground); trees and poles beside the highway, a few buildings
     t = spec.get("trees", {}) or {}
@@ -717,8 +728,9 @@ def _gen_highway(b: _Builder, spec: Mapping):
     _random_buildings(b, spec.get("buildings", {}) or {})
     p = spec.get("poles", {}) or {}
     if p:
-        b.add_poles_along(b.roads[2], float(p.get("spacing_m", 30.0)), float(p.get("height_m", 10.0)),
-                          float(p.get("offset_m", 1.0)))
+        for cross in crossings:
+            b.add_poles_along(cross, float(p.get("spacing_m", 30.0)), float(p.get("height_m", 10.0)),
+                              float(p.get("offset_m", 1.0)))
         # lamp posts in the median, between the carriageways
         s = np.arange(10.0, base.length, float(p.get("median_spacing_m", 50.0)))
         pts = shapely.get_coordinates(shapely.line_interpolate_point(base, s))
