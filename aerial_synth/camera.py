@@ -455,7 +455,9 @@ def grid_poses(
         raise CameraError(f"grid poses overlap: expected 0 <= overlap < 1, got {overlap!r}")
     b = np.asarray(bounds_xy, dtype=np.float64)
     if b.shape not in ((2, 2), (2, 3)):
-        raise CameraError(f"grid poses bounds: expected [[xmin, ymin], [xmax, ymax]], got {b.shape}")
+        raise CameraError(
+            f"grid poses bounds: expected [[xmin, ymin], [xmax, ymax]], got shape {b.shape}"
+        )
     (x0, y0), (x1, y1) = b[0, :2], b[1, :2]
     if not (x1 > x0 and y1 > y0):
         raise CameraError(f"grid poses bounds: empty area {b[:, :2].tolist()}")

@@ -405,12 +405,12 @@ def _load_scene(cfg: ExportConfig):
 
 
 def encode_image(rgb: np.ndarray, ext: str) -> bytes:
-    """(H, W, 3) uint8 RGB -> PNG (compression 3) or JPEG (quality 95) bytes."""
+    """(H, W, 3) uint8 RGB -> PNG (zlib level 1) or JPEG (quality 95) bytes."""
     import cv2
 
     bgr = np.ascontiguousarray(np.asarray(rgb, dtype=np.uint8)[..., ::-1])
     if ext == "png":
-        ok, buf = cv2.imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, 3])
+        ok, buf = cv2.imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, 1])
     else:
         ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, 95])
     if not ok:

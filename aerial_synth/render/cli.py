@@ -144,7 +144,8 @@ def run(args) -> int:
     grid = None
     if args.sampler == "grid":
         b = scene.bounds()
-        gz = float(np.median([o.vertices[:, 2].min() for o in scene.objects])) if scene.objects else 0.0
+        lows = [o.vertices[:, 2].min() for o in scene.objects if len(o.vertices)]
+        gz = float(np.median(lows)) if lows else 0.0
         grid = grid_poses(cam_cfg, b[:, :2], overlap=args.overlap, ground_z=gz)
     n_veh = 0
     for i in range(args.images):

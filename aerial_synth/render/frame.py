@@ -66,7 +66,9 @@ class Frame:
         }
 
 
-def render_frame(rayscene, camera, placement, rng: np.random.Generator, config: RenderConfig | None = None) -> Frame:
+def render_frame(
+    rayscene, camera, placement, rng: np.random.Generator, config: RenderConfig | None = None
+) -> Frame:
     """Render one frame of ``rayscene`` (which must already hold the placement's vehicles,
     see :func:`aerial_synth.render.world.add_placement`) seen by ``camera``.
 

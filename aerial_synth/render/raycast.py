@@ -201,7 +201,9 @@ def vehicle_boxes_corners(vehicles) -> np.ndarray:
     return out
 
 
-def occluded(rayscene, origins: np.ndarray, directions: np.ndarray, tnear: float = 0.0) -> np.ndarray:
+def occluded(
+    rayscene, origins: np.ndarray, directions: np.ndarray, tnear: float = 0.0
+) -> np.ndarray:
     """(n,) bool: does a ray from each origin along its direction hit anything?
 
     Uses Embree's any-hit test (``test_occlusions``) when the RayScene exposes its built

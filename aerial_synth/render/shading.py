@@ -4,15 +4,16 @@ The shader only decides colour; every label comes from the ray cast.
 
 Model (all vectorised over pixels, float32):
 
-- **Albedo** from the RayScene's per-face tables (``face_albedo``, ``face_material``), with
-  procedural texture: fractal noise tiles looked up by the hit's *world* position (so a
-  surface keeps its pattern across frames and overlapping tiles), at a fine fractal scale (0.1 m
-  texels) and two smooth ones (2 m, 6 m) and amplitudes per material (asphalt grain, grass patches, leafy crowns,
-  nearly clean paint). The noise tiles depend only on ``RenderConfig.texture_seed``.
-- **Light**: Lambert sun term times a hard shadow from one shadow ray per hit pixel
-  (Embree any-hit test towards the sun; trees and buildings shade roads and vehicles,
-  vehicles shade the road), plus sky ambient weighted by the normal's up component.
-  Overcast dims the sun, raises the sky and softens shadow edges.
+- **Albedo** from the RayScene's per-face tables (``face_albedo``, ``face_material``),
+  with procedural texture: fractal noise tiles looked up by the hit's *world* position (a
+  surface keeps its pattern across frames and overlapping tiles), at a fine fractal scale
+  (0.1 m texels) and two smooth ones (2 m, 6 m), with amplitudes per material (asphalt
+  grain, grass patches, leafy crowns, nearly clean paint). The noise tiles depend only on
+  ``RenderConfig.texture_seed``.
+- **Light**: Lambert sun term times a hard shadow from shadow rays (Embree any-hit test
+  towards the sun, one per 2 x 2 block plus every pixel at an object edge; trees and
+  buildings shade roads and vehicles, vehicles shade the road), plus sky ambient weighted
+  by the normal's up component. Overcast dims the sun, raises the sky and softens shadows.
 - **Specular**: Blinn-Phong sun highlight and a Fresnel sky reflection per material
   (glossy paint, dark reflective glass, matte tyres and trim, water); wet roads darken and
   gain sheen and puddles.
@@ -332,16 +333,12 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator,
         ix &= 255
         iy |= ix
         nf = tiles[0].ravel()[iy]  # fractal detail, 0.1 m texels (25.6 m period)
-        # leafy crowns: perturb foliage normals with the noise so facets break into clumps
+        # leafy crowns: a noise "bump" on foliage breaks the crown facets into clumps
         leaf = np.flatnonzero(mat == _FOLIAGE)
         if len(leaf):
             t1 = tiles[1].ravel()
             k = iy[leaf]
-            bump = np.stack([t1[k], t1[(k + 12345) & 0xFFFF], np.zeros(len(k), np.float32)], 1)
-            nl = nrm[leaf] + np.float32(0.45) * bump
-            nl /= np.linalg.norm(nl, axis=1, keepdims=True)
-            nrm = nrm.copy()
-            nrm[leaf] = nl
+            leaf_bump = (t1[k], t1[(k + 12345) & 0xFFFF])
         sub = np.stack(
             [qx.reshape(h, w)[4::8, 4::8], qy.reshape(h, w)[4::8, 4::8]], axis=2
         )
@@ -360,6 +357,7 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator,
     else:
         nc = np.zeros(n, np.float32)
         alb = alb.copy()
+        leaf = np.zeros(0, np.int64)
     # wetness: darker porous surfaces, puddles where the coarse noise is high
     wk = _WETK[mat] * wet
     puddle = None
@@ -370,6 +368,8 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator,
 
     # ---------------------------------------------------------------- light
     ndl = nrm @ L
+    if len(leaf):  # bumped normal n + 0.45 (bx, by, 0), unnormalised: cheap and leaf-like
+        ndl[leaf] += np.float32(0.45) * (leaf_bump[0] * L[0] + leaf_bump[1] * L[1])
     np.maximum(ndl, 0.0, out=ndl)
     lit = None
     if factors.get("shadows", True):
@@ -407,12 +407,8 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator,
     if lit is not None:
         s_sun *= lit
     s_sky = e_sky * (np.float32(0.55) + np.float32(0.45) * nrm[:, 2])
-    if not np.isscalar(trans) and not isinstance(trans, np.float32):
-        s_sun *= trans
-        s_sky *= trans
-    else:
-        s_sun *= trans
-        s_sky *= trans
+    s_sun *= trans
+    s_sky *= trans
     col = alb * (s_sun[:, None] * (sun_col * cam_gain) + s_sky[:, None] * (sky_col * cam_gain))
     mark("light")
 

@@ -7,7 +7,7 @@ from aerial_synth.annotate import BoxConfig, annotate_instances
 from aerial_synth.formats import LabelFormatError, coco, dota, eagle, meta, yolo_obb
 from aerial_synth.placement.model import PlacedVehicle
 
-from annotate.synthetic import NadirCamera, render_instance, vehicle
+from ..annotate.synthetic import NadirCamera, render_instance, vehicle
 
 W = H = 320
 
