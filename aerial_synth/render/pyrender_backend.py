@@ -47,13 +47,7 @@ def check_available() -> None:
 
 
 def _mesh_arrays(rayscene):
-    rayscene._rebuild_tables()
-    v = np.concatenate([rayscene._static_vertices, rayscene._veh_vertices]).astype(np.float32)
-    n_static_v = len(rayscene._static_vertices)
-    f = np.concatenate(
-        [rayscene._static_faces, rayscene._veh_faces.astype(np.int64) + n_static_v]
-    ).astype(np.int64)
-    return v, f
+    return rayscene.mesh_arrays()
 
 
 def _scene(pr, rayscene, camera, face_colors: np.ndarray, ambient: float = 1.0):
@@ -77,7 +71,7 @@ def _scene(pr, rayscene, camera, face_colors: np.ndarray, ambient: float = 1.0):
 def render_instance_ids(rayscene, camera) -> np.ndarray:
     """(H, W) uint32 vehicle ids rasterised with flat id colours (for the IoU test)."""
     pr = _import_pyrender()
-    rayscene._rebuild_tables()
+    rayscene.refresh()
     ids = rayscene.face_instance.astype(np.int64)
     col = np.zeros((len(ids), 4), np.uint8)
     col[:, 0] = ids & 0xFF
@@ -100,7 +94,7 @@ def render_rgb(rayscene, camera, factors: dict) -> np.ndarray:
     from .shading import sun_direction
 
     pr = _import_pyrender()
-    rayscene._rebuild_tables()
+    rayscene.refresh()
     col = np.zeros((len(rayscene.face_albedo), 4), np.uint8)
     col[:, :3] = np.clip(rayscene.face_albedo * 255, 0, 255).astype(np.uint8)
     col[:, 3] = 255

@@ -206,26 +206,12 @@ def occluded(
 ) -> np.ndarray:
     """(n,) bool: does a ray from each origin along its direction hit anything?
 
-    Uses Embree's any-hit test (``test_occlusions``) when the RayScene exposes its built
-    scene, otherwise falls back to :meth:`RayScene.cast_rays`.
+    Uses Embree's any-hit test (:meth:`RayScene.test_occlusions`).
     """
     rays = np.empty((len(origins), 6), np.float32)
     rays[:, :3] = origins
     rays[:, 3:] = directions
-    get_built = getattr(rayscene, "_get_built", None)
-    if get_built is not None:
-        try:
-            import open3d as o3d
-
-            sc = get_built(frozenset()).scene
-            return sc.test_occlusions(o3d.core.Tensor.from_numpy(rays), tnear=tnear).numpy().astype(
-                bool
-            )
-        except (AttributeError, TypeError):  # pragma: no cover - older open3d
-            pass
-    if tnear:
-        rays[:, :3] += tnear * rays[:, 3:]
-    return rayscene.cast_rays(rays).face >= 0
+    return rayscene.test_occlusions(rays, tnear=tnear)
 
 
 def _box_xyxy(rows: np.ndarray, cols: np.ndarray) -> tuple[int, int, int, int]:

@@ -16,7 +16,7 @@ def _scene(tmp_path):
     from aerial_synth.scene import load_scene
 
     p = tmp_path / "flat.obj"
-    p.write_text("o ground\nv -60 -60 0\nv 60 -60 0\nv 60 60 0\nv -60 60 0\nf 1 2 3\nf 1 3 4\n")
+    p.write_text("o road\nv -60 -60 0\nv 60 -60 0\nv 60 60 0\nv -60 60 0\nf 1 2 3\nf 1 3 4\n")
     return load_scene(str(p))
 
 
@@ -61,6 +61,7 @@ def test_mask_box_vs_projected_footprint_real_render(tmp_path, simple):
         ref = MultiPoint(cam.project(cuboid_corners_xyz(v))).minimum_rotated_rectangle
         box = shapely.Polygon(a.box.corners)
         iou = box.intersection(ref).area / box.union(ref).area
+        print(v.id, v.model, round(iou, 3), a.box.w_px, a.box.h_px, v.width_m / 0.12, v.length_m / 0.12)
         assert iou >= 0.85, (v.id, v.model, iou)
         c = cam.project(np.array([[v.x_m, v.y_m, 0.0],
                                   [v.x_m + math.cos(v.heading_rad), v.y_m + math.sin(v.heading_rad), 0.0]]))
