@@ -533,6 +533,18 @@ def write_aggregates(cfg: ExportConfig, out: Path) -> dict:
 # ------------------------------------------------------------------ driver
 
 
+def _remove_stray_temps(out: Path) -> None:
+    """Delete temporary files a killed export left behind (``.<name>.*.tmp`` / ``.lnk``)."""
+    for name in _OWNED:
+        p = out / name
+        if p.is_dir():
+            for f in p.rglob(".*"):
+                if f.is_file() and f.name.endswith((".tmp", ".lnk")):
+                    f.unlink()
+    for f in out.glob(".*.tmp"):
+        f.unlink()
+
+
 def _check_out_dir(cfg: ExportConfig, out: Path, resume: bool, force: bool) -> str:
     """'new', 'resume' or 'overwrite'; raises ExportError on a refused folder."""
     if out.exists() and not out.is_dir():
@@ -601,6 +613,8 @@ def export_dataset(
                 shutil.rmtree(p)
             elif p.exists():
                 p.unlink()
+    if mode == "resume":
+        _remove_stray_temps(out)
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_json(out / "manifest.json", _manifest(cfg, "incomplete"))
 

@@ -143,6 +143,29 @@ class _Engine:
         pos = foot + d * inward
         return _Cand(pos[:, 0], pos[:, 1], _wrap(head), ok, reason, pr.dist_m[:, 0])
 
+    def segment_ok(self, c: _Cand, offs: np.ndarray, reach_m: float = 5.0) -> None:
+        """Check harder than the thesis at a line's first vehicle: re-probe ``reach_m`` ahead
+        of and behind it as a line step would; the road direction there must agree and the
+        edge must stay where it is. A seed in a junction, at a road end or at the scene's
+        border fails this. Marks failures in c.ok / c.reason ("junction")."""
+        cfg = self.cfg
+        sel = np.flatnonzero(c.ok)
+        if not len(sel):
+            return
+        pos = np.stack([c.x[sel], c.y[sel]], 1)
+        h = c.heading[sel]
+        u = unit(h)
+        q = np.concatenate([pos + reach_m * u, pos - reach_m * u])
+        hh = np.concatenate([h, h])
+        oo = np.concatenate([offs[sel], offs[sel]])
+        r = self.locate(q, hh, oo)
+        good = (r.ok & (_angdiff(r.heading, hh) <= np.radians(cfg.probe.max_turn_deg))
+                & (np.abs(r.edge_dist - oo) <= cfg.probe.edge_jump_m))
+        n = len(sel)
+        bad = sel[~(good[:n] & good[n:])]
+        c.ok[bad] = False
+        c.reason[bad] = "junction"
+
     def check_footprints(self, c: _Cand, L: np.ndarray, W: np.ndarray) -> np.ndarray:
         """Corners and centre must trace (through ignorable vegetation only) to drivable
         labels. Returns z of the centre hit; marks failures in c.ok / c.reason."""
@@ -266,6 +289,7 @@ class _Engine:
                 wrong = ii[~crossed]
                 c.ok[wrong] = False
                 c.reason[wrong] = "opposite_half"
+        self.segment_ok(c, offs)
         variants = self.sample_variants(P)
         L = np.array([v.model.length_m for v in variants])
         W = np.array([v.model.width_m for v in variants])
@@ -305,6 +329,7 @@ class _Engine:
         c = self.locate(q, new_head, offs)
         c.ok &= found & (far > offs)
         c.reason[~found] = "no_edge"
+        self.segment_ok(c, offs)
         variants = self.sample_variants(len(picks))
         L = np.array([v.model.length_m for v in variants])
         W = np.array([v.model.width_m for v in variants])

@@ -130,6 +130,9 @@ def test_kill_and_resume_identical(exported, tiny_scene, tmp_path):
     done = len(list((out / "meta").glob("*.json")))
     assert done < 4, "export finished before it could be killed"
     assert json.loads((out / "manifest.json").read_text())["status"] == "incomplete"
+    stray = out / "dota" / "val" / "images" / ".000003.png.x1y2.tmp"  # a write cut short
+    stray.parent.mkdir(parents=True, exist_ok=True)
+    stray.write_bytes(b"partial")
     r = run_cli(*args)  # without --resume: refused
     assert r.returncode == 2 and "--resume" in r.stderr
     r = run_cli(*args, "--resume")

@@ -104,6 +104,44 @@ def test_highway_carriageways_oneway_right_hand():
     assert not sc.truth.road_area.contains(shapely.Point(mid[0]))
 
 
+def test_highway_expressway_layout():
+    """At-grade junctions only: the carriageways are the only one-way roads, two-way
+    crossing roads cross both through a median opening, and no other road runs within
+    15 m outside a carriageway's outer edge except where a crossing road meets it."""
+    sc = _scene("highway")
+    roads = {r.name: r for r in sc.truth.roads}
+    assert not any("ramp" in n for n in roads)
+    assert {n for n, r in roads.items() if r.oneway} == {"eastbound", "westbound"}
+    crossings = [r for n, r in roads.items() if n.startswith("crossing")]
+    assert 2 <= len(crossings) <= 3
+    e, w = roads["eastbound"], roads["westbound"]
+    assert e.centerline.length >= 1500 and w.centerline.length >= 1500
+    assert e.width_m >= 3 * 3.5
+    for c in crossings:
+        assert not c.oneway and 8.0 <= c.width_m <= 9.0
+        assert c.centerline.intersects(e.centerline) and c.centerline.intersects(w.centerline)
+        # the median is open where the crossing road passes: road all the way across
+        pe = c.centerline.intersection(e.centerline)
+        pw = c.centerline.intersection(w.centerline)
+        assert sc.truth.road_area.buffer(1e-6).contains(shapely.LineString([pe, pw]))
+    # median 4-12 m of non-road between the carriageways (away from the junctions)
+    s = np.linspace(0.05, 0.95, 40) * e.centerline.length
+    pts = shapely.line_interpolate_point(e.centerline, s)
+    gap = shapely.distance(pts, w.centerline) - (e.width_m + w.width_m) / 2
+    assert (gap > 4.0 - 1e-6).all() and (gap < 12.0 + 1e-6).all()
+    near_crossing = shapely.union_all([c.centerline.buffer(c.width_m / 2 + 8.0) for c in crossings])
+    for r in (e, w):
+        # outer side = right of the line direction (negative offset)
+        band = r.centerline.buffer(-(r.width_m / 2 + 15.0), single_sided=True).difference(
+            r.centerline.buffer(r.width_m / 2 + 0.01)
+        )
+        others = shapely.union_all(
+            [o.centerline.buffer(o.width_m / 2) for o in sc.truth.roads if o is not r]
+        )
+        stray = band.intersection(others).difference(near_crossing)
+        assert stray.area < 1e-6, (r.name, stray.area)
+
+
 def test_suburb_parking_is_not_road():
     sc = _scene("suburb")
     assert sc.truth.parking_area is not None

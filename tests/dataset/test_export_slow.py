@@ -1,0 +1,21 @@
+"""End-to-end export over a real bundled scene (slow: run with -m slow)."""
+
+import numpy as np
+import pytest
+
+from aerial_synth.dataset.export import ExportConfig, export_dataset
+from aerial_synth.formats import dota
+
+from .conftest import tree_bytes
+
+
+@pytest.mark.slow
+def test_city_park_jam_all_formats_two_workers(tmp_path):
+    cfg = ExportConfig(scene="city_park", scenario="jam", images=4, formats="dota,eagle,yolo-obb,coco",
+                       images_per_placement=2, width_px=512, height_px=512, seed=1)
+    r1 = export_dataset(cfg, tmp_path / "a", workers=1, progress=False)
+    export_dataset(cfg, tmp_path / "b", workers=2, progress=False)
+    assert tree_bytes(tmp_path / "a") == tree_bytes(tmp_path / "b")
+    assert r1.summary["vehicles_kept"] > 0
+    lab = dota.read(tmp_path / "a" / "dota" / "train" / "labelTxt" / "000000.txt")
+    assert lab.gsd_m == pytest.approx(0.12, rel=0.1) and np.isfinite(lab.gsd_m)
