@@ -75,7 +75,7 @@ class Prober:
 
     # ------------------------------------------------------------------ marching
     def march(self, origins: np.ndarray, angles: np.ndarray, max_distance_m: float | None = None,
-              first_only: bool = False, include_origin: bool = False) -> EdgeProbe:
+              first_only: bool = False, include_origin: bool = False, chunk: int = 48) -> EdgeProbe:
         """March from each origin along each of its directions in ``step_m`` steps.
 
         origins : (P, 2) metres, world (assumed on road)
@@ -104,7 +104,6 @@ class Prober:
         origin_ok = np.ones(P, bool)
         n_rays = 0
         k0 = 0
-        chunk = 48
         first_extra = origins if include_origin else None
         while k0 < K and active.any():
             kk = min(chunk, K - k0)
@@ -131,10 +130,12 @@ class Prober:
             found.ravel()[fr] = True
             active.ravel()[fr] = False
             if first_only:
+                # a point is done once any direction met its edge; its other directions
+                # stop here with at least one more road hit than the edge direction had
                 done_p = found.any(axis=1)
-                active[done_p] = False
-                still = active & ~found
-                count[still] = k0 + kk + 1
+                stopped = active & done_p[:, None]
+                count[stopped] = k0 + kk + 1
+                active[stopped] = False
             k0 += kk
             chunk *= 2
         lo = count.astype(np.float64) * step
@@ -159,13 +160,16 @@ class Prober:
         edge = origins[:, None, :] + u * dist[..., None]
         return EdgeProbe(count=count, found=found, dist_m=dist, edge_xy=edge, n_rays=n_rays)
 
-    def road_runs(self, origins: np.ndarray, angles: np.ndarray, max_distance_m: float, gap_m: float):
+    def road_runs(self, origins: np.ndarray, angles: np.ndarray, max_distance_m: float, gap_m: float,
+                  step_m: float = 0.25):
         """Distance to the far edge of a road crossed along one direction per origin, jumping
         non-road gaps narrower than ``gap_m`` (a central median).
 
+        A coarse step (default 0.25 m) is enough here: medians and roads are metres wide, and
+        the far edge is located precisely afterwards by the two-direction probe.
         Returns (far_dist (P,), crossed_gap (P,) bool, found (P,) bool).
         """
-        step = self.cfg.step_m
+        step = step_m
         origins = np.asarray(origins, dtype=np.float64).reshape(-1, 2)
         angles = np.asarray(angles, dtype=np.float64).reshape(-1)
         K = int(np.ceil(max_distance_m / step))

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from collections import Counter
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -82,6 +83,7 @@ class _Engine:
         self.xy_lo, self.xy_hi = b[0, :2], b[1, :2]
         self._seed_pool = np.zeros((0, 2))
         self.seeds_tried = 0
+        self.start_failures: Counter = Counter()
         self.seed_batches = 0
         self.road_seen = False
         self.limit = None
@@ -232,7 +234,7 @@ class _Engine:
         P = len(seeds)
         D = int(cfg.probe.directions)
         ang = np.tile(np.arange(D) * (TWO_PI / D), (P, 1))
-        pr = self.prober.march(seeds, ang, first_only=True)
+        pr = self.prober.march(seeds, ang, first_only=True, chunk=24)
         best = np.argmin(pr.count, axis=1)  # fewest road hits: perpendicular to the edge
         has_edge = pr.found[np.arange(P), best]
         phi = ang[np.arange(P), best]
@@ -262,6 +264,11 @@ class _Engine:
                 c.x[flip], c.y[flip], c.heading[flip] = cf.x, cf.y, cf.heading
                 c.ok[flip] &= cf.ok
                 c.edge_dist[flip] = cf.edge_dist
+        variants = self.sample_variants(P)
+        L = np.array([v.model.length_m for v in variants])
+        W = np.array([v.model.width_m for v in variants])
+        z = self.check_footprints(c, L, W)
+        self.segment_ok(c, offs)
         # Check harder than the thesis: at a dead end or where a road leaves the scene the
         # nearest edge is the road's end, and the heading found runs across the road. A real
         # road runs further along the heading than across it.
@@ -269,18 +276,17 @@ class _Engine:
         if len(sel):
             pos = np.stack([c.x[sel], c.y[sel]], 1)
             h = c.heading[sel]
-            ext = self.prober.march(
-                pos, np.stack([h, h + np.pi, h - self.side * np.pi / 2], 1), include_origin=True
-            )
-            along = ext.dist_m[:, 0] + ext.dist_m[:, 1]
-            across = offs[sel] + ext.dist_m[:, 2]
-            bad = sel[(along <= across) | (ext.count[:, 0] < 0)]
+            along_p = self.prober.march(pos, np.stack([h, h + np.pi], 1), max_distance_m=10.0)
+            across_p = self.prober.march(pos, (h - self.side * np.pi / 2)[:, None], max_distance_m=14.0)
+            along = along_p.dist_m[:, 0] + along_p.dist_m[:, 1]
+            across = offs[sel] + across_p.dist_m[:, 0]
+            bad = sel[along <= across]
             c.ok[bad] = False
             c.reason[bad] = "road_end"
             # Multi-lane: an inner lane beyond the middle of the road is only right where a
             # median lies on the far side (a divided carriageway); on an undivided road it
             # would be the opposite lane, driven the wrong way.
-            inner = (offs[sel] > cfg.lane_offset_m + 1e-9) & (ext.dist_m[:, 2] < offs[sel]) & c.ok[sel]
+            inner = (offs[sel] > cfg.lane_offset_m + 1e-9) & (across_p.dist_m[:, 0] < offs[sel]) & c.ok[sel]
             if inner.any():
                 ii = sel[inner]
                 far, crossed, _ = self.prober.road_runs(
@@ -289,16 +295,12 @@ class _Engine:
                 wrong = ii[~crossed]
                 c.ok[wrong] = False
                 c.reason[wrong] = "opposite_half"
-        self.segment_ok(c, offs)
-        variants = self.sample_variants(P)
-        L = np.array([v.model.length_m for v in variants])
-        W = np.array([v.model.width_m for v in variants])
-        z = self.check_footprints(c, L, W)
         started = []
         for i in range(P):
             if self.full():
                 break
             if not c.ok[i] or not self.accept(c, variants, z, i):
+                self.start_failures[str(c.reason[i]) or "blocked"] += 1
                 continue
             line = _Line(
                 line_id=len(self.lines), lane=0, target=cfg.vehicles_per_line.sample(self.rng),
@@ -535,6 +537,7 @@ def place(
             "max": round(float(spac.max()), 4) if len(spac) else None,
         },
         "seed_traces": int(eng.seeds_tried),
+        "seed_failures": dict(sorted(eng.start_failures.items())),
         "rays": int(eng.prober.n_rays),
         "casts": int(eng.prober.n_casts),
     }
