@@ -290,15 +290,20 @@ class RayScene:
             normal=ans["primitive_normals"].numpy(),
         )
 
+    def _down_rays(self, xy: np.ndarray) -> np.ndarray:
+        """(n, 6) float32 vertical rays from above the scene down through xy (n, 2)."""
+        rays = np.zeros((len(xy), 6), np.float32)
+        rays[:, :2] = xy
+        rays[:, 2] = self.z_top
+        rays[:, 5] = -1.0
+        return rays
+
     def trace_labels(self, xy: np.ndarray, ignore: Iterable[str] | None = None) -> np.ndarray:
         """Semantic id of the first surface below each point (the fast path of
         :meth:`trace_down` for probes). xy : (n, 2) metres. Returns (n,) int16, 0 on miss."""
         ign = self.label_config.ignore if ignore is None else frozenset(ignore)
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-        rays = np.zeros((len(xy), 6), np.float32)
-        rays[:, :2] = xy
-        rays[:, 2] = self.z_top
-        rays[:, 5] = -1.0
+        rays = self._down_rays(xy)
         _, face = self._cast_faces(rays, frozenset(ign))
         return self._face_label_s[face]
 
@@ -357,10 +362,7 @@ class RayScene:
         """
         ign = self.label_config.ignore if ignore is None else frozenset(ignore)
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-        rays = np.zeros((len(xy), 6), np.float32)
-        rays[:, :2] = xy
-        rays[:, 2] = self.z_top
-        rays[:, 5] = -1.0
+        rays = self._down_rays(xy)
         ans, face = self._cast_faces(rays, frozenset(ign))
         t = ans["t_hit"].numpy()
         hit = face >= 0
