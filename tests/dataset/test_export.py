@@ -159,6 +159,8 @@ def test_resume_with_other_parameters_refused(exported, tiny_scene):
         (["--box", "tight"], "box"),
         (["--scenario", "no_such_scenario"], ""),
         (["--min-visible-fraction", "2"], "min_visible_fraction"),
+        (["--workers", "0"], "workers"),
+        (["--scene", "no_such_scene"], "scene"),
     ],
 )
 def test_bad_input_one_line_exit_2_nothing_written(tiny_scene, tmp_path, extra, msg):
