@@ -110,14 +110,48 @@ class ValidationReport:
         }
 
 
+def _heading_errors(truth, x, y, h, traffic: str) -> np.ndarray:
+    """Heading error (degrees, [0, 180]) of each vehicle against the true direction of the
+    road it stands on. Inside a junction a vehicle stands on several roads at once (its
+    centre within half a width of more than one centre line); it is then measured against
+    the one it follows best. Outside every carriageway the nearest centre line is used."""
+    import shapely
+
+    pts = shapely.points(np.stack([x, y], 1))
+    n = len(x)
+    errs = np.full((len(truth.roads), n), np.nan)
+    inside = np.zeros((len(truth.roads), n), bool)
+    dist = np.full((len(truth.roads), n), np.inf)
+    for k, road in enumerate(truth.roads):
+        line = road.centerline
+        dist[k] = shapely.distance(line, pts)
+        inside[k] = dist[k] <= road.width_m / 2 + 0.5
+        s = shapely.line_locate_point(line, pts)
+        a = shapely.get_coordinates(shapely.line_interpolate_point(line, np.maximum(s - 0.5, 0)))
+        b = shapely.get_coordinates(shapely.line_interpolate_point(line, np.minimum(s + 0.5, line.length)))
+        t = np.arctan2(b[:, 1] - a[:, 1], b[:, 0] - a[:, 0])
+        if road.oneway:
+            expected = t
+        else:
+            proj = shapely.get_coordinates(shapely.line_interpolate_point(line, s))
+            side = np.cos(t) * (y - proj[:, 1]) - np.sin(t) * (x - proj[:, 0])  # > 0: left
+            along = side < 0 if traffic == "right" else side >= 0
+            expected = np.where(along, t, t + np.pi)
+        errs[k] = np.degrees(np.abs(np.angle(np.exp(1j * (h - expected)))))
+    nearest = errs[np.argmin(dist, axis=0), np.arange(n)]
+    best_inside = np.where(inside, errs, np.inf).min(axis=0)
+    return np.where(inside.any(axis=0), best_inside, nearest)
+
+
 def validate_placement(rayscene, placement: Placement, truth=None, traffic: str = "right",
                        grid: tuple[int, int] = (8, 4)) -> ValidationReport:
     """Check a placement against the scene (traces) and, where known, the scene's truth.
 
-    Heading error is measured against the nearest true centre line's tangent, taking the
-    driving side into account: on a two-way road a right-hand vehicle must drive along the
-    tangent when it is right of the line, against it when left of it; a one-way carriageway's
-    line runs in its traffic direction. Errors are in [0, 180] degrees.
+    Heading error is measured against the true centre line's tangent, taking the driving
+    side into account: on a two-way road a right-hand vehicle must drive along the tangent
+    when it is right of the line, against it when left of it; a one-way carriageway's line
+    runs in its traffic direction. Errors are in [0, 180] degrees. In a junction, where the
+    vehicle stands on several roads, the best-matching road counts (see _heading_errors).
     """
     import shapely
 
@@ -164,28 +198,8 @@ def validate_placement(rayscene, placement: Placement, truth=None, traffic: str 
     herr = np.full(n, np.nan)
     lat = np.full(n, np.nan)
     if truth is not None and truth.roads:
-        tangent, idx = truth.nearest_road(np.stack([x, y], 1))
-        pts_g = shapely.points(np.stack([x, y], 1))
-        for k, road in enumerate(truth.roads):
-            sel = np.flatnonzero(idx == k)
-            if not len(sel):
-                continue
-            if road.oneway:
-                expected = tangent[sel]
-            else:
-                line = road.centerline
-                proj = shapely.get_coordinates(
-                    shapely.line_interpolate_point(line, shapely.line_locate_point(line, pts_g[sel]))
-                )
-                dx, dy = x[sel] - proj[:, 0], y[sel] - proj[:, 1]
-                t = tangent[sel]
-                side = np.cos(t) * dy - np.sin(t) * dx  # > 0: left of the line
-                right_side = side < 0
-                along = right_side if traffic == "right" else ~right_side
-                expected = np.where(along, t, t + np.pi)
-            d = np.angle(np.exp(1j * (h[sel] - expected)))
-            herr[sel] = np.degrees(np.abs(d))
-        lat = shapely.distance(pts_g, truth.road_area.boundary)
+        herr = _heading_errors(truth, x, y, h, traffic)
+        lat = shapely.distance(shapely.points(np.stack([x, y], 1)), truth.road_area.boundary)
     return ValidationReport(
         n=n,
         on_road_fraction=on_frac,
