@@ -77,7 +77,7 @@ def main(argv=None) -> int:
           f"placement {len(pl.vehicles)} vehicles ({a.scenario}) {t_place:.2f} s; "
           f"add meshes {t_add:.2f} s; Embree builds {t_bvh:.2f} s")
     print(f"vehicles in view per frame: {in_view}")
-    for k in ("buffers", "visibility", "rgb"):
+    for k in [k for k in stages[0] if k != "total"]:
         print(f"  {k:10s} median {statistics.median(s[k] for s in stages) * 1000:7.1f} ms")
     print(f"frame 1024x1024 median {med_f * 1000:.1f} ms (min {min(frames) * 1000:.1f}); "
           f"bare cast_rays median {med_b * 1000:.1f} ms; ratio {med_f / med_b:.2f}")

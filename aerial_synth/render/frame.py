@@ -84,12 +84,13 @@ def render_frame(
     vehicles = placement.vehicles if placement is not None else []
     vis, amodal = compute_visibility(rayscene, camera, buf.instance, vehicles)
     t2 = time.perf_counter()
+    shade_t: dict = {}
     if cfg.backend == "pyrender":
         from .pyrender_backend import render_rgb
 
         rgb = render_rgb(rayscene, camera, factors)
     else:
-        rgb = shade(rayscene, camera, buf, factors, rng)
+        rgb = shade(rayscene, camera, buf, factors, rng, timings=shade_t)
     t3 = time.perf_counter()
     return Frame(
         instance=buf.instance,
@@ -100,5 +101,6 @@ def render_frame(
         factors=factors,
         camera=camera,
         amodal=amodal,
-        timings_s={"buffers": t1 - t0, "visibility": t2 - t1, "rgb": t3 - t2, "total": t3 - t0},
+        timings_s={"buffers": t1 - t0, "visibility": t2 - t1, "rgb": t3 - t2, "total": t3 - t0,
+                   **{f"rgb_{k}": v for k, v in shade_t.items()}},
     )
