@@ -87,6 +87,8 @@ class Placement:
     parameters: dict = field(default_factory=dict)
     vehicles: list[PlacedVehicle] = field(default_factory=list)
     stats: dict = field(default_factory=dict)
+    #: wall-clock figures of the run that made it; never serialised (they differ per run)
+    timing: dict = field(default_factory=dict, compare=False)
 
     def to_dict(self) -> dict:
         return {

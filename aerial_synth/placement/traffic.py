@@ -550,8 +550,8 @@ def place(
         parameters=cfg.to_dict(),
         vehicles=eng.vehicles,
         stats=stats,
+        timing=timing,
     )
-    placement.timing = timing  # not serialised: wall-clock figures differ between runs
     if asked is not None and len(eng.vehicles) < asked:
         msg = (f"the roads of {placement.scene!r} held {len(eng.vehicles)} of the {asked} vehicles asked "
                f"for ({cfg.name})")
