@@ -36,7 +36,7 @@ import numpy as np
 
 from .. import __version__
 from ..annotate.boxes import BoxConfig
-from ..errors import AerialSynthError, ConfigError, ExportError
+from ..errors import ConfigError, ExportError
 from ..formats import FORMATS
 from ..io_utils import atomic_write_bytes, atomic_write_json, atomic_write_text
 

@@ -20,7 +20,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import PlacementError
-from ..scene.model import LABEL_IDS
 from .config import ScenarioConfig, load_scenario
 from .footprints import FootprintIndex
 from .linetrace import Prober, unit

@@ -258,7 +258,6 @@ class _Builder:
 
     # ---- placement helpers
     def try_building(self, poly, height: float, clearance: float = 2.0) -> bool:
-        import shapely
 
         if not self.box.buffer(-1.0).contains(poly):
             return False
