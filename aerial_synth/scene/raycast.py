@@ -341,69 +341,6 @@ class RayScene:
         """Bring the per-face tables up to date after vehicle changes (normally lazy)."""
         self._rebuild_tables()
 
-    def _down_rays(self, xy: np.ndarray) -> np.ndarray:
-        """(n, 6) float32 vertical rays from above the scene down through xy (n, 2)."""
-        rays = np.zeros((len(xy), 6), np.float32)
-        rays[:, :2] = xy
-        rays[:, 2] = self.z_top
-        rays[:, 5] = -1.0
-        return rays
-
-    def trace_labels(self, xy: np.ndarray, ignore: Iterable[str] | None = None) -> np.ndarray:
-        """Semantic id of the first surface below each point (the fast path of
-        :meth:`trace_down` for probes). xy : (n, 2) metres. Returns (n,) int16, 0 on miss."""
-        ign = self.label_config.ignore if ignore is None else frozenset(ignore)
-        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-        rays = self._down_rays(xy)
-        _, face = self._cast_faces(rays, frozenset(ign))
-        return self._face_label_s[face]
-
-    def test_occlusions(self, rays: np.ndarray, ignore: Iterable[str] = (), tnear: float = 0.0) -> np.ndarray:
-        """(n,) bool: does each ray hit anything (Embree any-hit, cheaper than cast_rays)?
-
-        rays : (n, 6) float, [origin, direction], metres, world; hits closer than ``tnear``
-        (in units of the direction's length) are skipped (shadow-ray acne).
-        """
-        built = self._get_built(frozenset(ignore))
-        r = np.ascontiguousarray(np.asarray(rays, dtype=np.float32).reshape(-1, 6))
-        o3d = _o3d()
-        try:
-            return built.scene.test_occlusions(o3d.core.Tensor.from_numpy(r), tnear=tnear).numpy().astype(bool)
-        except (AttributeError, TypeError):  # pragma: no cover - older open3d
-            r = r.copy()
-            r[:, :3] += tnear * r[:, 3:]
-            return self.cast_rays(r, ignore=ignore).face >= 0
-
-    def mesh_arrays(self) -> tuple[np.ndarray, np.ndarray]:
-        """All triangles in global face order (static objects, then vehicles by id).
-
-        Returns vertices (n, 3) float32 metres world and faces (m, 3) int64; face i has the
-        tables' entry i (face_label, face_instance, face_albedo, ...).
-        """
-        self._rebuild_tables()
-        v = np.concatenate([self._static_vertices, self._veh_vertices]).astype(np.float32)
-        f = np.concatenate(
-            [self._static_faces.astype(np.int64),
-             self._veh_faces.astype(np.int64) + len(self._static_vertices)]
-        )
-        return v, f
-
-    def refresh(self) -> None:
-        """Bring the per-face tables up to date after vehicle changes (normally lazy)."""
-        self._rebuild_tables()
-
-    def count_intersections_above(self, xy: np.ndarray, z: np.ndarray, ignore=None) -> np.ndarray:
-        """Number of surfaces above points (xy, z), ignoring the ignore-set (default config)."""
-        ign = self.label_config.ignore if ignore is None else frozenset(ignore)
-        built = self._get_built(frozenset(ign))
-        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-        r = np.zeros((len(xy), 6), np.float32)
-        r[:, :2] = xy
-        r[:, 2] = np.asarray(z, dtype=np.float64) + 0.01
-        r[:, 5] = 1.0
-        o3d = _o3d()
-        return built.scene.count_intersections(o3d.core.Tensor.from_numpy(r)).numpy()
-
     def trace_down(self, xy: np.ndarray, ignore: Iterable[str] | None = None) -> TraceResult:
         """First surface straight below each point (a vertical line trace).
 
