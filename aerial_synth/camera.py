@@ -331,10 +331,20 @@ class Camera:
     def _all_rays(self) -> np.ndarray:
         cached = self.__dict__.get("_rays_cache")
         if cached is None:
+            # as pixel_rays(rows, cols) for every pixel, with the same float32 operations in
+            # the same order, but separable: x depends on the column only, y on the row
             h, w = self.height_px, self.width_px
-            rows = np.repeat(np.arange(h, dtype=np.int32), w)
-            cols = np.tile(np.arange(w, dtype=np.int32), h)
-            cached = self.pixel_rays(rows, cols)
+            r = self.R.astype(np.float32)
+            x = ((np.arange(w, dtype=np.float32) + np.float32(0.5)) - np.float32(self.K[0, 2])
+                 ) / np.float32(self.K[0, 0])
+            y = ((np.arange(h, dtype=np.float32) + np.float32(0.5)) - np.float32(self.K[1, 2])
+                 ) / np.float32(self.K[1, 1])
+            cached = np.empty((h, w, 6), np.float32)
+            cached[..., :3] = self.center.astype(np.float32)
+            for k in range(3):
+                np.add((r[k, 0] * x)[None, :], (r[k, 1] * y)[:, None], out=cached[..., 3 + k])
+                cached[..., 3 + k] += r[k, 2]
+            cached = cached.reshape(h * w, 6)
             cached.setflags(write=False)
             object.__setattr__(self, "_rays_cache", cached)
         return cached

@@ -1,8 +1,11 @@
 """Benchmark: one 1024 x 1024 frame of city_park with >= 300 vehicles.
 
 Times render_frame (instance, semantic, depth, visibility, shaded RGB with shadow rays)
-against the bare ``RayScene.cast_rays`` for the same primary rays, after a warm-up frame
-(the Embree scenes are built once per placement and reported separately).
+against the bare ``RayScene`` calls for the same rays: the primary ``cast_rays`` alone (the
+issue's "frame <= 2x bare cast_rays" target), and every batch the frame casts (primary,
+amodal silhouettes, shadow any-hit tests), recorded from the same frame and replayed. After
+a warm-up frame (Embree scenes are built once per placement and reported separately; the
+first frame also loads the compiled shading kernels).
 
     .venv/bin/python tools/bench_render.py [--scene city_park] [--vehicles 400] [--repeat 5]
 """
@@ -24,6 +27,27 @@ from aerial_synth.placement import place  # noqa: E402
 from aerial_synth.render import RenderConfig, add_placement, render_frame  # noqa: E402
 from aerial_synth.scene import load_scene  # noqa: E402
 from aerial_synth.scene.raycast import RayScene  # noqa: E402
+
+
+def _record_calls(rs, fn) -> list[tuple[str, np.ndarray, frozenset]]:
+    """Run ``fn`` and return every (method, rays, ignore) batch it cast through ``rs``."""
+    calls = []
+    originals = {k: getattr(rs, k) for k in ("cast_rays", "test_occlusions")}
+
+    def spy(kind):
+        def call(rays, ignore=(), **kw):
+            calls.append((kind, np.array(rays, np.float32, copy=True), frozenset(ignore)))
+            return originals[kind](rays, ignore=ignore, **kw)
+        return call
+
+    for k in originals:
+        setattr(rs, k, spy(k))
+    try:
+        fn()
+    finally:
+        for k in originals:
+            delattr(rs, k)
+    return calls
 
 
 def main(argv=None) -> int:
@@ -55,34 +79,50 @@ def main(argv=None) -> int:
                                      "ground", "water", "building", "tree", "trunk", "pole")])
     t_bvh = time.perf_counter() - t
 
-    frames, bare, stages, in_view = [], [], [], []
+    frames, bare, bare_all, stages, in_view, n_rays = [], [], [], [], [], []
     for i in range(a.repeat + 1):
-        rng = np.random.default_rng(np.random.SeedSequence([a.seed, i]))
-        cam = sample_pose_targeted(cfg, pl, rng, within_xy=scene.bounds()[:, :2])
-        rays = cam.pixel_rays()
+        seed = np.random.SeedSequence([a.seed, i])
+        cam = sample_pose_targeted(cfg, pl, np.random.default_rng(seed), within_xy=scene.bounds()[:, :2])
+        # 1) record every ray batch the frame casts (untimed)
+        calls = _record_calls(rs, lambda: render_frame(rs, cam, pl, np.random.default_rng(seed), rcfg))
+        # 2) the bare calls for exactly those rays: primary first, then all of them
         t = time.perf_counter()
-        rs.cast_rays(rays)
+        rs.cast_rays(calls[0][1])
         t_bare = time.perf_counter() - t
         t = time.perf_counter()
-        fr = render_frame(rs, cam, pl, rng, rcfg)
+        for kind, rays, ignore in calls:
+            getattr(rs, kind)(rays, ignore=ignore)
+        t_all = time.perf_counter() - t
+        # 3) the frame itself, pixel rays not cached
+        cam.__dict__.pop("_rays_cache", None)
+        t = time.perf_counter()
+        fr = render_frame(rs, cam, pl, np.random.default_rng(seed), rcfg)
         t_frame = time.perf_counter() - t
         if i == 0:
-            continue  # warm-up
+            continue  # warm-up (compiles or loads the shading kernels)
         bare.append(t_bare)
+        bare_all.append(t_all)
         frames.append(t_frame)
         stages.append(fr.timings_s)
         in_view.append(len(fr.visibility))
-    med_f, med_b = statistics.median(frames), statistics.median(bare)
+        n_rays.append({k: sum(len(r) for kk, r, _ in calls if kk == k)
+                       for k in ("cast_rays", "test_occlusions")})
+    med_f, med_b, med_a = (statistics.median(x) for x in (frames, bare, bare_all))
     print(f"scene {scene.name}: {scene.n_triangles} triangles, load {t_load:.2f} s; "
           f"placement {len(pl.vehicles)} vehicles ({a.scenario}) {t_place:.2f} s; "
           f"add meshes {t_add:.2f} s; Embree builds {t_bvh:.2f} s")
     print(f"vehicles in view per frame: {in_view}")
+    print("rays per frame (cast_rays / shadow test_occlusions): "
+          + ", ".join(f"{r['cast_rays']:,} / {r['test_occlusions']:,}" for r in n_rays))
     for k in [k for k in stages[0] if k != "total"]:
-        print(f"  {k:10s} median {statistics.median(s[k] for s in stages) * 1000:7.1f} ms")
-    print(f"frame 1024x1024 median {med_f * 1000:.1f} ms (min {min(frames) * 1000:.1f}); "
-          f"bare cast_rays median {med_b * 1000:.1f} ms; ratio {med_f / med_b:.2f}")
+        print(f"  {k:18s} median {statistics.median(s[k] for s in stages) * 1000:7.1f} ms")
+    print(f"frame 1024x1024 median {med_f * 1000:.1f} ms (min {min(frames) * 1000:.1f})")
+    print(f"bare cast_rays, primary rays: median {med_b * 1000:.1f} ms -> frame / bare "
+          f"{med_f / med_b:.2f}")
+    print(f"bare calls, every ray the frame casts (primary, amodal, shadow): median "
+          f"{med_a * 1000:.1f} ms -> frame / bare {med_f / med_a:.2f}")
     ok = med_f <= 0.5 and med_f <= 2 * med_b
-    print("targets (<= 0.5 s, <= 2x bare cast):", "met" if ok else "NOT met")
+    print("targets (<= 0.5 s, <= 2x bare primary cast):", "met" if ok else "NOT met")
     return 0
 
 

@@ -387,6 +387,9 @@ _WORKER: _Worker | None = None
 def _init_worker(cfg: ExportConfig, out: str, nthreads: int):
     global _WORKER
     os.environ.setdefault("OMP_NUM_THREADS", str(max(1, nthreads)))
+    import numba  # the shading kernels' threads: share the cores among the workers
+
+    numba.set_num_threads(max(1, min(int(nthreads), numba.config.NUMBA_NUM_THREADS)))
     _WORKER = _Worker(cfg, Path(out), nthreads=nthreads)
 
 

@@ -163,15 +163,17 @@ def cast_buffers(rayscene, camera) -> Buffers:
     h, w = camera.height_px, camera.width_px
     rays = camera._all_rays()
     hits = rayscene.cast_rays(rays)
-    hit = hits.face >= 0
+    from ._kernels import finish_buffers
+
+    t = hits.t
+    n = np.ascontiguousarray(hits.normal, dtype=np.float32)
+    if not n.flags.writeable:
+        n = n.copy()
+    depth = np.empty(h * w, np.float32)
+    finish_buffers(rays, t, n, depth)  # normals face the camera; depth 0 on miss
+    depth = depth.reshape(h, w)
     instance = hits.instance_id.astype(np.uint32).reshape(h, w)
     semantic = hits.label_id.astype(np.uint8).reshape(h, w)
-    t = hits.t
-    depth = np.where(hit, t, np.float32(0.0)).astype(np.float32).reshape(h, w)
-    n = hits.normal
-    # face the camera: flip normals seen from behind
-    flip = np.einsum("ij,ij->i", n, rays[:, 3:]) > 0
-    n = np.where(flip[:, None], -n, n).astype(np.float32)
     return Buffers(h, w, instance, semantic, depth, hits.face, t, n, rays)
 
 
@@ -214,6 +216,34 @@ def occluded(
     return rayscene.test_occlusions(rays, tnear=tnear)
 
 
+def _box_frames(vehicles) -> np.ndarray:
+    """(k, 8) float64 per vehicle: its 3-D box as [centre x, y, z, cos heading,
+    sin heading, half length, half width, half height]."""
+    out = np.empty((len(vehicles), 8))
+    for k, v in enumerate(vehicles):
+        out[k] = (v.x_m, v.y_m, v.z_m + 0.5 * v.height_m, np.cos(v.heading_rad),
+                  np.sin(v.heading_rad), 0.5 * v.length_m, 0.5 * v.width_m, 0.5 * v.height_m)
+    return out
+
+
+def _box_exit_t(rays: np.ndarray, frames: np.ndarray) -> np.ndarray:
+    """(n,) float64 ray parameter where each ray (n, 6) leaves its box (n, 8) from
+    :func:`_box_frames` (slab test in the box frame; -inf when the ray misses the box)."""
+    o = rays[:, :3].astype(np.float64) - frames[:, :3]
+    d = rays[:, 3:].astype(np.float64)
+    c, s = frames[:, 3], frames[:, 4]
+    lo = np.stack([c * o[:, 0] + s * o[:, 1], -s * o[:, 0] + c * o[:, 1], o[:, 2]], 1)
+    ld = np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], d[:, 2]], 1)
+    half = frames[:, 5:8]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ta = (-half - lo) / ld
+        tb = (half - lo) / ld
+    far = np.where(ld == 0, np.where(np.abs(lo) <= half, np.inf, -np.inf), np.maximum(ta, tb))
+    near = np.where(ld == 0, np.where(np.abs(lo) <= half, -np.inf, np.inf), np.minimum(ta, tb))
+    t_out = far.min(axis=1)
+    return np.where(near.max(axis=1) <= t_out, t_out, -np.inf)
+
+
 def _box_xyxy(rows: np.ndarray, cols: np.ndarray) -> tuple[int, int, int, int]:
     return (int(cols.min()), int(rows.min()), int(cols.max()) + 1, int(rows.max()) + 1)
 
@@ -230,7 +260,8 @@ def compute_visibility(
     pixel inside the image.
     """
     h, w = camera.height_px, camera.width_px
-    vehicles = [v for v in vehicles if int(v.id) in set(rayscene.vehicle_ids)] if vehicles else []
+    present = set(rayscene.vehicle_ids)
+    vehicles = [v for v in vehicles if int(v.id) in present] if vehicles else []
     empty = AmodalMasks(np.zeros(0, np.int64), np.zeros(0, np.int32), np.zeros(0, np.int32))
     if not vehicles:
         return {}, empty
@@ -246,56 +277,57 @@ def compute_visibility(
     sel = np.flatnonzero(inview)
     if len(sel) == 0:
         return {}, empty
-    # extended canvas covering every in-view box (boxes may stick out of the image)
-    ex0 = int(min(0, x0[sel].min()))
-    ey0 = int(min(0, y0[sel].min()))
-    ex1 = int(max(w, x1[sel].max()))
-    ey1 = int(max(h, y1[sel].max()))
-    cw, ch = ex1 - ex0, ey1 - ey0
-    cover = np.zeros((ch, cw), np.uint8)
-    for k in sel:
-        cover[int(y0[k]) - ey0 : int(y1[k]) - ey0, int(x0[k]) - ex0 : int(x1[k]) - ex0] += 1
-    flat = np.flatnonzero(cover)
-    rows = (flat // cw + ey0).astype(np.int32)
-    cols = (flat % cw + ex0).astype(np.int32)
-    multi = cover.reshape(-1)[flat] > 1
+    # every pixel of the union of the in-view boxes (boxes may stick out of the image);
+    # multi: covered by more than one box
+    from ._kernels import box_union_pixels
+
+    rows, cols, multi = box_union_pixels(
+        x0[sel].astype(np.int64), y0[sel].astype(np.int64),
+        x1[sel].astype(np.int64), y1[sel].astype(np.int64),
+    )
     rays = camera.pixel_rays(rows, cols)
     hits = rayscene.cast_rays(rays, ignore=VEHICLES_ONLY)
     got = hits.instance_id > 0
     pair_pix = [np.flatnonzero(got)]
     pair_id = [hits.instance_id[got]]
-    # peel behind the first vehicle where several boxes overlap
+    # where boxes overlap, continue each ray behind the vehicle it hit: restart it where
+    # it leaves that vehicle's 3-D box (placed vehicles never share space), so one peel
+    # per vehicle in line suffices; a part outside its box just costs another peel
+    boxes = _box_frames(vehicles)
+    slot = np.full(max(present) + 1, -1, np.int64)  # id -> row of boxes (-1: not listed)
+    slot[[int(v.id) for v in vehicles]] = np.arange(len(vehicles))
     idx = np.flatnonzero(got & multi)
     t_acc = hits.t[idx].astype(np.float64)
+    last = hits.instance_id[idx]
     for _ in range(_MAX_PEELS):
         if len(idx) == 0:
             break
-        r = rays[idx].copy()
-        r[:, :3] += ((t_acc + _PEEL_EPS_M)[:, None] * r[:, 3:]).astype(np.float32)
-        hh = rayscene.cast_rays(r, ignore=VEHICLES_ONLY)
+        r = rays[idx]
+        k = slot[last]
+        t_exit = np.where(k >= 0, _box_exit_t(r, boxes[np.maximum(k, 0)]), -np.inf)
+        t_go = np.maximum(t_acc, t_exit) + _PEEL_EPS_M
+        r2 = r.copy()
+        r2[:, :3] += (t_go[:, None] * r[:, 3:]).astype(np.float32)
+        hh = rayscene.cast_rays(r2, ignore=VEHICLES_ONLY)
         g = hh.instance_id > 0
-        idx, t_acc = idx[g], t_acc[g] + _PEEL_EPS_M + hh.t[g]
+        idx, t_acc, last = idx[g], t_go[g] + hh.t[g], hh.instance_id[g]
         pair_pix.append(idx)
-        pair_id.append(hh.instance_id[g])
+        pair_id.append(last)
     pix = np.concatenate(pair_pix).astype(np.int64)
     ids = np.concatenate(pair_id).astype(np.int64)
-    key = np.unique(ids << 32 | pix)
+    key = np.sort(ids << 32 | pix)
+    key = key[np.r_[True, key[1:] != key[:-1]]] if len(key) else key
     ids = key >> 32
     pix = key & 0xFFFFFFFF
     prow, pcol = rows[pix], cols[pix]
     inside = (prow >= 0) & (prow < h) & (pcol >= 0) & (pcol < w)
 
-    vis_counts = np.bincount(instance.reshape(-1).astype(np.int64))
     masks = AmodalMasks(ids[inside], prow[inside], pcol[inside])
     by_id = {int(v.id): (k, v) for k, v in enumerate(vehicles)}
-    # visible boxes: one pass over vehicle pixels
-    inst = instance.reshape(-1)
-    vpix = np.flatnonzero(inst)
-    vids = inst[vpix].astype(np.int64)
-    order = np.argsort(vids, kind="stable")
-    vpix, vids = vpix[order], vids[order]
-    uvid, vstart, vcount = np.unique(vids, return_index=True, return_counts=True)
-    vis_index = {int(i): (int(s), int(c)) for i, s, c in zip(uvid, vstart, vcount)}
+    # visible pixel counts and boxes: one pass over the instance image
+    from ._kernels import instance_boxes
+
+    vis_counts, vis_boxes = instance_boxes(instance, int(max(by_id)) + 1)
 
     full_u, full_start, full_count = np.unique(ids, return_index=True, return_counts=True)
     out: dict[int, VehicleVisibility] = {}
@@ -312,13 +344,9 @@ def compute_visibility(
         k, v = by_id[vid]
         r_all, c_all = prow[s : s + c], pcol[s : s + c]
         r_in, c_in = r_all[ins], c_all[ins]
-        visible = int(vis_counts[vid]) if vid < len(vis_counts) else 0
+        visible = int(vis_counts[vid])
         amodal = max(n_in, visible)
-        vb = None
-        if vid in vis_index:
-            vs, vc = vis_index[vid]
-            pp = vpix[vs : vs + vc]
-            vb = _box_xyxy(pp // w, pp % w)
+        vb = tuple(int(x) for x in vis_boxes[vid]) if visible else None
         out[vid] = VehicleVisibility(
             id=vid,
             visible_px=visible,

@@ -2,12 +2,13 @@
 
 The shader only decides colour; every label comes from the ray cast.
 
-Model (all vectorised over pixels, float32):
+Model (float32, one fused pass over the pixels per stage: the numba kernels in
+:mod:`aerial_synth.render._kernels`):
 
 - **Albedo** from the RayScene's per-face tables (``face_albedo``, ``face_material``),
   with procedural texture: fractal noise tiles looked up by the hit's *world* position (a
   surface keeps its pattern across frames and overlapping tiles), at a fine fractal scale
-  (0.1 m texels) and two smooth ones (2 m, 6 m), with amplitudes per material (asphalt
+  (0.1 m texels) and two smooth bilinear ones (2 m, 6 m), with amplitudes per material (asphalt
   grain, grass patches, leafy crowns, nearly clean paint). The noise tiles depend only on
   ``RenderConfig.texture_seed``.
 - **Light**: Lambert sun term times a hard shadow from shadow rays (Embree any-hit test
@@ -18,7 +19,7 @@ Model (all vectorised over pixels, float32):
   (glossy paint, dark reflective glass, matte tyres and trim, water); wet roads darken and
   gain sheen and puddles.
 - **Atmosphere and sensor**: haze towards a grey-blue veil, exposure and white balance,
-  vignetting, a tone curve, Gaussian blur, luminance-dependent noise, optional JPEG.
+  vignetting, a tone curve, Gaussian blur, additive Gaussian noise, optional JPEG.
 
 Sun azimuth is in degrees clockwise from north (90 = east), elevation above the horizon.
 Every factor is drawn from the ranges of :class:`RenderConfig` with the frame's generator and
@@ -208,23 +209,14 @@ def _noise_tiles(seed: int) -> np.ndarray:
     return out
 
 
-def _coarse_field(tile, sub_xy: np.ndarray, texel_m: float, shape_hw) -> np.ndarray:
-    """Smooth noise sampled bilinearly at a coarse grid of world xy (k, l, 2) and resized to
-    ``shape_hw`` (cheap low frequencies)."""
-    import cv2
+@lru_cache(maxsize=1)
+def _normal_quantiles() -> np.ndarray:
+    """(65536,) float32 standard normal inverse CDF at (k + 0.5) / 65536 (|z| <= 4.3)."""
+    from scipy.special import ndtri
 
-    gx = sub_xy[..., 0] / np.float32(texel_m)
-    gy = sub_xy[..., 1] / np.float32(texel_m)
-    x0, y0 = np.floor(gx), np.floor(gy)
-    fx, fy = (gx - x0).astype(np.float32), (gy - y0).astype(np.float32)
-    x0 = x0.astype(np.int64) & 255
-    y0 = y0.astype(np.int64) & 255
-    x1, y1 = (x0 + 1) & 255, (y0 + 1) & 255
-    v = (tile[y0, x0] * (1 - fx) + tile[y0, x1] * fx) * (1 - fy) + (
-        tile[y1, x0] * (1 - fx) + tile[y1, x1] * fx
-    ) * fy
-    h, w = shape_hw
-    return cv2.resize(v.astype(np.float32), (w, h), interpolation=cv2.INTER_LINEAR)
+    q = ndtri((np.arange(65536, dtype=np.float64) + 0.5) / 65536.0).astype(np.float32)
+    q.setflags(write=False)
+    return q
 
 
 def _tone_lut() -> np.ndarray:
@@ -237,57 +229,21 @@ def _tone_lut() -> np.ndarray:
 _LUT = _tone_lut()
 
 
-def _shadow_mask(rayscene, buffers, pts, nrm, need, L, step: int) -> np.ndarray:
-    """(n,) float32 1 = sunlit, 0 = in shadow, for pixels in ``need`` (others 1).
-
-    With step > 1, shadow rays are cast for one pixel per step x step block and for every
-    pixel whose surface differs from its block's sample (another label or a depth jump), so
-    object edges stay exact and only shadow edges inside one surface are coarser.
-    """
-    import cv2
-
-    from .raycast import occluded
-
-    h, w = buffers.height_px, buffers.width_px
-    lit = np.ones(h * w, np.float32)
-    if step <= 1:
-        idx = np.flatnonzero(need)
-    else:
-        sem = buffers.semantic
-        dep = buffers.depth
-        sem_s = sem[::step, ::step]
-        dep_s = dep[::step, ::step]
-        sem_up = cv2.resize(sem_s, (w, h), interpolation=cv2.INTER_NEAREST)
-        dep_up = cv2.resize(dep_s, (w, h), interpolation=cv2.INTER_NEAREST)
-        # cv2 maps dst x -> floor(x * src / dst); make that the block's first pixel
-        sample = np.zeros((h, w), bool)
-        sample[::step, ::step] = True
-        differs = (sem != sem_up) | (np.abs(dep - dep_up) > 0.2)
-        own = (sample | differs).reshape(-1) & need
-        idx = np.flatnonzero(own)
-    if len(idx):
-        o = pts[idx] + _PEEL * nrm[idx]
-        occ = occluded(rayscene, o, np.broadcast_to(L, (len(idx), 3)))
-        lit[idx[occ]] = 0.0
-    if step > 1:
-        blk = lit.reshape(h, w)[::step, ::step]
-        up = cv2.resize(np.ascontiguousarray(blk), (w, h), interpolation=cv2.INTER_NEAREST)
-        lit = np.where(own, lit, up.reshape(-1))
-        lit[~need] = 1.0
-    return lit
-
-
 def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator,
           timings: dict | None = None, shadow_step: int = 2) -> np.ndarray:
     """Shaded RGB (H, W, 3) uint8 for the primary hits in ``buffers`` under ``factors``.
 
     timings : optional dict that receives seconds per shading stage (for benchmarks).
-    shadow_step : 1 = one shadow ray per pixel; k = one per k x k block plus every pixel at
-                  an object edge (see :func:`_shadow_mask`).
+    shadow_step : 1 = one shadow ray per pixel; k = one per k x k block plus every pixel
+                  that differs from its block's first pixel (another label, or a depth
+                  jump over 0.2 m), so object edges stay exact and only shadow edges
+                  inside one surface are coarser.
     """
     import time
 
     import cv2
+
+    from . import _kernels as K
 
     tick = [time.perf_counter()]
 
@@ -299,172 +255,74 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator,
 
     h, w = buffers.height_px, buffers.width_px
     n = h * w
-    face = buffers.face
-    hit = face >= 0
-    fi = np.where(hit, face, 0)
-    if len(rayscene.face_material):
-        mat = rayscene.face_material[fi]
-        alb = rayscene.face_albedo[fi]
-    else:
-        mat = np.zeros(n, np.uint8)
-        alb = np.zeros((n, 3), np.float32)
-    nrm = buffers.normal
-    rays = buffers.rays
-    t = np.where(hit, buffers.t, np.float32(0.0))
-    px = rays[:, 0] + t * rays[:, 3]
-    py = rays[:, 1] + t * rays[:, 4]
-    pz = rays[:, 2] + t * rays[:, 5]
-
-    oc = np.float32(factors["overcast"])
+    step = max(1, int(shadow_step))
+    oc = float(factors["overcast"])
     wet = np.float32(factors["wet"])
     L = sun_direction(factors["sun_azimuth_deg"], factors["sun_elevation_deg"]).astype(np.float32)
+    textured = factors.get("texture_seed") is not None
+    tiles = _noise_tiles(int(factors["texture_seed"]) if textured else 0)
+    if len(rayscene.face_material):
+        face_mat, face_alb = rayscene.face_material, rayscene.face_albedo
+    else:  # empty scene: every ray misses
+        face_mat, face_alb = np.zeros(1, np.uint8), np.zeros((1, 3), np.float32)
+    alb = np.empty((n, 3), np.float32)
+    ndl = np.empty(n, np.float32)
+    puddle = np.empty(n, np.float32)
+    mat = np.empty(n, np.uint8)
+    own = np.empty(n, np.bool_)
+    origin = np.empty((n, 3), np.float32)
     mark("setup")
+    K.surface(h, w, buffers.rays, buffers.t, buffers.face, buffers.normal,
+              buffers.semantic.reshape(-1), buffers.depth.reshape(-1), face_mat, face_alb, tiles,
+              textured, _FINE, _COARSE, _DRY, _WETK, wet, L, _FOLIAGE, step, np.float32(_PEEL),
+              alb, ndl, puddle, mat, own, origin)
+    mark("surface")
 
-    # ---------------------------------------------------------------- albedo + texture
-    if factors.get("texture_seed") is not None:
-        tiles = _noise_tiles(int(factors["texture_seed"]))
-        # shift by height so stacked surfaces (roof over ground) get different patterns
-        qx = px + np.float32(0.37) * pz
-        qy = py - np.float32(0.53) * pz
-        ix = (qx * np.float32(10.0)).astype(np.int32)
-        iy = (qy * np.float32(10.0)).astype(np.int32)
-        iy &= 255
-        iy <<= 8
-        ix &= 255
-        iy |= ix
-        nf = tiles[0].ravel()[iy]  # fractal detail, 0.1 m texels (25.6 m period)
-        # leafy crowns: a noise "bump" on foliage breaks the crown facets into clumps
-        leaf = np.flatnonzero(mat == _FOLIAGE)
-        if len(leaf):
-            t1 = tiles[1].ravel()
-            k = iy[leaf]
-            leaf_bump = (t1[k], t1[(k + 12345) & 0xFFFF])
-        sub = np.stack(
-            [qx.reshape(h, w)[4::8, 4::8], qy.reshape(h, w)[4::8, 4::8]], axis=2
-        )
-        nc = _coarse_field(tiles[2], sub, 2.0, (h, w)).reshape(-1)
-        gain = _FINE[mat] * nf
-        gain += _COARSE[mat] * nc
-        gain += np.float32(1.0)
-        np.clip(gain, 0.3, 2.0, out=gain)
-        alb = alb * gain[:, None]
-        dry_k = _DRY[mat]
-        j = np.flatnonzero(dry_k > 0)
-        if len(j):
-            nd = _coarse_field(tiles[1], sub + np.float32(57.0), 6.0, (h, w)).reshape(-1)
-            d = (dry_k[j] * np.clip(nd[j], 0.0, 3.0) * 0.5)[:, None]
-            alb[j] += d * (np.array([0.42, 0.36, 0.20], np.float32) - alb[j])
-    else:
-        nc = np.zeros(n, np.float32)
-        alb = alb.copy()
-        leaf = np.zeros(0, np.int64)
-    # wetness: darker porous surfaces, puddles where the coarse noise is high
-    wk = _WETK[mat] * wet
-    puddle = None
-    if wet > 0:
-        puddle = np.clip((nc - (1.6 - 1.2 * wet)) * 2.0, 0.0, 1.0) * (_WETK[mat] > 0.5)
-        alb *= ((1.0 - 0.45 * wk) * (1.0 - 0.5 * puddle))[:, None]
-    mark("texture")
-
-    # ---------------------------------------------------------------- light
-    ndl = nrm @ L
-    if len(leaf):  # bumped normal n + 0.45 (bx, by, 0), unnormalised: cheap and leaf-like
-        ndl[leaf] += np.float32(0.45) * (leaf_bump[0] * L[0] + leaf_bump[1] * L[1])
-    np.maximum(ndl, 0.0, out=ndl)
-    lit = None
-    if factors.get("shadows", True):
-        lit = _shadow_mask(rayscene, buffers, np.stack([px, py, pz], 1), nrm, hit & (ndl > 0), L,
-                           shadow_step)
+    has_lit = bool(factors.get("shadows", True))
+    lit = np.ones(n if has_lit else 1, np.float32)
+    if has_lit:
+        idx, srays = K.gather_shadow_rays(own, origin, L)
+        occ = rayscene.test_occlusions(srays) if len(idx) else np.zeros(0, bool)
         mark("shadow_rays")
-        if oc > 0.02:
-            sig = 0.5 + 6.0 * float(oc)
-            lit = cv2.GaussianBlur(lit.reshape(h, w), (0, 0), sig).reshape(-1)
+        K.spread_shadow(h, w, step, own, ndl, idx, occ, lit)
+        if oc > 0.02:  # overcast: a softer, wider shadow edge
+            lit = cv2.GaussianBlur(lit.reshape(h, w), (0, 0), 0.5 + 6.0 * oc).reshape(-1)
+        mark("shadow_spread")
+
     elev = math.radians(factors["sun_elevation_deg"])
     warm = max(0.0, 1.0 - elev / math.radians(45.0))
     wb = factors["white_balance"]
     cam_gain = np.array([1.0 + wb, 1.0, 1.0 - wb], np.float32) * np.float32(factors["exposure"])
     sun_col = np.array([1.0, 0.96 - 0.05 * warm, 0.90 - 0.12 * warm], np.float32)
     sky_col = np.array([0.60, 0.68, 0.85], np.float32)
-    sky_col = sky_col + oc * (np.array([0.85, 0.86, 0.88], np.float32) - sky_col)
+    sky_col = sky_col + np.float32(oc) * (np.array([0.85, 0.86, 0.88], np.float32) - sky_col)
     e_sun = np.float32(1.15 * (1.0 - 0.85 * oc))
     e_sky = np.float32(0.30 + 0.45 * oc)
-    # per-pixel scalar factors: haze transmission and vignetting fold into the light
-    haze = float(factors["haze"])
-    trans = np.float32(1.0)
-    veil = None
-    if haze > 0:
-        alt = max(float(camera.altitude_m), 1.0)
-        hz = np.float32(haze) * np.clip(buffers.depth.reshape(-1) / np.float32(alt), 0.7, 1.4)
-        trans = 1.0 - hz
-        veil = np.array([0.62, 0.66, 0.72], np.float32) * np.float32(0.8 + 0.4 * e_sky)
-    vig = float(factors.get("vignetting", 0.0))
-    if vig > 0:
-        yy = (np.arange(h, dtype=np.float32) + 0.5 - h / 2) / (h / 2)
-        xx = (np.arange(w, dtype=np.float32) + 0.5 - w / 2) / (w / 2)
-        vmap = (1.0 - np.float32(vig) * 0.5 * (yy[:, None] ** 2 + xx[None, :] ** 2)).reshape(-1)
-        trans = trans * vmap
-    s_sun = e_sun * ndl
-    if lit is not None:
-        s_sun *= lit
-    s_sky = e_sky * (np.float32(0.55) + np.float32(0.45) * nrm[:, 2])
-    s_sun *= trans
-    s_sky *= trans
-    col = alb * (s_sun[:, None] * (sun_col * cam_gain) + s_sky[:, None] * (sky_col * cam_gain))
-    mark("light")
+    veil = np.array([0.62, 0.66, 0.72], np.float32) * np.float32(0.8 + 0.4 * e_sky)
+    alt = max(float(camera.altitude_m), 1.0)
+    rgb = np.empty((h, w, 3), np.uint8)
+    K.compose(h, w, buffers.rays, buffers.face, buffers.normal, buffers.depth.reshape(-1), alb,
+              ndl, puddle, mat, lit, has_lit, L, wet, _WETK, _SPEC, _SHINE, _F0,
+              (sun_col * cam_gain).astype(np.float32), (sky_col * cam_gain).astype(np.float32),
+              (sky_col * np.float32(0.25)).astype(np.float32),
+              (veil * cam_gain).astype(np.float32), e_sun, e_sky,
+              np.float32(1.0 - 0.9 * oc), np.float32(factors["haze"]), np.float32(1.0 / alt),
+              np.float32(factors.get("vignetting", 0.0)), _LUT, rgb)
+    mark("compose")
 
-    # ---------------------------------------------------------------- specular + reflection
-    spec_k = _SPEC[mat]
-    f0 = _F0[mat]
-    if wet > 0:
-        spec_k = spec_k + 0.5 * wk
-        f0 = f0 + 0.04 * wk + 0.06 * puddle
-    glossy = np.flatnonzero(hit & ((spec_k > 0) | (f0 > 0)))
-    if len(glossy):
-        nn = nrm[glossy]
-        vv = -rays[glossy, 3:]
-        vv /= np.linalg.norm(vv, axis=1, keepdims=True)
-        hv = vv + L
-        hv /= np.linalg.norm(hv, axis=1, keepdims=True)
-        ndh = np.clip((nn * hv).sum(axis=1), 0.0, 1.0)
-        shine = _SHINE[mat[glossy]]
-        if wet > 0:
-            shine = np.where(wk[glossy] > 0, np.float32(60.0), shine)
-        sp = spec_k[glossy] * np.power(ndh, shine) * (1.0 - 0.9 * oc)
-        if lit is not None:
-            sp *= lit[glossy]
-        ndv = np.clip((nn * vv).sum(axis=1), 0.0, 1.0)
-        fg = f0[glossy]
-        fres = (fg + (1.0 - fg) * np.power(1.0 - ndv, 5)) * (fg > 0)
-        tg = trans if np.ndim(trans) == 0 else trans[glossy]
-        add = (sp * 1.5 * tg)[:, None] * (sun_col * cam_gain) + (fres * 0.9 * tg)[:, None] * (
-            sky_col * cam_gain
-        )
-        col[glossy] += add
-    if not hit.all():
-        col[~hit] = sky_col * 0.25
-    if veil is not None:
-        col += (hz[:, None] * (veil * cam_gain))
-    mark("specular")
-
-    # ---------------------------------------------------------------- tone + sensor
-    q = np.minimum(col * np.float32(1024.0), np.float32(4095.0))
-    np.maximum(q, 0.0, out=q)
-    out = _LUT[q.astype(np.uint16)].reshape(h, w, 3)
-    mark("tone")
+    # ---------------------------------------------------------------- sensor
     sig = factors["blur_sigma_px"]
     if sig > 0.05:
-        out = cv2.GaussianBlur(out, (0, 0), sig)
+        rgb = cv2.GaussianBlur(rgb, (0, 0), sig)
     ns = factors["noise_sigma"]
     if ns > 0:
-        noise = rng.standard_normal((h, w), dtype=np.float32)
-        noise *= np.float32(ns * 255.0)
-        out = cv2.add(out.astype(np.int16), np.repeat(noise.astype(np.int16)[..., None], 3, 2))
-        out = np.clip(out, 0, 255).astype(np.uint8)
+        seed = int(rng.integers(0, 2**63, dtype=np.int64))
+        K.add_noise(rgb, np.uint64(seed), np.float32(ns * 255.0), _normal_quantiles())
     mark("sensor")
     q = factors.get("jpeg_quality")
     if q:
-        ok, enc = cv2.imencode(".jpg", out[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, int(q)])
+        ok, enc = cv2.imencode(".jpg", rgb[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, int(q)])
         if ok:
-            out = np.ascontiguousarray(cv2.imdecode(enc, cv2.IMREAD_COLOR)[..., ::-1])
+            rgb = np.ascontiguousarray(cv2.imdecode(enc, cv2.IMREAD_COLOR)[..., ::-1])
     mark("jpeg")
-    return np.ascontiguousarray(out)
+    return np.ascontiguousarray(rgb)

@@ -1,0 +1,365 @@
+"""Per-pixel kernels of the ray-cast renderer, compiled with numba.
+
+The shading model is described in :mod:`aerial_synth.render.shading`; these functions are
+its inner loops, one fused pass over the pixels per stage instead of dozens of
+whole-image numpy temporaries. Every pixel is computed independently (``prange`` over
+rows), so results do not depend on the number of threads. Compiled code is cached on
+disk (``cache=True``); the first call in a fresh checkout compiles for a few seconds.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import config, njit, prange
+
+# OpenMP, then numba's own work queue; TBB last (an old system TBB only raises a warning)
+if not getattr(config, "THREADING_LAYER", "default") or config.THREADING_LAYER == "default":
+    config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
+
+_OPTS = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
+
+
+@njit(parallel=True, **_OPTS)
+def finish_buffers(rays, t, normal, depth):  # pragma: no cover - compiled
+    """In place: flip ``normal`` (n, 3) to face the camera; ``depth`` (n,) = t, 0 on miss."""
+    n = t.shape[0]
+    for i in prange(n):
+        ti = t[i]
+        depth[i] = ti if np.isfinite(ti) else np.float32(0.0)
+        d = normal[i, 0] * rays[i, 3] + normal[i, 1] * rays[i, 4] + normal[i, 2] * rays[i, 5]
+        if d > 0:
+            normal[i, 0] = -normal[i, 0]
+            normal[i, 1] = -normal[i, 1]
+            normal[i, 2] = -normal[i, 2]
+
+
+@njit(inline="always")
+def _bilinear(tile, x, y):  # pragma: no cover - compiled
+    fx0 = np.floor(x)
+    fy0 = np.floor(y)
+    fx = np.float32(x - fx0)
+    fy = np.float32(y - fy0)
+    x0 = np.int64(fx0) & 255
+    y0 = np.int64(fy0) & 255
+    x1 = (x0 + 1) & 255
+    y1 = (y0 + 1) & 255
+    a = tile[y0, x0] * (np.float32(1.0) - fx) + tile[y0, x1] * fx
+    b = tile[y1, x0] * (np.float32(1.0) - fx) + tile[y1, x1] * fx
+    return a * (np.float32(1.0) - fy) + b * fy
+
+
+@njit(parallel=True, **_OPTS)
+def surface(
+    h, w, rays, t, face, normal, semantic, depth, face_material, face_albedo, tiles, textured,
+    fine_t, coarse_t, dry_t, wetk_t, wet, light, foliage_id, step, peel,
+    alb_out, ndl_out, puddle_out, mat_out, own_out, origin_out,
+):  # pragma: no cover - compiled
+    """Albedo with procedural texture, wetness, sun cosine and shadow-ray selection.
+
+    Writes per pixel i: ``alb_out[i]`` (3,) textured albedo, ``ndl_out[i]`` max(n.L, 0)
+    (with the leafy-crown bump), ``puddle_out[i]``, ``mat_out[i]`` material id,
+    ``own_out[i]`` True when this pixel casts its own shadow ray and ``origin_out[i]`` that
+    ray's origin. With ``step`` > 1 a pixel casts its own ray when it is its step x step
+    block's first pixel or differs from it (label, or depth by > 0.2 m); the others take
+    the block sample's result (see :func:`spread_shadow`).
+    """
+    lx, ly, lz = light[0], light[1], light[2]
+    t0 = tiles[0]
+    t1 = tiles[1]
+    t2 = tiles[2]
+    dry_r, dry_g, dry_b = np.float32(0.42), np.float32(0.36), np.float32(0.20)
+    for r in prange(h):
+        rb = (r // step) * step
+        for c in range(w):
+            i = r * w + c
+            f = face[i]
+            if f < 0:
+                alb_out[i, 0] = 0.0
+                alb_out[i, 1] = 0.0
+                alb_out[i, 2] = 0.0
+                ndl_out[i] = 0.0
+                puddle_out[i] = 0.0
+                mat_out[i] = 0
+                own_out[i] = False
+                continue
+            m = face_material[f]
+            mat_out[i] = m
+            ti = t[i]
+            px = rays[i, 0] + ti * rays[i, 3]
+            py = rays[i, 1] + ti * rays[i, 4]
+            pz = rays[i, 2] + ti * rays[i, 5]
+            ar = face_albedo[f, 0]
+            ag = face_albedo[f, 1]
+            ab = face_albedo[f, 2]
+            nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
+            ndl = nx * lx + ny * ly + nz * lz
+            nc = np.float32(0.0)
+            if textured:
+                # shift by height so stacked surfaces (roof over ground) differ
+                qx = px + np.float32(0.37) * pz
+                qy = py - np.float32(0.53) * pz
+                k = ((np.int32(qy * np.float32(10.0)) & 255) << 8) | (
+                    np.int32(qx * np.float32(10.0)) & 255
+                )
+                nf = t0[k >> 8, k & 255]  # fractal detail, 0.1 m texels (25.6 m period)
+                nc = _bilinear(t2, qx / np.float32(2.0), qy / np.float32(2.0))
+                gain = np.float32(1.0) + fine_t[m] * nf + coarse_t[m] * nc
+                gain = min(max(gain, np.float32(0.3)), np.float32(2.0))
+                ar *= gain
+                ag *= gain
+                ab *= gain
+                dk = dry_t[m]
+                if dk > 0:  # grass / foliage drift towards dry yellow-brown
+                    nd = _bilinear(t1, (qx + np.float32(57.0)) / np.float32(6.0),
+                                   (qy + np.float32(57.0)) / np.float32(6.0))
+                    d = dk * min(max(nd, np.float32(0.0)), np.float32(3.0)) * np.float32(0.5)
+                    ar += d * (dry_r - ar)
+                    ag += d * (dry_g - ag)
+                    ab += d * (dry_b - ab)
+                if m == foliage_id:  # leafy crowns: a noise bump breaks facets into clumps
+                    k2 = (k + 12345) & 0xFFFF
+                    bx = t1[k >> 8, k & 255]
+                    by = t1[k2 >> 8, k2 & 255]
+                    ndl += np.float32(0.45) * (bx * lx + by * ly)
+            pud = np.float32(0.0)
+            if wet > 0:
+                wk = wetk_t[m] * wet
+                if wetk_t[m] > 0.5:
+                    pud = min(max((nc - (np.float32(1.6) - np.float32(1.2) * wet)) * np.float32(2.0),
+                                  np.float32(0.0)), np.float32(1.0))
+                g = (np.float32(1.0) - np.float32(0.45) * wk) * (np.float32(1.0) - np.float32(0.5) * pud)
+                ar *= g
+                ag *= g
+                ab *= g
+            ndl = max(ndl, np.float32(0.0))
+            alb_out[i, 0] = ar
+            alb_out[i, 1] = ag
+            alb_out[i, 2] = ab
+            ndl_out[i] = ndl
+            puddle_out[i] = pud
+            own = ndl > 0
+            if own and step > 1 and (r != rb or c % step != 0):
+                j = rb * w + (c // step) * step
+                own = semantic[i] != semantic[j] or abs(depth[i] - depth[j]) > np.float32(0.2)
+            own_out[i] = own
+            origin_out[i, 0] = px + peel * nx
+            origin_out[i, 1] = py + peel * ny
+            origin_out[i, 2] = pz + peel * nz
+
+
+@njit(**_OPTS)
+def gather_shadow_rays(own, origin, light):  # pragma: no cover - compiled
+    """(k,) pixel indices with ``own`` and their (k, 6) shadow rays towards ``light``."""
+    n = own.shape[0]
+    k = 0
+    for i in range(n):
+        if own[i]:
+            k += 1
+    idx = np.empty(k, np.int64)
+    rays = np.empty((k, 6), np.float32)
+    j = 0
+    for i in range(n):
+        if own[i]:
+            idx[j] = i
+            rays[j, 0] = origin[i, 0]
+            rays[j, 1] = origin[i, 1]
+            rays[j, 2] = origin[i, 2]
+            rays[j, 3] = light[0]
+            rays[j, 4] = light[1]
+            rays[j, 5] = light[2]
+            j += 1
+    return idx, rays
+
+
+@njit(parallel=True, **_OPTS)
+def spread_shadow(h, w, step, own, ndl, idx, occ, lit):  # pragma: no cover - compiled
+    """``lit`` (n,) float32: 0 where a shadow ray was blocked, 1 where it reached the sun
+    or no ray was needed (n.L <= 0 is dark anyway); pixels without their own ray copy
+    their block's first pixel."""
+    k = idx.shape[0]
+    for j in prange(k):
+        lit[idx[j]] = np.float32(0.0) if occ[j] else np.float32(1.0)
+    for r in prange(h):
+        rb = (r // step) * step
+        for c in range(w):
+            i = r * w + c
+            if own[i]:
+                continue
+            if ndl[i] > 0 and step > 1:
+                lit[i] = lit[rb * w + (c // step) * step]
+            else:
+                lit[i] = np.float32(1.0)
+
+
+@njit(parallel=True, **_OPTS)
+def compose(
+    h, w, rays, face, normal, depth, alb, ndl, puddle, mat, lit, has_lit, light, wet, wetk_t,
+    spec_t, shine_t, f0_t, sun_rgb, sky_rgb, miss_rgb, veil_rgb, e_sun, e_sky, spec_dim,
+    haze, inv_alt, vignetting, lut, out,
+):  # pragma: no cover - compiled
+    """Light, specular + sky reflection, haze, vignetting and tone curve -> ``out`` (h, w, 3)
+    uint8. ``sun_rgb`` / ``sky_rgb`` / ``veil_rgb`` already include the camera gain."""
+    lx, ly, lz = light[0], light[1], light[2]
+    one = np.float32(1.0)
+    for r in prange(h):
+        vy = (np.float32(r) + np.float32(0.5) - np.float32(h) / 2) / (np.float32(h) / 2)
+        for c in range(w):
+            i = r * w + c
+            trans = one
+            hz = np.float32(0.0)
+            if haze > 0:
+                hz = haze * min(max(depth[i] * inv_alt, np.float32(0.7)), np.float32(1.4))
+                trans = one - hz
+            if vignetting > 0:
+                vx = (np.float32(c) + np.float32(0.5) - np.float32(w) / 2) / (np.float32(w) / 2)
+                trans *= one - vignetting * np.float32(0.5) * (vy * vy + vx * vx)
+            if face[i] < 0:
+                cr, cg, cb = miss_rgb[0], miss_rgb[1], miss_rgb[2]
+            else:
+                m = mat[i]
+                li = lit[i] if has_lit else one
+                nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
+                s_sun = e_sun * ndl[i] * li * trans
+                s_sky = e_sky * (np.float32(0.55) + np.float32(0.45) * nz) * trans
+                cr = alb[i, 0] * (s_sun * sun_rgb[0] + s_sky * sky_rgb[0])
+                cg = alb[i, 1] * (s_sun * sun_rgb[1] + s_sky * sky_rgb[1])
+                cb = alb[i, 2] * (s_sun * sun_rgb[2] + s_sky * sky_rgb[2])
+                sk = spec_t[m]
+                f0 = f0_t[m]
+                shine = shine_t[m]
+                if wet > 0:
+                    wk = wetk_t[m] * wet
+                    sk += np.float32(0.5) * wk
+                    f0 += np.float32(0.04) * wk + np.float32(0.06) * puddle[i]
+                    if wk > 0:
+                        shine = np.float32(60.0)
+                if sk > 0 or f0 > 0:
+                    vx_ = -rays[i, 3]
+                    vy_ = -rays[i, 4]
+                    vz_ = -rays[i, 5]
+                    vn = np.sqrt(vx_ * vx_ + vy_ * vy_ + vz_ * vz_)
+                    vx_ /= vn
+                    vy_ /= vn
+                    vz_ /= vn
+                    hx, hy, hz_ = vx_ + lx, vy_ + ly, vz_ + lz
+                    hn = np.sqrt(hx * hx + hy * hy + hz_ * hz_)
+                    ndh = (nx * hx + ny * hy + nz * hz_) / hn
+                    ndh = min(max(ndh, np.float32(0.0)), one)
+                    sp = sk * ndh ** shine * spec_dim * li
+                    ndv = min(max(nx * vx_ + ny * vy_ + nz * vz_, np.float32(0.0)), one)
+                    fres = np.float32(0.0)
+                    if f0 > 0:
+                        fres = f0 + (one - f0) * (one - ndv) ** 5
+                    a = sp * np.float32(1.5) * trans
+                    b = fres * np.float32(0.9) * trans
+                    cr += a * sun_rgb[0] + b * sky_rgb[0]
+                    cg += a * sun_rgb[1] + b * sky_rgb[1]
+                    cb += a * sun_rgb[2] + b * sky_rgb[2]
+            if haze > 0:
+                cr += hz * veil_rgb[0]
+                cg += hz * veil_rgb[1]
+                cb += hz * veil_rgb[2]
+            out[r, c, 0] = lut[_q12(cr)]
+            out[r, c, 1] = lut[_q12(cg)]
+            out[r, c, 2] = lut[_q12(cb)]
+
+
+@njit(inline="always")
+def _q12(v):  # pragma: no cover - compiled
+    x = v * np.float32(1024.0)
+    if not x > 0:  # also NaN
+        return 0
+    if x >= np.float32(4095.0):
+        return 4095
+    return np.int64(x)
+
+
+@njit(inline="always")
+def _mix64(z):  # pragma: no cover - compiled
+    """splitmix64 finaliser: a well-mixed 64-bit hash of z."""
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return z ^ (z >> np.uint64(31))
+
+
+@njit(parallel=True, **_OPTS)
+def add_noise(img, seed, scale, quantiles):  # pragma: no cover - compiled
+    """In place: ``img`` (h, w, 3) uint8 += trunc(scale * z), saturated to [0, 255], the
+    same z for the three channels of a pixel. z is standard normal: the pixel's hash of
+    (seed, pixel index) picks one of the 2^16 equal-probability ``quantiles`` (the normal
+    inverse CDF at (k + 0.5) / 2^16). Counter-based, so any thread count gives the same
+    image."""
+    h, w, _ = img.shape
+    golden = np.uint64(0x9E3779B97F4A7C15)
+    s = np.uint64(seed)
+    for r in prange(h):
+        for c in range(w):
+            z = _mix64(s + np.uint64(r * w + c + 1) * golden)
+            d = np.int32(quantiles[np.int64(z >> np.uint64(48))] * scale)
+            for ch in range(3):
+                v = np.int32(img[r, c, ch]) + d
+                img[r, c, ch] = 0 if v < 0 else (255 if v > 255 else v)
+
+
+@njit(**_OPTS)
+def instance_boxes(instance, n_ids):  # pragma: no cover - compiled
+    """One pass over an (h, w) id image: per id < ``n_ids`` its pixel count and pixel-edge
+    box. Returns counts (n_ids,) int64 and boxes (n_ids, 4) int64 [x0, y0, x1, y1]
+    (x1, y1 exclusive; [w, h, 0, 0] for an id with no pixels). Ids >= n_ids are skipped."""
+    h, w = instance.shape
+    counts = np.zeros(n_ids, np.int64)
+    boxes = np.empty((n_ids, 4), np.int64)
+    boxes[:, 0] = w
+    boxes[:, 1] = h
+    boxes[:, 2] = 0
+    boxes[:, 3] = 0
+    for r in range(h):
+        for c in range(w):
+            v = instance[r, c]
+            if v == 0 or v >= n_ids:
+                continue
+            counts[v] += 1
+            if c < boxes[v, 0]:
+                boxes[v, 0] = c
+            if r < boxes[v, 1]:
+                boxes[v, 1] = r
+            if c + 1 > boxes[v, 2]:
+                boxes[v, 2] = c + 1
+            if r + 1 > boxes[v, 3]:
+                boxes[v, 3] = r + 1
+    return counts, boxes
+
+
+@njit(**_OPTS)
+def box_union_pixels(x0, y0, x1, y1):  # pragma: no cover - compiled
+    """Pixels of the union of k boxes [x0, x1) x [y0, y1) (may reach outside the image),
+    row-major: rows (m,) int32, cols (m,) int32, multi (m,) bool (in more than one box)."""
+    k = x0.shape[0]
+    if k == 0:
+        return np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0, np.bool_)
+    ex0, ey0 = x0.min(), y0.min()
+    cw, ch = x1.max() - ex0, y1.max() - ey0
+    cover = np.zeros((ch, cw), np.uint8)
+    for b in range(k):
+        for r in range(y0[b] - ey0, y1[b] - ey0):
+            for c in range(x0[b] - ex0, x1[b] - ex0):
+                if cover[r, c] < 255:
+                    cover[r, c] += 1
+    m = 0
+    for r in range(ch):
+        for c in range(cw):
+            if cover[r, c]:
+                m += 1
+    rows = np.empty(m, np.int32)
+    cols = np.empty(m, np.int32)
+    multi = np.empty(m, np.bool_)
+    j = 0
+    for r in range(ch):
+        for c in range(cw):
+            v = cover[r, c]
+            if v:
+                rows[j] = r + ey0
+                cols[j] = c + ex0
+                multi[j] = v > 1
+                j += 1
+    return rows, cols, multi

@@ -1,0 +1,132 @@
+"""The compiled per-pixel kernels against plain numpy references, and thread independence."""
+
+import numba
+import numpy as np
+import pytest
+
+from aerial_synth.camera import Camera, CameraConfig
+from aerial_synth.render import RenderConfig, render_frame
+from aerial_synth.render import _kernels as K
+from aerial_synth.render.raycast import _box_exit_t, _box_frames
+from aerial_synth.render.shading import _normal_quantiles
+
+from .worlds import make_placement, make_world
+
+SMALL = CameraConfig(width_px=256, height_px=256, gsd_m=0.12)
+
+
+def _with_threads(n, fn):
+    old = numba.get_num_threads()
+    numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
+    try:
+        return fn()
+    finally:
+        numba.set_num_threads(old)
+
+
+def test_noise_is_standard_normal_and_thread_independent():
+    base = np.full((300, 400, 3), 128, np.uint8)
+
+    def noisy(seed, threads):
+        img = base.copy()
+        _with_threads(threads, lambda: K.add_noise(img, np.uint64(seed), np.float32(20.0),
+                                                   _normal_quantiles()))
+        return img
+
+    a, b = noisy(7, 1), noisy(7, 2)
+    assert a.tobytes() == b.tobytes()
+    d = a.astype(np.float64) - 128
+    assert (d[..., 0] == d[..., 2]).all()  # luminance noise: same offset in every channel
+    # trunc(20 z): mean 0, sd just under 20 (truncation towards zero removes ~0.5)
+    assert abs(d.mean()) < 0.2 and 19.0 < d[..., 0].std() < 20.0
+    # no correlation between neighbouring pixels
+    x = d[..., 0]
+    assert abs(np.corrcoef(x[:, 1:].ravel(), x[:, :-1].ravel())[0, 1]) < 0.02
+    assert noisy(8, 2).tobytes() != a.tobytes()
+    # saturates instead of wrapping
+    img = np.full((64, 64, 3), 250, np.uint8)
+    K.add_noise(img, np.uint64(1), np.float32(50.0), _normal_quantiles())
+    assert img.max() == 255 and (img >= 250 - 50 * 5).all()
+
+
+def test_normal_quantiles_are_symmetric_standard_normal():
+    q = _normal_quantiles().astype(np.float64)
+    assert q.shape == (65536,) and np.allclose(q, -q[::-1], atol=1e-5)
+    assert abs(q.mean()) < 1e-6 and q.std() == pytest.approx(1.0, abs=2e-3)
+
+
+def test_instance_boxes_match_numpy():
+    rng = np.random.default_rng(0)
+    inst = np.zeros((120, 90), np.uint32)
+    for vid in range(1, 30):
+        r, c = rng.integers(0, 110), rng.integers(0, 80)
+        inst[r : r + rng.integers(1, 10), c : c + rng.integers(1, 10)] = vid
+    inst[5, 5] = 1000  # an id beyond n_ids is skipped
+    counts, boxes = K.instance_boxes(inst, 40)
+    for vid in range(1, 40):
+        rows, cols = np.nonzero(inst == vid)
+        assert counts[vid] == len(rows)
+        if len(rows):
+            assert tuple(boxes[vid]) == (cols.min(), rows.min(), cols.max() + 1, rows.max() + 1)
+
+
+def test_box_union_pixels_match_a_canvas():
+    rng = np.random.default_rng(1)
+    x0 = rng.integers(-20, 100, 12)
+    y0 = rng.integers(-20, 100, 12)
+    x1 = x0 + rng.integers(1, 40, 12)
+    y1 = y0 + rng.integers(1, 40, 12)
+    rows, cols, multi = K.box_union_pixels(x0, y0, x1, y1)
+    cover = np.zeros((200, 200), int)
+    for a, b, c, d in zip(x0, y0, x1, y1):
+        cover[b + 50 : d + 50, a + 50 : c + 50] += 1
+    rr, cc = np.nonzero(cover)
+    assert np.array_equal(rows, rr - 50) and np.array_equal(cols, cc - 50)
+    assert np.array_equal(multi, cover[rr, cc] > 1)
+
+
+def test_box_exit_parameter():
+    # a 4 x 2 x 1.5 m box at the origin turned by 90 degrees: x in [-1, 1], y in [-2, 2]
+    pl = make_placement([(1, 0.0, 0.0, np.pi / 2, 4.0, 2.0, 1.5)])
+    fr = _box_frames(pl.vehicles)
+    rays = np.array([
+        [0.5, 1.5, 10.0, 0.0, 0.0, -1.0],  # straight down: leaves through the floor z = 0
+        [-5.0, 0.0, 0.5, 1.0, 0.0, 0.0],  # along +x: leaves at x = 1
+        [0.0, -5.0, 0.5, 0.0, 2.0, 0.0],  # along +y, direction of length 2: y = 2 at t 3.5
+        [5.0, 5.0, 10.0, 0.0, 0.0, -1.0],  # misses the box
+    ], np.float32)
+    t = _box_exit_t(rays, np.repeat(fr, 4, axis=0))
+    assert t[:3] == pytest.approx([10.0, 6.0, 3.5], abs=1e-5)
+    assert t[3] == -np.inf
+
+
+@pytest.mark.parametrize("tilt_axis", [180.0, 270.0])
+def test_amodal_of_a_row_of_vehicles_seen_obliquely(tilt_axis):
+    # five cars nose to tail and a tall truck beside them, seen 15 degrees off nadir: rays
+    # cross several vehicles, and each one's amodal silhouette must equal the one it has
+    # alone (peeling restarts behind each vehicle's box)
+    spec = [(i + 1, 4.7 * i, 0.0, 0.0, 4.5, 1.8, 1.5) for i in range(5)]
+    spec.append((9, 9.4, 2.4, 0.0, 9.0, 2.5, 4.0))
+    cam = Camera.look_at_ground(SMALL, (3.0, 0.0, 0.0), tilt_deg=15.0, tilt_axis_deg=tilt_axis)
+    cfg = RenderConfig(jpeg_probability=0.0)
+    rs, pl = make_world(spec, building=False)
+    f = render_frame(rs, cam, pl, np.random.default_rng(0), cfg)
+    assert min(v.visible_fraction for v in f.visibility.values()) < 0.97
+    for s in spec:
+        rs1, pl1 = make_world([s], building=False)
+        one = render_frame(rs1, cam, pl1, np.random.default_rng(0), cfg)
+        m, o = f.amodal_mask(s[0])
+        m1, o1 = one.amodal_mask(s[0])
+        assert o == o1 and np.array_equal(m, m1), s[0]
+        assert f.visibility[s[0]].amodal_px_full == one.visibility[s[0]].amodal_px_full
+
+
+def test_frame_is_identical_for_any_thread_count():
+    spec = [(1, 0.0, 0.0, 0.3, 4.5, 1.8, 1.5), (2, 6.0, -2.0, 0.0, 9.0, 2.5, 3.5)]
+    rs, pl = make_world(spec, crown_at=(3.0, 3.0))
+    cam = Camera.look_at_ground(SMALL, (2.0, 0.0, 0.0), yaw_deg=20.0, tilt_deg=8.0)
+    cfg = RenderConfig(jpeg_probability=0.0, wet_probability=1.0, overcast_probability=0.0)
+    a = _with_threads(1, lambda: render_frame(rs, cam, pl, np.random.default_rng(3), cfg))
+    b = _with_threads(2, lambda: render_frame(rs, cam, pl, np.random.default_rng(3), cfg))
+    for name in ("instance", "semantic", "depth", "rgb"):
+        assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), name
