@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 PIP    := $(PY) -m pip
 BIN    := $(VENV)/bin
 
-.PHONY: demo test test-all sysdeps venv install install-test clean bench
+.PHONY: demo test test-all sysdeps sysdeps-egl venv install install-test clean bench
 
 # open3d's Linux wheel links against libusb-1.0; pip cannot provide it.
 sysdeps:
@@ -20,6 +20,19 @@ sysdeps:
 	  exit 1; \
 	fi
 
+# Optional: Mesa's EGL (software, no GPU needed) for the pyrender backend and its test.
+# Installed when running as root with apt; otherwise that one test is skipped, saying why.
+sysdeps-egl:
+	@if ldconfig -p 2>/dev/null | grep -q 'libEGL_mesa.so.0'; then :; \
+	elif [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then \
+	  echo "installing Mesa EGL (libegl1 libegl-mesa0 libgl1-mesa-dri) for the pyrender backend"; \
+	  DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends libegl1 libegl-mesa0 libgl1-mesa-dri >/dev/null 2>&1 || \
+	  { apt-get update -q >/dev/null 2>&1 && DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends libegl1 libegl-mesa0 libgl1-mesa-dri >/dev/null 2>&1; } || \
+	  echo "note: could not install Mesa EGL; the pyrender backend test will be skipped"; \
+	else \
+	  echo "note: no Mesa EGL (sudo apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri); the pyrender backend test will be skipped"; \
+	fi
+
 $(VENV)/.created:
 	$(PYTHON) -m venv $(VENV)
 	$(PIP) install -q --upgrade pip
@@ -32,11 +45,11 @@ $(VENV)/.installed: $(VENV)/.created pyproject.toml
 	touch $@
 
 $(VENV)/.installed-test: $(VENV)/.installed
-	$(PIP) install -q -e '.[test]'
+	$(PIP) install -q -e '.[test,pyrender]'
 	touch $@
 
 install: sysdeps $(VENV)/.installed
-install-test: sysdeps $(VENV)/.installed-test
+install-test: sysdeps sysdeps-egl $(VENV)/.installed-test
 
 demo: install
 	$(BIN)/aerial-synth place --scenario jam --scene city_park --seed 0 --out out/demo

@@ -61,27 +61,40 @@ def _scene(pr, rayscene, camera, face_colors: np.ndarray, ambient: float = 1.0):
     tm.visual.face_colors = face_colors
     sc = pr.Scene(ambient_light=np.full(3, ambient), bg_color=np.zeros(4))
     sc.add(pr.Mesh.from_trimesh(tm, smooth=False))
+    _add_camera(pr, sc, camera)
+    return sc
+
+
+def _add_camera(pr, sc, camera) -> None:
     k = camera.K
     cam = pr.IntrinsicsCamera(fx=k[0, 0], fy=k[1, 1], cx=k[0, 2], cy=k[1, 2], znear=0.5,
                               zfar=1e4)
     sc.add(cam, pose=camera.cam_to_world @ _OPENCV_TO_OPENGL)
-    return sc
 
 
 def render_instance_ids(rayscene, camera) -> np.ndarray:
-    """(H, W) uint32 vehicle ids rasterised with flat id colours (for the IoU test)."""
+    """(H, W) uint32 vehicle ids rasterised by pyrender (for the IoU test).
+
+    Uses pyrender's segmentation pass (no lighting, no multisampling, so colours are
+    exact): one node per vehicle coloured with its id in 24 bits, and the static scene in
+    black so it still hides what is behind it.
+    """
     pr = _import_pyrender()
+    import trimesh
+
     rayscene.refresh()
-    ids = rayscene.face_instance.astype(np.int64)
-    col = np.zeros((len(ids), 4), np.uint8)
-    col[:, 0] = ids & 0xFF
-    col[:, 1] = (ids >> 8) & 0xFF
-    col[:, 2] = (ids >> 16) & 0xFF
-    col[:, 3] = 255
-    sc = _scene(pr, rayscene, camera, col)
+    v, f = _mesh_arrays(rayscene)
+    inst = rayscene.face_instance
+    sc = pr.Scene(bg_color=np.zeros(4))
+    seg = {}
+    for vid in np.unique(inst):
+        sel = f[inst == vid]
+        node = sc.add(pr.Mesh.from_trimesh(trimesh.Trimesh(v, sel, process=False)))
+        seg[node] = np.array([vid & 0xFF, (vid >> 8) & 0xFF, (vid >> 16) & 0xFF], np.float64)
+    _add_camera(pr, sc, camera)
     r = pr.OffscreenRenderer(camera.width_px, camera.height_px)
     try:
-        rgb, _ = r.render(sc, flags=pr.RenderFlags.FLAT | pr.RenderFlags.DISABLE_ANTI_ALIASING)
+        rgb, _ = r.render(sc, flags=pr.RenderFlags.SEG, seg_node_map=seg)
     finally:
         r.delete()
     rgb = rgb.astype(np.uint32)
