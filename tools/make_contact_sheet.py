@@ -40,7 +40,7 @@ def main(argv=None) -> int:
     ap.add_argument("--scene", default="city_park")
     ap.add_argument("--out", default="docs/render_contact_sheet.png")
     ap.add_argument("--tile", type=int, default=320, help="tile size in px (downscaled)")
-    ap.add_argument("--crop", type=int, default=560, help="centre crop of the 1024 px frame")
+    ap.add_argument("--crop", type=int, default=420, help="centre crop of the 1024 px frame")
     ap.add_argument("--seed", type=int, default=11)
     a = ap.parse_args(argv)
     import cv2
