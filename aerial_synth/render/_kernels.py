@@ -60,8 +60,9 @@ def surface(
     (with the leafy-crown bump), ``puddle_out[i]``, ``mat_out[i]`` material id,
     ``own_out[i]`` True when this pixel casts its own shadow ray and ``origin_out[i]`` that
     ray's origin. With ``step`` > 1 a pixel casts its own ray when it is its step x step
-    block's first pixel or differs from it (label, or depth by > 0.2 m); the others take
-    the block sample's result (see :func:`spread_shadow`).
+    block's first pixel (always, even facing away from the sun, since its block copies it)
+    or differs from it (label, or depth by > 0.2 m); the others take the block sample's
+    result (see :func:`spread_shadow`).
     """
     lx, ly, lz = light[0], light[1], light[2]
     t0 = tiles[0]
@@ -137,10 +138,15 @@ def surface(
             alb_out[i, 2] = ab
             ndl_out[i] = ndl
             puddle_out[i] = pud
-            own = ndl > 0
-            if own and step > 1 and (r != rb or c % step != 0):
+            if step == 1:
+                own = ndl > 0
+            elif r == rb and c % step == 0:
+                own = True  # a block's first pixel always tests: its block copies it
+            else:
                 j = rb * w + (c // step) * step
-                own = semantic[i] != semantic[j] or abs(depth[i] - depth[j]) > np.float32(0.2)
+                own = ndl > 0 and (
+                    semantic[i] != semantic[j] or abs(depth[i] - depth[j]) > np.float32(0.2)
+                )
             own_out[i] = own
             origin_out[i, 0] = px + peel * nx
             origin_out[i, 1] = py + peel * ny
