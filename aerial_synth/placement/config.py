@@ -32,7 +32,7 @@ SCENARIOS = ("jam", "normal", "sparse", "random")
 
 
 def scenario_dir() -> Path:
-    return Path(__file__).resolve().parents[2] / "scenes" / "scenarios"
+    return Path(__file__).resolve().parents[1] / "data" / "scenes" / "scenarios"
 
 
 def list_scenarios() -> list[str]:

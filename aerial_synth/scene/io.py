@@ -49,7 +49,9 @@ __all__ = [
 ]
 
 #: Folder of the bundled scene specs (the package is installed editable).
-SCENES_DIR = Path(__file__).resolve().parents[2] / "scenes"
+# bundled data: aerial_synth/data/scenes (a link to the top-level scenes/ in a checkout,
+# real files in a wheel)
+SCENES_DIR = Path(__file__).resolve().parents[1] / "data" / "scenes"
 
 MESH_EXTENSIONS = (".glb", ".gltf", ".obj", ".ply")
 SPEC_EXTENSIONS = (".yaml", ".yml")

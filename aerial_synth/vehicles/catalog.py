@@ -73,8 +73,9 @@ _COLOR_KEYS = {"name", "rgb", "weight"}
 
 
 def bundled_catalog_path() -> Path:
-    """Path of the bundled catalog, ``<repo>/vehicle_assets/catalog.yaml``."""
-    return Path(__file__).resolve().parents[2] / "vehicle_assets" / "catalog.yaml"
+    """Path of the bundled catalog: ``aerial_synth/data/vehicle_assets/catalog.yaml`` (in a
+    checkout a link to the top-level ``vehicle_assets/``)."""
+    return Path(__file__).resolve().parents[1] / "data" / "vehicle_assets" / "catalog.yaml"
 
 
 # --------------------------------------------------------------------------- records
