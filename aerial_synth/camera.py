@@ -333,18 +333,15 @@ class Camera:
         if cached is None:
             # as pixel_rays(rows, cols) for every pixel, with the same float32 operations in
             # the same order, but separable: x depends on the column only, y on the row
+            from .render._kernels import grid_rays
+
             h, w = self.height_px, self.width_px
-            r = self.R.astype(np.float32)
             x = ((np.arange(w, dtype=np.float32) + np.float32(0.5)) - np.float32(self.K[0, 2])
                  ) / np.float32(self.K[0, 0])
             y = ((np.arange(h, dtype=np.float32) + np.float32(0.5)) - np.float32(self.K[1, 2])
                  ) / np.float32(self.K[1, 1])
-            cached = np.empty((h, w, 6), np.float32)
-            cached[..., :3] = self.center.astype(np.float32)
-            for k in range(3):
-                np.add((r[k, 0] * x)[None, :], (r[k, 1] * y)[:, None], out=cached[..., 3 + k])
-                cached[..., 3 + k] += r[k, 2]
-            cached = cached.reshape(h * w, 6)
+            cached = np.empty((h * w, 6), np.float32)
+            grid_rays(self.center.astype(np.float32), self.R.astype(np.float32), x, y, cached)
             cached.setflags(write=False)
             object.__setattr__(self, "_rays_cache", cached)
         return cached

@@ -48,197 +48,191 @@ def _bilinear(tile, x, y):  # pragma: no cover - compiled
     return a * (np.float32(1.0) - fy) + b * fy
 
 
+@njit(inline="always")
+def _texel(qx, qy):  # pragma: no cover - compiled
+    """(row, col) of the 0.1 m fractal texel at texture coordinates (qx, qy)."""
+    return (np.int32(qy * np.float32(10.0)) & 255), (np.int32(qx * np.float32(10.0)) & 255)
+
+
+@njit(inline="always")
+def _leaf_bump(t1, ty, tx, lx, ly):  # pragma: no cover - compiled
+    """Extra n.L of a leafy crown: the normal tilted by 0.45 x a noise vector (bx, by, 0),
+    unnormalised (cheap and leaf-like)."""
+    k2 = ((ty << 8) | tx) + 12345
+    k2 &= 0xFFFF
+    return np.float32(0.45) * (t1[ty, tx] * lx + t1[k2 >> 8, k2 & 255] * ly)
+
+
 @njit(parallel=True, **_OPTS)
 def surface(
-    h, w, rays, t, face, normal, semantic, depth, face_material, face_albedo, tiles, textured,
-    fine_t, coarse_t, dry_t, wetk_t, wet, light, foliage_id, step, peel,
-    alb_out, ndl_out, puddle_out, mat_out, own_out, origin_out,
+    h, w, rays, t, face, normal, semantic, depth, face_material, tiles, textured, light,
+    foliage_id, step, ndl_out, own_out,
 ):  # pragma: no cover - compiled
-    """Albedo with procedural texture, wetness, sun cosine and shadow-ray selection.
+    """Sun cosine and shadow-ray selection, per pixel i.
 
-    Writes per pixel i: ``alb_out[i]`` (3,) textured albedo, ``ndl_out[i]`` max(n.L, 0)
-    (with the leafy-crown bump), ``puddle_out[i]``, ``mat_out[i]`` material id,
-    ``own_out[i]`` True when this pixel casts its own shadow ray and ``origin_out[i]`` that
-    ray's origin. With ``step`` > 1 a pixel casts its own ray when it is its step x step
-    block's first pixel (always, even facing away from the sun, since its block copies it)
-    or differs from it (label, or depth by > 0.2 m); the others take the block sample's
-    result (see :func:`spread_shadow`).
+    ``ndl_out[i]`` = max(n.L, 0) (with the leafy-crown bump); ``own_out[i]`` True when the
+    pixel casts its own shadow ray. With ``step`` > 1 a pixel casts its own ray when it is
+    its step x step block's first pixel (always, even facing away from the sun, since its
+    block copies it) or differs from it (label, or depth by > 0.2 m); the others take the
+    block sample's result (see :func:`spread_shadow`).
     """
     lx, ly, lz = light[0], light[1], light[2]
-    t0 = tiles[0]
     t1 = tiles[1]
-    t2 = tiles[2]
-    dry_r, dry_g, dry_b = np.float32(0.42), np.float32(0.36), np.float32(0.20)
     for r in prange(h):
         rb = (r // step) * step
         for c in range(w):
             i = r * w + c
             f = face[i]
             if f < 0:
-                alb_out[i, 0] = 0.0
-                alb_out[i, 1] = 0.0
-                alb_out[i, 2] = 0.0
                 ndl_out[i] = 0.0
-                puddle_out[i] = 0.0
-                mat_out[i] = 0
                 own_out[i] = False
                 continue
-            m = face_material[f]
-            mat_out[i] = m
-            ti = t[i]
-            px = rays[i, 0] + ti * rays[i, 3]
-            py = rays[i, 1] + ti * rays[i, 4]
-            pz = rays[i, 2] + ti * rays[i, 5]
-            ar = face_albedo[f, 0]
-            ag = face_albedo[f, 1]
-            ab = face_albedo[f, 2]
-            nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
-            ndl = nx * lx + ny * ly + nz * lz
-            nc = np.float32(0.0)
-            if textured:
-                # shift by height so stacked surfaces (roof over ground) differ
-                qx = px + np.float32(0.37) * pz
-                qy = py - np.float32(0.53) * pz
-                k = ((np.int32(qy * np.float32(10.0)) & 255) << 8) | (
-                    np.int32(qx * np.float32(10.0)) & 255
-                )
-                nf = t0[k >> 8, k & 255]  # fractal detail, 0.1 m texels (25.6 m period)
-                nc = _bilinear(t2, qx / np.float32(2.0), qy / np.float32(2.0))
-                gain = np.float32(1.0) + fine_t[m] * nf + coarse_t[m] * nc
-                gain = min(max(gain, np.float32(0.3)), np.float32(2.0))
-                ar *= gain
-                ag *= gain
-                ab *= gain
-                dk = dry_t[m]
-                if dk > 0:  # grass / foliage drift towards dry yellow-brown
-                    nd = _bilinear(t1, (qx + np.float32(57.0)) / np.float32(6.0),
-                                   (qy + np.float32(57.0)) / np.float32(6.0))
-                    d = dk * min(max(nd, np.float32(0.0)), np.float32(3.0)) * np.float32(0.5)
-                    ar += d * (dry_r - ar)
-                    ag += d * (dry_g - ag)
-                    ab += d * (dry_b - ab)
-                if m == foliage_id:  # leafy crowns: a noise bump breaks facets into clumps
-                    k2 = (k + 12345) & 0xFFFF
-                    bx = t1[k >> 8, k & 255]
-                    by = t1[k2 >> 8, k2 & 255]
-                    ndl += np.float32(0.45) * (bx * lx + by * ly)
-            pud = np.float32(0.0)
-            if wet > 0:
-                wk = wetk_t[m] * wet
-                if wetk_t[m] > 0.5:
-                    pud = min(max((nc - (np.float32(1.6) - np.float32(1.2) * wet)) * np.float32(2.0),
-                                  np.float32(0.0)), np.float32(1.0))
-                g = (np.float32(1.0) - np.float32(0.45) * wk) * (np.float32(1.0) - np.float32(0.5) * pud)
-                ar *= g
-                ag *= g
-                ab *= g
+            ndl = normal[i, 0] * lx + normal[i, 1] * ly + normal[i, 2] * lz
+            if textured and face_material[f] == foliage_id:
+                ti = t[i]
+                px = rays[i, 0] + ti * rays[i, 3]
+                py = rays[i, 1] + ti * rays[i, 4]
+                pz = rays[i, 2] + ti * rays[i, 5]
+                ty, tx = _texel(px + np.float32(0.37) * pz, py - np.float32(0.53) * pz)
+                ndl += _leaf_bump(t1, ty, tx, lx, ly)
             ndl = max(ndl, np.float32(0.0))
-            alb_out[i, 0] = ar
-            alb_out[i, 1] = ag
-            alb_out[i, 2] = ab
             ndl_out[i] = ndl
-            puddle_out[i] = pud
             if step == 1:
                 own = ndl > 0
             elif r == rb and c % step == 0:
-                own = True  # a block's first pixel always tests: its block copies it
+                own = True
             else:
                 j = rb * w + (c // step) * step
                 own = ndl > 0 and (
                     semantic[i] != semantic[j] or abs(depth[i] - depth[j]) > np.float32(0.2)
                 )
             own_out[i] = own
-            origin_out[i, 0] = px + peel * nx
-            origin_out[i, 1] = py + peel * ny
-            origin_out[i, 2] = pz + peel * nz
 
 
 @njit(**_OPTS)
-def gather_shadow_rays(own, origin, light):  # pragma: no cover - compiled
-    """(k,) pixel indices with ``own`` and their (k, 6) shadow rays towards ``light``."""
+def gather_shadow_rays(own, rays, t, normal, light, peel):  # pragma: no cover - compiled
+    """(k,) pixel indices with ``own`` and their (k, 6) shadow rays towards ``light``,
+    starting ``peel`` metres off the surface along its normal."""
     n = own.shape[0]
     k = 0
     for i in range(n):
         if own[i]:
             k += 1
     idx = np.empty(k, np.int64)
-    rays = np.empty((k, 6), np.float32)
+    out = np.empty((k, 6), np.float32)
     j = 0
     for i in range(n):
         if own[i]:
             idx[j] = i
-            rays[j, 0] = origin[i, 0]
-            rays[j, 1] = origin[i, 1]
-            rays[j, 2] = origin[i, 2]
-            rays[j, 3] = light[0]
-            rays[j, 4] = light[1]
-            rays[j, 5] = light[2]
+            ti = t[i]
+            for a in range(3):
+                out[j, a] = rays[i, a] + ti * rays[i, 3 + a] + peel * normal[i, a]
+                out[j, 3 + a] = light[a]
             j += 1
-    return idx, rays
+    return idx, out
 
 
 @njit(parallel=True, **_OPTS)
 def spread_shadow(h, w, step, own, ndl, idx, occ, lit):  # pragma: no cover - compiled
-    """``lit`` (n,) float32: 0 where a shadow ray was blocked, 1 where it reached the sun
-    or no ray was needed (n.L <= 0 is dark anyway); pixels without their own ray copy
-    their block's first pixel."""
+    """``lit`` (n,) float32, all ones on entry: 0 where a shadow ray was blocked; pixels
+    without their own ray copy their block's first pixel (when they face the sun)."""
     k = idx.shape[0]
     for j in prange(k):
         lit[idx[j]] = np.float32(0.0) if occ[j] else np.float32(1.0)
-    for r in prange(h):
-        rb = (r // step) * step
-        for c in range(w):
-            i = r * w + c
-            if own[i]:
-                continue
-            if ndl[i] > 0 and step > 1:
-                lit[i] = lit[rb * w + (c // step) * step]
-            else:
-                lit[i] = np.float32(1.0)
+    if step > 1:
+        for r in prange(h):
+            rb = (r // step) * step
+            for c in range(w):
+                i = r * w + c
+                if not own[i] and ndl[i] > 0:
+                    lit[i] = lit[rb * w + (c // step) * step]
 
 
 @njit(parallel=True, **_OPTS)
 def compose(
-    h, w, rays, face, normal, depth, alb, ndl, puddle, mat, lit, has_lit, light, wet, wetk_t,
-    spec_t, shine_t, f0_t, sun_rgb, sky_rgb, miss_rgb, veil_rgb, e_sun, e_sky, spec_dim,
-    haze, inv_alt, vignetting, lut, out,
+    h, w, rays, t, face, normal, depth, ndl, lit, has_lit, face_material, face_albedo, tiles,
+    textured, fine_t, coarse_t, dry_t, wetk_t, spec_t, shine_t, f0_t, wet, light, sun_rgb,
+    sky_rgb, miss_rgb, veil_rgb, e_sun, e_sky, spec_dim, haze, inv_alt, vignetting, lut, out,
 ):  # pragma: no cover - compiled
-    """Light, specular + sky reflection, haze, vignetting and tone curve -> ``out`` (h, w, 3)
-    uint8. ``sun_rgb`` / ``sky_rgb`` / ``veil_rgb`` already include the camera gain."""
+    """Albedo with procedural texture and wetness, light, specular + sky reflection, haze,
+    vignetting and tone curve -> ``out`` (h, w, 3) uint8. ``sun_rgb`` / ``sky_rgb`` /
+    ``veil_rgb`` already include the camera gain."""
     lx, ly, lz = light[0], light[1], light[2]
     one = np.float32(1.0)
+    zero = np.float32(0.0)
+    t0 = tiles[0]
+    t1 = tiles[1]
+    t2 = tiles[2]
+    dry_r, dry_g, dry_b = np.float32(0.42), np.float32(0.36), np.float32(0.20)
     for r in prange(h):
         vy = (np.float32(r) + np.float32(0.5) - np.float32(h) / 2) / (np.float32(h) / 2)
         for c in range(w):
             i = r * w + c
             trans = one
-            hz = np.float32(0.0)
+            hz = zero
             if haze > 0:
                 hz = haze * min(max(depth[i] * inv_alt, np.float32(0.7)), np.float32(1.4))
                 trans = one - hz
             if vignetting > 0:
                 vx = (np.float32(c) + np.float32(0.5) - np.float32(w) / 2) / (np.float32(w) / 2)
                 trans *= one - vignetting * np.float32(0.5) * (vy * vy + vx * vx)
-            if face[i] < 0:
+            f = face[i]
+            if f < 0:
                 cr, cg, cb = miss_rgb[0], miss_rgb[1], miss_rgb[2]
             else:
-                m = mat[i]
+                m = face_material[f]
+                ar = face_albedo[f, 0]
+                ag = face_albedo[f, 1]
+                ab = face_albedo[f, 2]
+                nc = zero
+                if textured:
+                    ti = t[i]
+                    px = rays[i, 0] + ti * rays[i, 3]
+                    py = rays[i, 1] + ti * rays[i, 4]
+                    pz = rays[i, 2] + ti * rays[i, 5]
+                    # shift by height so stacked surfaces (roof over ground) differ
+                    qx = px + np.float32(0.37) * pz
+                    qy = py - np.float32(0.53) * pz
+                    ty, tx = _texel(qx, qy)
+                    nf = t0[ty, tx]  # fractal detail, 0.1 m texels (25.6 m period)
+                    nc = _bilinear(t2, qx / np.float32(2.0), qy / np.float32(2.0))
+                    gain = one + fine_t[m] * nf + coarse_t[m] * nc
+                    gain = min(max(gain, np.float32(0.3)), np.float32(2.0))
+                    ar *= gain
+                    ag *= gain
+                    ab *= gain
+                    dk = dry_t[m]
+                    if dk > 0:  # grass / foliage drift towards dry yellow-brown
+                        nd = _bilinear(t1, (qx + np.float32(57.0)) / np.float32(6.0),
+                                       (qy + np.float32(57.0)) / np.float32(6.0))
+                        d = dk * min(max(nd, zero), np.float32(3.0)) * np.float32(0.5)
+                        ar += d * (dry_r - ar)
+                        ag += d * (dry_g - ag)
+                        ab += d * (dry_b - ab)
+                sk = spec_t[m]
+                f0 = f0_t[m]
+                shine = shine_t[m]
+                if wet > 0:  # darker porous surfaces, puddles where the coarse noise is high
+                    wk = wetk_t[m] * wet
+                    pud = zero
+                    if wetk_t[m] > 0.5:
+                        pud = min(max((nc - (np.float32(1.6) - np.float32(1.2) * wet))
+                                      * np.float32(2.0), zero), one)
+                    g = (one - np.float32(0.45) * wk) * (one - np.float32(0.5) * pud)
+                    ar *= g
+                    ag *= g
+                    ab *= g
+                    sk += np.float32(0.5) * wk
+                    f0 += np.float32(0.04) * wk + np.float32(0.06) * pud
+                    if wk > 0:
+                        shine = np.float32(60.0)
                 li = lit[i] if has_lit else one
                 nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
                 s_sun = e_sun * ndl[i] * li * trans
                 s_sky = e_sky * (np.float32(0.55) + np.float32(0.45) * nz) * trans
-                cr = alb[i, 0] * (s_sun * sun_rgb[0] + s_sky * sky_rgb[0])
-                cg = alb[i, 1] * (s_sun * sun_rgb[1] + s_sky * sky_rgb[1])
-                cb = alb[i, 2] * (s_sun * sun_rgb[2] + s_sky * sky_rgb[2])
-                sk = spec_t[m]
-                f0 = f0_t[m]
-                shine = shine_t[m]
-                if wet > 0:
-                    wk = wetk_t[m] * wet
-                    sk += np.float32(0.5) * wk
-                    f0 += np.float32(0.04) * wk + np.float32(0.06) * puddle[i]
-                    if wk > 0:
-                        shine = np.float32(60.0)
+                cr = ar * (s_sun * sun_rgb[0] + s_sky * sky_rgb[0])
+                cg = ag * (s_sun * sun_rgb[1] + s_sky * sky_rgb[1])
+                cb = ab * (s_sun * sun_rgb[2] + s_sky * sky_rgb[2])
                 if sk > 0 or f0 > 0:
                     vx_ = -rays[i, 3]
                     vy_ = -rays[i, 4]
@@ -250,10 +244,10 @@ def compose(
                     hx, hy, hz_ = vx_ + lx, vy_ + ly, vz_ + lz
                     hn = np.sqrt(hx * hx + hy * hy + hz_ * hz_)
                     ndh = (nx * hx + ny * hy + nz * hz_) / hn
-                    ndh = min(max(ndh, np.float32(0.0)), one)
+                    ndh = min(max(ndh, zero), one)
                     sp = sk * ndh ** shine * spec_dim * li
-                    ndv = min(max(nx * vx_ + ny * vy_ + nz * vz_, np.float32(0.0)), one)
-                    fres = np.float32(0.0)
+                    ndv = min(max(nx * vx_ + ny * vy_ + nz * vz_, zero), one)
+                    fres = zero
                     if f0 > 0:
                         fres = f0 + (one - f0) * (one - ndv) ** 5
                     a = sp * np.float32(1.5) * trans
@@ -369,3 +363,20 @@ def box_union_pixels(x0, y0, x1, y1):  # pragma: no cover - compiled
                 multi[j] = v > 1
                 j += 1
     return rows, cols, multi
+
+
+@njit(parallel=True, **_OPTS)
+def grid_rays(center, rot, x, y, out):  # pragma: no cover - compiled
+    """``out`` (h * w, 6) float32 rays through every pixel centre, row-major: origin
+    ``center`` and direction rot @ (x[col], y[row], 1), with the float32 operations of
+    :meth:`aerial_synth.camera.Camera.pixel_rays` in the same order (identical bits)."""
+    h = y.shape[0]
+    w = x.shape[0]
+    for r in prange(h):
+        for c in range(w):
+            i = r * w + c
+            out[i, 0] = center[0]
+            out[i, 1] = center[1]
+            out[i, 2] = center[2]
+            for k in range(3):
+                out[i, 3 + k] = (rot[k, 0] * x[c] + rot[k, 1] * y[r]) + rot[k, 2]

@@ -265,23 +265,19 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator,
         face_mat, face_alb = rayscene.face_material, rayscene.face_albedo
     else:  # empty scene: every ray misses
         face_mat, face_alb = np.zeros(1, np.uint8), np.zeros((1, 3), np.float32)
-    alb = np.empty((n, 3), np.float32)
     ndl = np.empty(n, np.float32)
-    puddle = np.empty(n, np.float32)
-    mat = np.empty(n, np.uint8)
     own = np.empty(n, np.bool_)
-    origin = np.empty((n, 3), np.float32)
     mark("setup")
     K.surface(h, w, buffers.rays, buffers.t, buffers.face, buffers.normal,
-              buffers.semantic.reshape(-1), buffers.depth.reshape(-1), face_mat, face_alb, tiles,
-              textured, _FINE, _COARSE, _DRY, _WETK, wet, L, _FOLIAGE, step, np.float32(_PEEL),
-              alb, ndl, puddle, mat, own, origin)
+              buffers.semantic.reshape(-1), buffers.depth.reshape(-1), face_mat, tiles, textured,
+              L, _FOLIAGE, step, ndl, own)
     mark("surface")
 
     has_lit = bool(factors.get("shadows", True))
     lit = np.ones(n if has_lit else 1, np.float32)
     if has_lit:
-        idx, srays = K.gather_shadow_rays(own, origin, L)
+        idx, srays = K.gather_shadow_rays(own, buffers.rays, buffers.t, buffers.normal, L,
+                                          np.float32(_PEEL))
         occ = rayscene.test_occlusions(srays) if len(idx) else np.zeros(0, bool)
         mark("shadow_rays")
         K.spread_shadow(h, w, step, own, ndl, idx, occ, lit)
@@ -301,8 +297,9 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator,
     veil = np.array([0.62, 0.66, 0.72], np.float32) * np.float32(0.8 + 0.4 * e_sky)
     alt = max(float(camera.altitude_m), 1.0)
     rgb = np.empty((h, w, 3), np.uint8)
-    K.compose(h, w, buffers.rays, buffers.face, buffers.normal, buffers.depth.reshape(-1), alb,
-              ndl, puddle, mat, lit, has_lit, L, wet, _WETK, _SPEC, _SHINE, _F0,
+    K.compose(h, w, buffers.rays, buffers.t, buffers.face, buffers.normal,
+              buffers.depth.reshape(-1), ndl, lit, has_lit, face_mat, face_alb, tiles, textured,
+              _FINE, _COARSE, _DRY, _WETK, _SPEC, _SHINE, _F0, wet, L,
               (sun_col * cam_gain).astype(np.float32), (sky_col * cam_gain).astype(np.float32),
               (sky_col * np.float32(0.25)).astype(np.float32),
               (veil * cam_gain).astype(np.float32), e_sun, e_sky,

@@ -163,3 +163,16 @@ def test_block_shadow_sampling_matches_one_ray_per_pixel():
         for dx in (-1, 0, 1):
             near_edge |= np.roll(np.roll(edge, dy, 0), dx, 1)
     assert (differ & ~near_edge).sum() <= 0.001 * differ.size
+
+
+def test_all_pixel_rays_equal_per_pixel_rays_bit_for_bit():
+    # the primary rays (compiled, separable) and the amodal rays (pixel_rays(rows, cols))
+    # must be the same bits, or visible and amodal masks could disagree on edge pixels
+    cfg = CameraConfig(width_px=301, height_px=177, gsd_m=0.1)
+    cam = Camera.look_at_ground(cfg, (12.3, -4.5, 1.0), yaw_deg=123.0, tilt_deg=-11.0,
+                                tilt_axis_deg=33.0)
+    rows = np.repeat(np.arange(177), 301)
+    cols = np.tile(np.arange(301), 177)
+    a = cam.pixel_rays()
+    b = cam.pixel_rays(rows, cols)
+    assert a.shape == (301 * 177, 6) and a.tobytes() == b.tobytes()
