@@ -13,7 +13,7 @@ import numpy as np
 from numba import config, njit, prange
 
 # OpenMP, then numba's own work queue; TBB last (an old system TBB only raises a warning)
-if not getattr(config, "THREADING_LAYER", "default") or config.THREADING_LAYER == "default":
+if config.THREADING_LAYER == "default":
     config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
 
 _OPTS = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
@@ -46,6 +46,17 @@ def _bilinear(tile, x, y):  # pragma: no cover - compiled
     a = tile[y0, x0] * (np.float32(1.0) - fx) + tile[y0, x1] * fx
     b = tile[y1, x0] * (np.float32(1.0) - fx) + tile[y1, x1] * fx
     return a * (np.float32(1.0) - fy) + b * fy
+
+
+@njit(inline="always")
+def _tex_coords(rays, t, i):  # pragma: no cover - compiled
+    """Texture coordinates (qx, qy) of pixel i's hit: world xy shifted by the height, so
+    stacked surfaces (a roof over the ground) get different patterns."""
+    ti = t[i]
+    px = rays[i, 0] + ti * rays[i, 3]
+    py = rays[i, 1] + ti * rays[i, 4]
+    pz = rays[i, 2] + ti * rays[i, 5]
+    return px + np.float32(0.37) * pz, py - np.float32(0.53) * pz
 
 
 @njit(inline="always")
@@ -89,11 +100,8 @@ def surface(
                 continue
             ndl = normal[i, 0] * lx + normal[i, 1] * ly + normal[i, 2] * lz
             if textured and face_material[f] == foliage_id:
-                ti = t[i]
-                px = rays[i, 0] + ti * rays[i, 3]
-                py = rays[i, 1] + ti * rays[i, 4]
-                pz = rays[i, 2] + ti * rays[i, 5]
-                ty, tx = _texel(px + np.float32(0.37) * pz, py - np.float32(0.53) * pz)
+                qx, qy = _tex_coords(rays, t, i)
+                ty, tx = _texel(qx, qy)
                 ndl += _leaf_bump(t1, ty, tx, lx, ly)
             ndl = max(ndl, np.float32(0.0))
             ndl_out[i] = ndl
@@ -186,13 +194,7 @@ def compose(
                 ab = face_albedo[f, 2]
                 nc = zero
                 if textured:
-                    ti = t[i]
-                    px = rays[i, 0] + ti * rays[i, 3]
-                    py = rays[i, 1] + ti * rays[i, 4]
-                    pz = rays[i, 2] + ti * rays[i, 5]
-                    # shift by height so stacked surfaces (roof over ground) differ
-                    qx = px + np.float32(0.37) * pz
-                    qy = py - np.float32(0.53) * pz
+                    qx, qy = _tex_coords(rays, t, i)
                     ty, tx = _texel(qx, qy)
                     nf = t0[ty, tx]  # fractal detail, 0.1 m texels (25.6 m period)
                     nc = _bilinear(t2, qx / np.float32(2.0), qy / np.float32(2.0))

@@ -34,7 +34,6 @@ __all__ = [
     "cast_buffers",
     "vehicle_boxes_corners",
     "compute_visibility",
-    "occluded",
     "VEHICLES_ONLY",
 ]
 
@@ -119,11 +118,6 @@ class Buffers:
     normal: np.ndarray
     rays: np.ndarray  # (n, 6) float32
 
-    def world_points(self) -> np.ndarray:
-        """(n, 3) float32 hit positions (world, metres); garbage where face == -1."""
-        t = np.where(np.isfinite(self.t), self.t, 0.0).astype(np.float32)
-        return self.rays[:, :3] + t[:, None] * self.rays[:, 3:]
-
 
 @dataclass
 class AmodalMasks:
@@ -203,19 +197,6 @@ def vehicle_boxes_corners(vehicles) -> np.ndarray:
     return out
 
 
-def occluded(
-    rayscene, origins: np.ndarray, directions: np.ndarray, tnear: float = 0.0
-) -> np.ndarray:
-    """(n,) bool: does a ray from each origin along its direction hit anything?
-
-    Uses Embree's any-hit test (:meth:`RayScene.test_occlusions`).
-    """
-    rays = np.empty((len(origins), 6), np.float32)
-    rays[:, :3] = origins
-    rays[:, 3:] = directions
-    return rayscene.test_occlusions(rays, tnear=tnear)
-
-
 def _box_frames(vehicles) -> np.ndarray:
     """(k, 8) float64 per vehicle: its 3-D box as [centre x, y, z, cos heading,
     sin heading, half length, half width, half height]."""
@@ -293,9 +274,9 @@ def compute_visibility(
     # where boxes overlap, continue each ray behind the vehicle it hit: restart it where
     # it leaves that vehicle's 3-D box (placed vehicles never share space), so one peel
     # per vehicle in line suffices; a part outside its box just costs another peel
-    boxes = _box_frames(vehicles)
-    slot = np.full(max(present) + 1, -1, np.int64)  # id -> row of boxes (-1: not listed)
-    slot[[int(v.id) for v in vehicles]] = np.arange(len(vehicles))
+    boxes = _box_frames([vehicles[k] for k in sel])
+    slot = np.full(max(present) + 1, -1, np.int64)  # id -> row of boxes (-1: not in view)
+    slot[[int(vehicles[k].id) for k in sel]] = np.arange(len(sel))
     idx = np.flatnonzero(got & multi)
     t_acc = hits.t[idx].astype(np.float64)
     last = hits.instance_id[idx]
