@@ -24,6 +24,7 @@ byte-identical to an uninterrupted one.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import shutil
@@ -284,6 +285,11 @@ class _Worker:
             self._scene = _load_scene(self.cfg)
         return self._scene
 
+    @functools.cached_property
+    def scene_xy_bounds(self) -> np.ndarray:
+        """[[xmin, ymin], [xmax, ymax]]: camera footprints stay inside the scene."""
+        return self.scene.bounds()[:, :2]
+
     @property
     def catalog(self):
         if self._catalog is None:
@@ -334,7 +340,8 @@ class _Worker:
         pl, rs = self._placement, self._rayscene
         ss = np.random.SeedSequence([cfg.seed, index])
         cam_ss, render_ss = ss.spawn(2)
-        cam = sample_pose_targeted(cfg.camera_config(), pl, np.random.default_rng(cam_ss))
+        cam = sample_pose_targeted(cfg.camera_config(), pl, np.random.default_rng(cam_ss),
+                                   within_xy=self.scene_xy_bounds)
         frame = render_frame(rs, cam, pl, np.random.default_rng(render_ss), config=RenderConfig())
         H, W = frame.instance.shape
         segs = {}
