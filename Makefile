@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 PIP    := $(PY) -m pip
 BIN    := $(VENV)/bin
 
-.PHONY: demo test test-all sysdeps sysdeps-egl venv install install-test clean bench
+.PHONY: demo test lint test-all sysdeps sysdeps-egl venv install install-test clean bench
 
 # open3d's Linux wheel links against libusb-1.0; pip cannot provide it.
 sysdeps:
@@ -55,7 +55,11 @@ demo: install
 	$(BIN)/aerial-synth place --scenario jam --scene city_park --seed 0 --out out/demo
 	@echo "demo output in out/demo/ (placement.json, placement.png)"
 
+lint: install-test
+	$(BIN)/ruff check aerial_synth tests tools
+
 test: install-test
+	$(BIN)/ruff check aerial_synth tests tools
 	$(BIN)/python -m pytest -q
 
 test-all: install-test

@@ -9,7 +9,9 @@ User mistakes (:class:`AerialSynthError`) print one line and exit with status 2.
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
+import re
 import sys
 
 from . import __version__
@@ -25,8 +27,45 @@ _COMMAND_MODULES = (
 )
 
 
+_ARG_PREFIX = re.compile(r"^argument (?P<opt>[^:]+): (?P<msg>.*)$", re.S)
+_INVALID_VALUE = re.compile(r"^invalid (?P<kind>int|float|\w+) value: (?P<got>.*)$", re.S)
+_INVALID_CHOICE = re.compile(r"^invalid choice: (?P<got>.*?) \(choose from (?P<choices>.*)\)$", re.S)
+_EXPECTED = {"int": "an integer", "float": "a number"}
+
+
+def one_line_usage_error(prog: str, message: str) -> str:
+    """Turn an argparse message into ``PROG: --opt: expected ..., got ...`` (one line)."""
+    m = _ARG_PREFIX.match(message)
+    if m:
+        opt = m.group("opt").split("/")[-1]
+        msg = m.group("msg")
+        if msg.startswith(opt + ":"):
+            text = msg  # our own converters already name the option
+        elif (v := _INVALID_VALUE.match(msg)):
+            text = f"{opt}: expected {_EXPECTED.get(v.group('kind'), 'a value')}, got {v.group('got')}"
+        elif (c := _INVALID_CHOICE.match(msg)):
+            choices = c.group("choices").replace("'", "")
+            text = f"{opt}: expected one of {choices}, got {c.group('got')}"
+        else:
+            text = f"{opt}: {msg}"
+    elif message.startswith("the following arguments are required: "):
+        text = "missing required " + message.split(": ", 1)[1]
+    else:
+        text = message
+    text = " ".join(text.split())  # one line, whatever argparse wrapped
+    return f"{prog}: {text} (see '{prog} --help')"
+
+
+class Parser(argparse.ArgumentParser):
+    """ArgumentParser whose usage errors are one line and exit status 2 (no usage block)."""
+
+    def error(self, message: str):  # noqa: D401 - argparse API
+        print(one_line_usage_error(self.prog, message), file=sys.stderr)
+        sys.exit(2)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="aerial-synth",
         description="Synthetic nadir aerial images of vehicles with exact oriented-box labels.",
     )
@@ -38,14 +77,35 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+_USER_ERRNOS = {
+    errno.EACCES, errno.EPERM, errno.EEXIST, errno.ENOTDIR, errno.EISDIR, errno.ENOENT,
+    errno.ENOSPC, errno.EROFS, errno.ENAMETOOLONG, errno.ELOOP, errno.EDQUOT,
+}
+
+
+def _one_line(text: str) -> str:
+    return " ".join(text.split())
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # usage error (one line, printed) or --help/--version
+        return int(exc.code or 0) if not isinstance(exc.code, str) else 2
     try:
         return int(args.func(args) or 0)
     except AerialSynthError as exc:
-        print(f"aerial-synth: error: {exc}", file=sys.stderr)
+        print(f"aerial-synth: error: {_one_line(str(exc))}", file=sys.stderr)
         return 2
+    except OSError as exc:
+        # A file-system refusal on an output or input path is the user's to fix: one line.
+        if exc.errno in _USER_ERRNOS:
+            where = exc.filename if exc.filename is not None else ""
+            print(f"aerial-synth: error: {where}: {exc.strerror or exc}".replace(": : ", ": "),
+                  file=sys.stderr)
+            return 2
+        raise
     except KeyboardInterrupt:
         print("aerial-synth: interrupted", file=sys.stderr)
         return 130

@@ -16,6 +16,7 @@ __all__ = [
     "CameraError",
     "RenderError",
     "ExportError",
+    "OutputError",
 ]
 
 
@@ -49,3 +50,7 @@ class RenderError(AerialSynthError):
 
 class ExportError(AerialSynthError):
     """A dataset export cannot run (unknown format, bad output folder, ...)."""
+
+
+class OutputError(AerialSynthError):
+    """An output path cannot be written (not a regular file, parent is a file, read-only, ...)."""

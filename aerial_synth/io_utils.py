@@ -1,19 +1,139 @@
-"""Atomic file writes: write to a temporary name in the same folder, then rename."""
+"""Atomic file writes and output-path checks.
+
+Writes go to a temporary name in the same folder, then ``os.replace``. Nothing that exists and
+is not a regular file (a device node, a FIFO, a socket, a folder) is ever replaced: the
+``check_output_*`` functions refuse such paths up front, in one line naming the option, and
+:func:`atomic_write_bytes` refuses them again at the moment of writing.
+"""
 
 from __future__ import annotations
 
 import json
 import os
+import stat
 import tempfile
 from pathlib import Path
 from typing import Any
 
-__all__ = ["atomic_write_bytes", "atomic_write_text", "atomic_write_json", "dumps_json"]
+from .errors import OutputError
+
+__all__ = [
+    "atomic_write_bytes",
+    "atomic_write_text",
+    "atomic_write_json",
+    "dumps_json",
+    "check_output_file",
+    "check_output_dir",
+    "is_inside",
+]
+
+
+def _kind(st_mode: int) -> str:
+    if stat.S_ISDIR(st_mode):
+        return "a folder"
+    if stat.S_ISCHR(st_mode):
+        return "a character device"
+    if stat.S_ISBLK(st_mode):
+        return "a block device"
+    if stat.S_ISFIFO(st_mode):
+        return "a FIFO"
+    if stat.S_ISSOCK(st_mode):
+        return "a socket"
+    return "not a regular file"
+
+
+def _check_parents(path: Path, option: str) -> None:
+    """The nearest existing ancestor of ``path`` must be a writable folder."""
+    parent = path.parent
+    while True:
+        try:
+            st = os.stat(parent)
+        except FileNotFoundError:
+            if parent.parent == parent:
+                break
+            parent = parent.parent
+            continue
+        except NotADirectoryError:  # an ancestor further up is a file
+            parent = parent.parent
+            continue
+        except OSError as exc:
+            raise OutputError(f"{option} {path}: cannot use {parent}: {exc.strerror}") from None
+        if not stat.S_ISDIR(st.st_mode):
+            raise OutputError(f"{option} {path}: expected a folder at {parent}, found a file")
+        if not os.access(parent, os.W_OK | os.X_OK):
+            raise OutputError(f"{option} {path}: folder {parent} is not writable")
+        return
+
+
+def check_output_file(path: str | os.PathLike, option: str = "--out") -> Path:
+    """Refuse an output file path that cannot be written safely; returns it as a Path.
+
+    Refused: an existing path that is not a regular file (device, FIFO, socket, folder),
+    a path below a file, or a path whose nearest existing folder is not writable.
+    """
+    path = Path(path)
+    if str(path) == "":
+        raise OutputError(f"{option}: expected a file path, got ''")
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        st = None
+    except NotADirectoryError:
+        st = None  # reported by _check_parents
+    except OSError as exc:
+        raise OutputError(f"{option} {path}: cannot use it: {exc.strerror}") from None
+    if st is not None:
+        if not stat.S_ISREG(st.st_mode):
+            raise OutputError(
+                f"{option} {path}: expected a regular file to write, found {_kind(st.st_mode)}"
+            )
+        if not os.access(path, os.W_OK):
+            raise OutputError(f"{option} {path}: the existing file is not writable")
+    _check_parents(path, option)
+    return path
+
+
+def check_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:
+    """Refuse an output folder path that is not a folder or cannot be created/written."""
+    path = Path(path)
+    if str(path) == "":
+        raise OutputError(f"{option}: expected a folder path, got ''")
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        st = None
+    except NotADirectoryError:
+        st = None
+    except OSError as exc:
+        raise OutputError(f"{option} {path}: cannot use it: {exc.strerror}") from None
+    if st is not None:
+        if not stat.S_ISDIR(st.st_mode):
+            raise OutputError(f"{option} {path}: expected a folder, found {_kind(st.st_mode)}"
+                              if not stat.S_ISREG(st.st_mode)
+                              else f"{option} {path}: expected a folder, found a file")
+        if not os.access(path, os.W_OK | os.X_OK):
+            raise OutputError(f"{option} {path}: folder is not writable")
+        return path
+    _check_parents(path, option)
+    return path
+
+
+def is_inside(child: str | os.PathLike, parent: str | os.PathLike) -> bool:
+    """True when ``child`` is ``parent`` or lies below it (after resolving links)."""
+    c = Path(child).resolve()
+    p = Path(parent).resolve()
+    return c == p or p in c.parents
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically (temp file in the same folder + ``os.replace``)."""
     path = Path(path)
+    try:
+        st = os.stat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        st = None
+    if st is not None and not stat.S_ISREG(st.st_mode):
+        raise OutputError(f"{path}: expected a regular file to replace, found {_kind(st.st_mode)}")
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:

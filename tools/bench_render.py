@@ -84,7 +84,7 @@ def main(argv=None) -> int:
         seed = np.random.SeedSequence([a.seed, i])
         cam = sample_pose_targeted(cfg, pl, np.random.default_rng(seed), within_xy=scene.bounds()[:, :2])
         # 1) record every ray batch the frame casts (untimed)
-        calls = _record_calls(rs, lambda: render_frame(rs, cam, pl, np.random.default_rng(seed), rcfg))
+        calls = _record_calls(rs, lambda cam=cam, seed=seed: render_frame(rs, cam, pl, np.random.default_rng(seed), rcfg))
         # 2) the bare calls for exactly those rays: primary first, then all of them
         t = time.perf_counter()
         rs.cast_rays(calls[0][1])

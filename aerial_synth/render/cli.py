@@ -101,9 +101,12 @@ def _check_args(args) -> None:
 
 
 def run(args) -> int:
+    from pathlib import Path
+
     import numpy as np
 
     from ..camera import grid_poses, sample_pose_targeted
+    from ..io_utils import atomic_write_text
     from ..placement import place
     from ..scene.cli import scene_from_args
     from ..scene.raycast import RayScene
@@ -111,8 +114,6 @@ def run(args) -> int:
     from .io import write_frame
     from .shading import RenderConfig
     from .world import add_placement
-    from ..io_utils import atomic_write_text
-    from pathlib import Path
 
     cam_cfg = camera_config_from_args(args)  # validate cheap things before loading anything
     kw = {"backend": args.backend, "shadows": not args.no_shadows}

@@ -65,9 +65,9 @@ def _warn_unmatched(scene) -> None:
 
 
 def _cmd_list(args: argparse.Namespace) -> int:
-    from .io import SCENES_DIR, list_scenes
-
     import yaml
+
+    from .io import SCENES_DIR, list_scenes
 
     for name in list_scenes():
         desc = ""

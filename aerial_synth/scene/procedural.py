@@ -722,7 +722,7 @@ def _gen_highway(b: _Builder, spec: Mapping):
             far = 1.2 * H
             ds = np.linspace(straight, far, 8)
             lat = drift * ((ds - straight) / (far - straight)) ** 1.5
-            pts.append([p + nrm * side * d + t * l for d, l in zip(ds, lat)])
+            pts.append([p + nrm * side * d + t * lat_m for d, lat_m in zip(ds, lat)])
         line_pts = np.vstack([pts[0][::-1], [p], pts[1]])
         line = LineString(_chaikin(line_pts, 2))
         line = line.intersection(b.box)

@@ -4,7 +4,6 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,7 +11,7 @@ import pytest
 from aerial_synth.annotate import shoelace_area
 from aerial_synth.dataset.export import ExportConfig, export_dataset
 from aerial_synth.errors import ExportError
-from aerial_synth.formats import coco, dota, eagle, meta, yolo_obb
+from aerial_synth.formats import dota, eagle, meta, yolo_obb
 
 from .conftest import REPO, run_cli, tree_bytes
 

@@ -2,9 +2,7 @@
 
 import json
 
-import numpy as np
 import pytest
-import trimesh
 
 from aerial_synth.cli import main
 from aerial_synth.scene.io import export_glb
