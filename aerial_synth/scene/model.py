@@ -281,6 +281,11 @@ class Scene:
     """A labelled scene: a list of :class:`SceneObject` plus provenance.
 
     truth is set by procedural generators (road polygons / centre lines) for validation only.
+
+    Georeference: vertices are in a *local* metric frame near the origin (float32-safe for ray
+    casting). ``origin`` is the float64 offset (metres) of that frame in the source file's frame
+    (or in ``crs``): ``original_xyz = local_xyz + origin``. ``crs`` names the source CRS when
+    known (e.g. ``"EPSG:32632"``), else None.
     """
 
     name: str
@@ -289,6 +294,18 @@ class Scene:
     truth: SceneTruth | None = None
     label_config: LabelConfig = field(default_factory=LabelConfig)
     meta: dict = field(default_factory=dict)
+    origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    crs: str | None = None
+
+    def to_original(self, xyz) -> np.ndarray:
+        """Local scene coordinates (n, 2|3) metres -> the source frame (float64)."""
+        a = np.asarray(xyz, dtype=np.float64)
+        o = np.asarray(self.origin, dtype=np.float64)[: a.shape[-1]]
+        return a + o
+
+    def georeference(self) -> dict:
+        """``{"origin": [x, y, z], "crs": str|None}`` for metadata files."""
+        return {"origin": [float(c) for c in self.origin], "crs": self.crs}
 
     @property
     def n_triangles(self) -> int:
