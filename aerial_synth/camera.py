@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import CameraError
+from .validators import in_range
 
 __all__ = [
     "CameraConfig",
@@ -51,19 +52,9 @@ MAX_TILT_LIMIT_DEG = 89.0
 
 
 def _finite(name: str, value, lo=None, hi=None, lo_open=True, hi_open=False) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise CameraError(f"camera {name}: expected a number, got {value!r}") from None
-    if not math.isfinite(v):
-        raise CameraError(f"camera {name}: expected a finite number, got {value!r}")
-    if lo is not None and (v <= lo if lo_open else v < lo):
-        op = ">" if lo_open else ">="
-        raise CameraError(f"camera {name}: expected {op} {lo:g}, got {v:g}")
-    if hi is not None and (v >= hi if hi_open else v > hi):
-        op = "<" if hi_open else "<="
-        raise CameraError(f"camera {name}: expected {op} {hi:g}, got {v:g}")
-    return v
+    """A camera setting as a finite float within bounds (aerial_synth.validators)."""
+    return in_range(f"camera {name}", value, lo, hi, lo_open=lo_open, hi_open=hi_open,
+                    error=CameraError)
 
 
 @dataclass(frozen=True)
@@ -333,7 +324,7 @@ class Camera:
         if cached is None:
             # as pixel_rays(rows, cols) for every pixel, with the same float32 operations in
             # the same order, but separable: x depends on the column only, y on the row
-            from .render._kernels import grid_rays
+            from .camera_rays import grid_rays
 
             h, w = self.height_px, self.width_px
             x = ((np.arange(w, dtype=np.float32) + np.float32(0.5)) - np.float32(self.K[0, 2])

@@ -10,13 +10,9 @@ disk (``cache=True``); the first call in a fresh checkout compiles for a few sec
 from __future__ import annotations
 
 import numpy as np
-from numba import config, njit, prange
+from numba import njit, prange
 
-# OpenMP, then numba's own work queue; TBB last (an old system TBB only raises a warning)
-if config.THREADING_LAYER == "default":
-    config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
-
-_OPTS = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
+from ..numba_setup import KERNEL_OPTIONS as _OPTS
 
 
 @njit(parallel=True, **_OPTS)
@@ -365,20 +361,3 @@ def box_union_pixels(x0, y0, x1, y1):  # pragma: no cover - compiled
                 multi[j] = v > 1
                 j += 1
     return rows, cols, multi
-
-
-@njit(parallel=True, **_OPTS)
-def grid_rays(center, rot, x, y, out):  # pragma: no cover - compiled
-    """``out`` (h * w, 6) float32 rays through every pixel centre, row-major: origin
-    ``center`` and direction rot @ (x[col], y[row], 1), with the float32 operations of
-    :meth:`aerial_synth.camera.Camera.pixel_rays` in the same order (identical bits)."""
-    h = y.shape[0]
-    w = x.shape[0]
-    for r in prange(h):
-        for c in range(w):
-            i = r * w + c
-            out[i, 0] = center[0]
-            out[i, 1] = center[1]
-            out[i, 2] = center[2]
-            for k in range(3):
-                out[i, 3 + k] = (rot[k, 0] * x[c] + rot[k, 1] * y[r]) + rot[k, 2]

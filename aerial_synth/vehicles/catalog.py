@@ -20,7 +20,6 @@ Vehicle frame (every mesh): metres, origin at the footprint centre on the ground
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
@@ -28,6 +27,15 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..errors import AssetError
+from .model import (
+    AXES,
+    BODY_TYPES,
+    CLASSES,
+    MESH_SUFFIXES,
+    VehicleColor,
+    VehicleModel,
+    VehicleVariant,
+)
 
 __all__ = [
     "CLASSES",
@@ -41,31 +49,8 @@ __all__ = [
     "bundled_catalog_path",
 ]
 
-#: Detection classes, as in DOTA and EAGLE.
-CLASSES: tuple[str, ...] = ("small-vehicle", "large-vehicle")
-
-#: Procedural body types understood by :func:`aerial_synth.vehicles.build_mesh`.
-BODY_TYPES: tuple[str, ...] = (
-    "sport",
-    "hatchback",
-    "sedan",
-    "suv",
-    "pickup",
-    "box_truck",
-    "campervan",
-)
-
-#: Axis names accepted for a user mesh's ``forward`` and ``up``.
-AXES: dict[str, tuple[float, float, float]] = {
-    "+x": (1.0, 0.0, 0.0),
-    "-x": (-1.0, 0.0, 0.0),
-    "+y": (0.0, 1.0, 0.0),
-    "-y": (0.0, -1.0, 0.0),
-    "+z": (0.0, 0.0, 1.0),
-    "-z": (0.0, 0.0, -1.0),
-}
-
-MESH_SUFFIXES: tuple[str, ...] = (".glb", ".gltf", ".obj")
+#: The catalog file format version this code reads (``version:`` in the YAML).
+CATALOG_VERSION = 1
 
 _PROCEDURAL_KEYS = {"name", "pack", "body", "class", "length_m", "width_m", "height_m", "weight"}
 _MESH_KEYS = {"name", "pack", "mesh", "scale", "forward", "up", "class", "paint_material", "weight"}
@@ -76,102 +61,6 @@ def bundled_catalog_path() -> Path:
     """Path of the bundled catalog: ``aerial_synth/data/vehicle_assets/catalog.yaml`` (in a
     checkout a link to the top-level ``vehicle_assets/``)."""
     return Path(__file__).resolve().parents[1] / "data" / "vehicle_assets" / "catalog.yaml"
-
-
-# --------------------------------------------------------------------------- records
-@dataclass(frozen=True)
-class VehicleColor:
-    """One paint colour.
-
-    rgb    : 3 floats in [0, 1], linear-ish albedo (same scale as scene materials)
-    weight : relative frequency (>= 0; normalised over the palette)
-    """
-
-    name: str
-    rgb: tuple[float, float, float]
-    weight: float = 1.0
-
-    def __post_init__(self) -> None:
-        rgb = tuple(float(c) for c in self.rgb)
-        if len(rgb) != 3 or not all(0.0 <= c <= 1.0 for c in rgb):
-            raise AssetError(
-                f"colour {self.name!r}: rgb must be 3 floats in [0, 1], got {self.rgb}"
-            )
-        if not (self.weight >= 0.0 and math.isfinite(self.weight)):
-            raise AssetError(f"colour {self.name!r}: weight must be >= 0, got {self.weight}")
-        object.__setattr__(self, "rgb", rgb)
-        object.__setattr__(self, "weight", float(self.weight))
-
-
-@dataclass(frozen=True)
-class VehicleModel:
-    """One vehicle model.
-
-    name        : unique in the catalog (e.g. ``"hatchback"``)
-    pack        : asset pack number (1, 2 as in the thesis; 0 for user models by default)
-    length_m, width_m, height_m : bounding-box size in metres (x, y, z of the vehicle frame)
-    cls         : ``"small-vehicle"`` or ``"large-vehicle"``
-    weight      : relative frequency (>= 0; normalised over the catalog)
-    source      : ``"procedural:<body>"`` or ``"mesh:<path relative to the catalog>"``
-    body        : procedural body type (one of :data:`BODY_TYPES`), ``""`` for user meshes
-    mesh_path   : absolute path of a user mesh, or None
-    scale       : user mesh: uniform scale applied to the file's units (to metres)
-    forward, up : user mesh: the file's axes that become +x and +z (e.g. ``"-z"``, ``"+y"``)
-    paint_material : user mesh: material name whose faces take the variant colour
-    """
-
-    name: str
-    pack: int
-    length_m: float
-    width_m: float
-    height_m: float
-    cls: str
-    weight: float = 1.0
-    source: str = ""
-    body: str = ""
-    mesh_path: Path | None = None
-    scale: float = 1.0
-    forward: str = "+x"
-    up: str = "+z"
-    paint_material: str = ""
-
-    def __post_init__(self) -> None:
-        for f in ("length_m", "width_m", "height_m"):
-            v = getattr(self, f)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise AssetError(f"model {self.name!r}: {f} must be a number > 0, got {v!r}")
-            object.__setattr__(self, f, float(v))
-        if self.cls not in CLASSES:
-            raise AssetError(
-                f"model {self.name!r}: class must be one of {', '.join(CLASSES)}, got {self.cls!r}"
-            )
-        if not (math.isfinite(self.weight) and self.weight >= 0):
-            raise AssetError(f"model {self.name!r}: weight must be >= 0, got {self.weight!r}")
-        object.__setattr__(self, "weight", float(self.weight))
-        if not self.source:
-            src = f"procedural:{self.body}" if self.body else "mesh"
-            object.__setattr__(self, "source", src)
-
-    @property
-    def is_procedural(self) -> bool:
-        return self.mesh_path is None
-
-    @property
-    def size_m(self) -> tuple[float, float, float]:
-        """(length, width, height) in metres."""
-        return (self.length_m, self.width_m, self.height_m)
-
-
-@dataclass(frozen=True)
-class VehicleVariant:
-    """One model in one colour."""
-
-    model: VehicleModel
-    color: VehicleColor
-
-    @property
-    def name(self) -> str:
-        return f"{self.model.name}/{self.color.name}"
 
 
 @dataclass(frozen=True)
@@ -295,7 +184,12 @@ def catalog_from_mapping(data: Any, path: Path | None = None) -> Catalog:
     unknown = set(data) - {"models", "colors", "version"}
     if unknown:
         raise AssetError(
-            f"{where}: unknown top-level key(s) {sorted(unknown)}; expected models, colors, version"
+            f"{where}: unknown top-level key(s) {sorted(map(str, unknown))}; expected models, colors, version"
+        )
+    if "version" in data and (isinstance(data["version"], bool) or data["version"] != CATALOG_VERSION):
+        raise AssetError(
+            f"{where}: version: expected {CATALOG_VERSION} (the catalog format this aerial-synth "
+            f"reads), got {data['version']!r}"
         )
     folder = (path.parent if path is not None else Path(".")).resolve()
     raw_colors = data.get("colors")
@@ -317,17 +211,17 @@ def _entry_name(kind: str, i: int, entry: Any) -> str:
 
 def _number(where: str, ent: str, entry: Mapping, key: str, default=None, positive=False,
             non_negative=False) -> float:
+    from .. import validators as v
+
     val = entry.get(key, default)
+    name = f"{where}: {ent} field {key}"
     if val is None:
-        raise AssetError(f"{where}: {ent} field {key}: expected a number, got nothing")
-    ok = isinstance(val, (int, float)) and not isinstance(val, bool) and math.isfinite(val)
-    if positive and not (ok and val > 0):
-        raise AssetError(f"{where}: {ent} field {key}: expected a number > 0, got {val!r}")
-    if non_negative and not (ok and val >= 0):
-        raise AssetError(f"{where}: {ent} field {key}: expected a number >= 0, got {val!r}")
-    if not ok:
-        raise AssetError(f"{where}: {ent} field {key}: expected a number, got {val!r}")
-    return float(val)
+        raise AssetError(f"{name}: expected a number, got nothing")
+    if positive:
+        return v.positive(name, val, error=AssetError)
+    if non_negative:
+        return v.non_negative(name, val, error=AssetError)
+    return v.finite(name, val, error=AssetError)
 
 
 def _string(where: str, ent: str, entry: Mapping, key: str, default=None) -> str:
@@ -344,7 +238,7 @@ def _parse_color(where: str, i: int, entry: Any) -> VehicleColor:
     unknown = set(entry) - _COLOR_KEYS
     if unknown:
         raise AssetError(
-            f"{where}: {ent}: unknown field(s) {sorted(unknown)}; expected {sorted(_COLOR_KEYS)}"
+            f"{where}: {ent}: unknown field(s) {sorted(map(str, unknown))}; expected {sorted(_COLOR_KEYS)}"
         )
     name = _string(where, ent, entry, "name")
     rgb = entry.get("rgb")
@@ -374,7 +268,7 @@ def _parse_model(where: str, folder: Path, i: int, entry: Any) -> VehicleModel:
             else ""
         )
         raise AssetError(
-            f"{where}: {ent}: unknown field(s) {sorted(unknown)}; expected {sorted(allowed)}{hint}"
+            f"{where}: {ent}: unknown field(s) {sorted(map(str, unknown))}; expected {sorted(allowed)}{hint}"
         )
     cls = entry.get("class")
     if cls not in CLASSES:
@@ -422,7 +316,7 @@ def _parse_model(where: str, folder: Path, i: int, entry: Any) -> VehicleModel:
     if not isinstance(paint, str):
         raise AssetError(f"{where}: {ent} field paint_material: expected a string, got {paint!r}")
 
-    from .meshes import load_user_mesh_parts  # trimesh: only when a user mesh is used
+    from .user_mesh import load_user_mesh_parts  # trimesh: only when a user mesh is used
 
     try:
         parts = load_user_mesh_parts(mesh_path, scale=scale, forward=forward, up=up)

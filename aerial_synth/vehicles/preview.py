@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .catalog import Catalog, VehicleVariant
+from .catalog import Catalog
 from .meshes import build_mesh
+from .model import VehicleVariant
 
 __all__ = ["render_contact_sheet", "render_top_down"]
 
