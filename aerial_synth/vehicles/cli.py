@@ -11,6 +11,8 @@ __all__ = ["register", "format_table"]
 
 
 def register(subparsers) -> None:
+    from ..validators import arg_float
+
     p = subparsers.add_parser(
         "assets",
         help="vehicle catalog: list models, draw a contact sheet of every variant",
@@ -28,7 +30,7 @@ def register(subparsers) -> None:
     pp.add_argument("--catalog", metavar="FILE", default=None,
                     help="catalog YAML (default: the bundled vehicle_assets/catalog.yaml)")
     pp.add_argument("--out", metavar="PNG", required=True, help="output image (.png)")
-    pp.add_argument("--gsd", type=float, default=0.04, metavar="M",
+    pp.add_argument("--gsd", type=arg_float("--gsd", 0.005, 0.5), default=0.04, metavar="M",
                     help="metres per pixel of the sheet (default 0.04)")
     pp.set_defaults(func=_cmd_preview)
 
@@ -76,12 +78,12 @@ def _cmd_list(args: argparse.Namespace) -> int:
 
 def _cmd_preview(args: argparse.Namespace) -> int:
     from ..errors import ConfigError
+    from ..io_utils import check_output_file
     from .catalog import load_catalog
 
     if not str(args.out).lower().endswith(".png"):
         raise ConfigError(f"--out: expected a .png file name, got {args.out!r}")
-    if not (0.005 <= args.gsd <= 0.5):
-        raise ConfigError(f"--gsd: expected metres per pixel in [0.005, 0.5], got {args.gsd}")
+    check_output_file(args.out)
     cat = load_catalog(args.catalog)
 
     import cv2
