@@ -307,21 +307,25 @@ class RayScene:
         _, face = self._cast_faces(rays, frozenset(ign))
         return self._face_label_s[face]
 
-    def test_occlusions(self, rays: np.ndarray, ignore: Iterable[str] = (), tnear: float = 0.0) -> np.ndarray:
+    def test_occlusions(self, rays: np.ndarray, ignore: Iterable[str] = (), tnear: float = 0.0,
+                        tfar: float = float("inf")) -> np.ndarray:
         """(n,) bool: does each ray hit anything (Embree any-hit, cheaper than cast_rays)?
 
         rays : (n, 6) float, [origin, direction], metres, world; hits closer than ``tnear``
-        (in units of the direction's length) are skipped (shadow-ray acne).
+        (in units of the direction's length) are skipped (shadow-ray acne), hits beyond
+        ``tfar`` too (short ambient-occlusion rays).
         """
         built = self._get_built(frozenset(ignore))
         r = np.ascontiguousarray(np.asarray(rays, dtype=np.float32).reshape(-1, 6))
         o3d = _o3d()
         try:
-            return built.scene.test_occlusions(o3d.core.Tensor.from_numpy(r), tnear=tnear).numpy().astype(bool)
+            return built.scene.test_occlusions(o3d.core.Tensor.from_numpy(r), tnear=tnear,
+                                               tfar=tfar).numpy().astype(bool)
         except (AttributeError, TypeError):  # pragma: no cover - older open3d
             r = r.copy()
             r[:, :3] += tnear * r[:, 3:]
-            return self.cast_rays(r, ignore=ignore).face >= 0
+            t = self.cast_rays(r, ignore=ignore).t
+            return np.isfinite(t) & (t + tnear <= tfar)
 
     def mesh_arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """All triangles in global face order (static objects, then vehicles by id).
