@@ -30,6 +30,7 @@ from .model import (
     LABEL_IDS,
     LABELS,
     MATERIAL_IDS,
+    MATERIALS,
     LabelConfig,
     Scene,
     SceneObject,
@@ -103,7 +104,8 @@ DEFAULT_RULES: tuple[tuple[str, str], ...] = (
 _UNITS = {"m": 1.0, "metre": 1.0, "meter": 1.0, "cm": 0.01, "mm": 0.001, "km": 1000.0,
           "ft": 0.3048, "in": 0.0254}
 _RULE_KEYS = {"match", "label", "material", "color"}
-_TOP_KEYS = {"units", "up_axis", "rules", "include_defaults", "label_config", "default_label"}
+_TOP_KEYS = {"units", "up_axis", "rules", "include_defaults", "label_config", "default_label",
+             "crs"}
 
 
 @dataclass(frozen=True)
@@ -151,6 +153,7 @@ class LabelRules:
     up_axis : "y" or "z" (None = y for glTF/GLB, z for OBJ/PLY)
     label_config : probing sets, or None for the default (+ ``unknown`` as obstacle)
     default_label : label for names no rule matches
+    crs : the CRS of the file's coordinates (e.g. ``EPSG:32632``), or None
     """
 
     rules: tuple[LabelRule, ...]
@@ -158,6 +161,7 @@ class LabelRules:
     up_axis: str | None = None
     label_config: LabelConfig | None = None
     default_label: str = "unknown"
+    crs: str | None = None
     source: str = "built-in rules"
 
     def label_for(self, name: str) -> LabelRule | None:
@@ -209,64 +213,93 @@ def load_rules(path: str | Path | None) -> LabelRules:
 
 
 def _rules_from_mapping(data: Any, where: str) -> LabelRules:
+    """Validate every field of a parsed label-rules file (messages name the field)."""
+    from .. import validators as V
+
+    E = SceneError
     if data is None:
         data = {}
     if not isinstance(data, Mapping):
-        raise SceneError(f"expected a mapping with key 'rules', got {type(data).__name__}")
-    unknown = set(data) - _TOP_KEYS
-    if unknown:
-        raise SceneError(f"unknown key(s) {sorted(unknown)}; expected {sorted(_TOP_KEYS)}")
-    raw = data.get("rules") or []
-    items: list[Mapping] = []
-    if isinstance(raw, Mapping):  # compact form {pattern: label}
-        items = [{"match": k, "label": v} for k, v in raw.items()]
+        raise SceneError(
+            f"expected a mapping with keys such as 'rules', got {V.show(data)}"
+        )
+    V.known_keys("top level", data, sorted(_TOP_KEYS), error=E)
+    raw = data.get("rules")
+    items: list[tuple[str, Any]] = []
+    if raw is None:
+        pass
+    elif isinstance(raw, Mapping):  # compact form {pattern: label}
+        for k, v in raw.items():
+            items.append((f"rules[{k!r}]", {"match": k, "label": v}))
     elif isinstance(raw, list):
-        items = raw
+        items = [(f"rules[{i}]", it) for i, it in enumerate(raw)]
     else:
-        raise SceneError(f"'rules' must be a list or a mapping, got {type(raw).__name__}")
+        raise SceneError(f"rules: expected a list of rules or a mapping pattern: label, got {V.show(raw)}")
     rules = []
-    for i, it in enumerate(items):
-        if not isinstance(it, Mapping) or "match" not in it or "label" not in it:
-            raise SceneError(f"rule {i}: expected a mapping with 'match' and 'label', got {it!r}")
-        bad = set(it) - _RULE_KEYS
-        if bad:
-            raise SceneError(f"rule {i}: unknown key(s) {sorted(bad)}; expected {sorted(_RULE_KEYS)}")
+    for field, it in items:
+        if not isinstance(it, Mapping):
+            raise SceneError(f"{field}: expected a mapping with 'match' and 'label', got {V.show(it)}")
+        V.known_keys(field, it, sorted(_RULE_KEYS), error=E)
+        for key in ("match", "label"):
+            if key not in it:
+                raise SceneError(f"{field}: missing key {key!r}; expected 'match' and 'label'")
+        match = it["match"]
+        if not isinstance(match, str) or not match:
+            raise SceneError(f"{field}.match: expected a glob or 're:' pattern (text), got {V.show(match)}")
+        label = it["label"]
+        if not isinstance(label, str) or label not in LABEL_IDS:
+            raise SceneError(f"{field}.label: expected one of {', '.join(LABELS)}, got {V.show(label)}")
+        material = it.get("material")
+        if material is not None and (not isinstance(material, str) or material not in MATERIAL_IDS):
+            raise SceneError(
+                f"{field}.material: expected one of {', '.join(MATERIALS)}, got {V.show(material)}"
+            )
         col = it.get("color")
         if col is not None:
-            if not (isinstance(col, (list, tuple)) and len(col) == 3):
-                raise SceneError(f"rule {i}: color must be [r, g, b] in 0..1, got {col!r}")
-            col = tuple(float(c) for c in col)
-        rules.append(LabelRule(str(it["match"]), str(it["label"]), it.get("material"), col))
-    if data.get("include_defaults", True):
+            col = V.sequence_of_numbers(f"{field}.color", col, 3, error=E)
+            if not all(0.0 <= c <= 1.0 for c in col):
+                raise SceneError(f"{field}.color: expected [r, g, b] in 0..1, got {V.show(it['color'])}")
+        rules.append(LabelRule(match, label, material, col))
+    if V.boolean("include_defaults", data.get("include_defaults", True), error=E):
         rules.extend(_default_rule_objects())
     units = data.get("units")
     units_m = None
     if units is not None:
-        if isinstance(units, str):
-            if units.lower() not in _UNITS:
-                raise SceneError(f"'units' must be a number or one of {sorted(_UNITS)}, got {units!r}")
-            units_m = _UNITS[units.lower()]
+        if isinstance(units, str) and units.strip().lower() in _UNITS:
+            units_m = _UNITS[units.strip().lower()]
         else:
             try:
-                units_m = float(units)
-            except (TypeError, ValueError):
-                raise SceneError(f"'units' must be a number (metres per unit), got {units!r}") from None
-            if not units_m > 0:
-                raise SceneError(f"'units' must be > 0, got {units!r}")
+                units_m = V.in_range("units", units, 0.0, 1e6, lo_open=True, error=E)
+            except SceneError:
+                raise SceneError(
+                    f"units: expected a number of metres per file unit (> 0) or one of "
+                    f"{', '.join(sorted(_UNITS))}, got {V.show(units)}"
+                ) from None
     up = data.get("up_axis")
-    if up is not None and str(up).lower() not in ("y", "z"):
-        raise SceneError(f"'up_axis' must be 'y' or 'z', got {up!r}")
+    if up is not None:
+        if not isinstance(up, str) or up.strip().lower() not in ("y", "z"):
+            raise SceneError(f"up_axis: expected y or z, got {V.show(up)}")
+        up = up.strip().lower()
     lc = data.get("label_config")
-    label_config = LabelConfig.from_mapping(lc) if lc else None
-    default_label = str(data.get("default_label", "unknown"))
-    if default_label not in LABEL_IDS:
-        raise SceneError(f"'default_label' must be one of {', '.join(LABELS)}, got {default_label!r}")
+    label_config = None
+    if lc is not None:
+        V.mapping("label_config", lc, error=E)
+        label_config = LabelConfig.from_mapping(lc) if lc else None
+    default_label = data.get("default_label", "unknown")
+    if not isinstance(default_label, str) or default_label not in LABEL_IDS:
+        raise SceneError(f"default_label: expected one of {', '.join(LABELS)}, got {V.show(default_label)}")
+    crs = data.get("crs")
+    if crs is not None:
+        from .georef import check_crs
+
+        crs = check_crs(crs, "crs")
     return LabelRules(
         rules=tuple(rules),
         units_m=units_m,
-        up_axis=None if up is None else str(up).lower(),
+        up_axis=up,
         label_config=label_config,
         default_label=default_label,
+        crs=crs,
         source=where,
     )
 
@@ -326,6 +359,76 @@ def _drop_unused(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return v[used], new_index[f]
 
 
+#: Key of the scene-level glTF extras that :func:`export_glb` writes and the loader reads.
+GLTF_EXTRAS_KEY = "aerial_synth"
+
+
+def _gltf_georef_extras(tscene) -> tuple[Any, Any]:
+    """(origin, crs) found in a glTF file's scene extras, each None when absent.
+
+    ``crs`` may sit at the top of the scene extras (``{"crs": "EPSG:32632"}``, as other
+    tools write it) or under our key; ``origin`` only under our key (written by export).
+    """
+    meta = getattr(tscene, "metadata", None) or {}
+    ours = meta.get(GLTF_EXTRAS_KEY) if isinstance(meta, Mapping) else None
+    ours = ours if isinstance(ours, Mapping) else {}
+    crs = ours.get("crs", meta.get("crs") if isinstance(meta, Mapping) else None)
+    return ours.get("origin"), crs
+
+
+def _georeference(path: Path, tscene, rules, items, raw_max_m: float, ext: str):
+    """The local frame's origin and the CRS of a mesh file (see scene/georef.py).
+
+    items: [(geom, node, v_without_translation (n, 3), translation (3,), ...)], z-up metres.
+    The origin is the one stored by :func:`export_glb` (glTF extras) when it keeps the local
+    bounds within ``FAR_M`` of 0, else :func:`~.georef.choose_origin` of the float64 bounds.
+    The CRS comes from the labels file's ``crs`` key, else the glTF extras ``crs``.
+    """
+    import warnings
+
+    from .georef import (
+        FAR_M,
+        SceneWarning,
+        check_crs,
+        choose_origin,
+        float32_step_m,
+        origin_fits,
+        parse_origin,
+    )
+
+    pts = [v.min(axis=0) + t for _, _, v, t, *_ in items if len(v)]
+    pts += [v.max(axis=0) + t for _, _, v, t, *_ in items if len(v)]
+    if pts:
+        lo, hi = np.min(pts, axis=0), np.max(pts, axis=0)
+    else:
+        lo = hi = np.zeros(3)
+    stored_origin, stored_crs = (None, None)
+    if ext in (".glb", ".gltf"):
+        stored_origin, stored_crs = _gltf_georef_extras(tscene)
+    origin = None
+    if stored_origin is not None:
+        o = parse_origin(stored_origin, f"scene file {path}: glTF extras {GLTF_EXTRAS_KEY}.origin")
+        if origin_fits(lo, hi, o):
+            origin = o
+    if origin is None:
+        origin = choose_origin(lo, hi)
+    if ext in (".glb", ".gltf") and raw_max_m > FAR_M:
+        warnings.warn(
+            f"scene file {path}: vertex coordinates up to {raw_max_m:.0f} m are stored as "
+            f"float32 in the file, which resolves only {float32_step_m(raw_max_m):.2g} m there; "
+            f"georeferenced glTF should keep vertices local and put the offset in the node "
+            f"translation",
+            SceneWarning,
+            stacklevel=3,
+        )
+    crs = None
+    if rules.crs is not None:
+        crs = rules.crs
+    elif stored_crs is not None:
+        crs = check_crs(stored_crs, f"scene file {path}: glTF extras crs")
+    return origin, crs
+
+
 def load_mesh_scene(path: str | Path, labels: str | Path | None = None) -> Scene:
     """Load a glTF/GLB, OBJ or PLY file as a labelled :class:`Scene`.
 
@@ -358,21 +461,25 @@ def load_mesh_scene(path: str | Path, labels: str | Path | None = None) -> Scene
     up = rules.up_axis or ("y" if ext in (".glb", ".gltf") else "z")
     scale = rules.units_m or 1.0
 
-    objects: list[SceneObject] = []
-    unmatched: list[str] = []
+    # pass 1: every node's vertices in the z-up metre frame, *without* its translation
+    # (float64), and the translation apart, so the origin can be taken off the translation
+    # before the two meet: a georeferenced glTF (float32 vertices near 0, the UTM offset in
+    # a float64 node translation) then loads bit-identically to the unshifted file.
+    items = []
+    raw_max = 0.0
     geom_names = list(tscene.geometry)
     graph = tscene.graph
     by_geom: dict[str, list[str]] = {g: [] for g in geom_names}
     for node in graph.nodes_geometry:
         _, g = graph[node]
         by_geom.setdefault(g, []).append(node)
-    used: set[str] = set()
     for g in geom_names:
         geom = tscene.geometry[g]
         if not hasattr(geom, "faces") or geom.faces is None or len(geom.faces) == 0:
             continue  # point clouds, paths
         nodes = sorted(by_geom.get(g, [])) or [None]
         mat_name, col = _material_and_color(geom)
+        raw = np.asarray(geom.vertices, np.float64)
         for node in nodes:
             if node is None:
                 T = np.eye(4)
@@ -380,40 +487,66 @@ def load_mesh_scene(path: str | Path, labels: str | Path | None = None) -> Scene
             else:
                 T, _ = graph[node]
                 name = node
-            v = np.asarray(geom.vertices, np.float64)
-            if not np.allclose(T, np.eye(4)):
-                v = v @ np.asarray(T, float)[:3, :3].T + np.asarray(T, float)[:3, 3]
+            T = np.asarray(T, np.float64)
+            faces = np.asarray(geom.faces, np.int64)
+            v, faces = _drop_unused(raw, faces)
+            bad = ~np.isfinite(v).all(axis=1)
+            if bad.any():
+                i = int(np.argmax(bad))
+                raise SceneError(
+                    f"scene file {path}: mesh {name!r}: expected finite vertex coordinates, got "
+                    f"{v[i].tolist()} at vertex {i}"
+                )
+            if len(v):
+                raw_max = max(raw_max, float(np.abs(v).max()))
+            R, t = T[:3, :3], T[:3, 3].copy()
+            if not np.isfinite(T).all():
+                raise SceneError(f"scene file {path}: node {name!r}: transform is not finite")
+            if not np.array_equal(R, np.eye(3)):
+                v = v @ R.T
             if up == "y":
                 v = _yup_to_zup(v)
+                t = _yup_to_zup(t[None])[0]
             if scale != 1.0:
                 v = v * scale
-            rule = rules.label_for(name) or (rules.label_for(g) if g != name else None)
-            if rule is None:
-                label = rules.default_label
-                unmatched.append(name)
-                material, color = mat_name, col
-            else:
-                label = rule.label
-                material = rule.material or mat_name
-                color = rule.color if rule.color is not None else col
-            if material is None:
-                material = DEFAULT_MATERIAL_FOR_LABEL[label]
-            if color is None:
-                color = DEFAULT_COLOR_FOR_MATERIAL[material]
-            head, sep, rest = name.partition("__")
-            oname = rest if (sep and rest and head.lower() in LABEL_IDS) else name
-            base_name, k = oname, 1
-            while oname in used:
-                oname, k = f"{base_name}.{k}", k + 1
-            used.add(oname)
-            faces = np.asarray(geom.faces, np.int64)
-            v, faces = _drop_unused(v, faces)
-            if np.linalg.det(np.asarray(T, float)[:3, :3]) < 0:
+                t = t * scale
+            if np.linalg.det(R) < 0:
                 faces = faces[:, ::-1]  # mirrored node: keep counter-clockwise winding
-            try:
-                objects.append(SceneObject(oname, label, v, faces, material, color))
-            except AerialSynthError as exc:
-                raise SceneError(f"scene file {path}: {exc}") from None
+            items.append((g, name, v, t, faces, mat_name, col))
+    origin, crs = _georeference(path, tscene, rules, items, raw_max * scale, ext)
+
+    # pass 2: labels, names and the local vertices
+    objects: list[SceneObject] = []
+    unmatched: list[str] = []
+    used: set[str] = set()
+    o = np.asarray(origin, np.float64)
+    for g, name, v, t, faces, mat_name, col in items:
+        shift = t - o
+        if shift.any():
+            v = v + shift
+        rule = rules.label_for(name) or (rules.label_for(g) if g != name else None)
+        if rule is None:
+            label = rules.default_label
+            unmatched.append(name)
+            material, color = mat_name, col
+        else:
+            label = rule.label
+            material = rule.material or mat_name
+            color = rule.color if rule.color is not None else col
+        if material is None:
+            material = DEFAULT_MATERIAL_FOR_LABEL[label]
+        if color is None:
+            color = DEFAULT_COLOR_FOR_MATERIAL[material]
+        head, sep, rest = name.partition("__")
+        oname = rest if (sep and rest and head.lower() in LABEL_IDS) else name
+        base_name, k = oname, 1
+        while oname in used:
+            oname, k = f"{base_name}.{k}", k + 1
+        used.add(oname)
+        try:
+            objects.append(SceneObject(oname, label, v, faces, material, color))
+        except AerialSynthError as exc:
+            raise SceneError(f"scene file {path}: {exc}") from None
     if not any(o.label == "road" for o in objects):
         names = ", ".join(sorted({o.name for o in objects})[:6]) or "(no meshes)"
         raise SceneError(
@@ -437,7 +570,10 @@ def load_mesh_scene(path: str | Path, labels: str | Path | None = None) -> Scene
         "unmatched": unmatched,
         "n_unmatched": len(unmatched),
     }
-    return Scene(name=path.stem, objects=objects, source=str(path), label_config=lc, meta=meta)
+    return Scene(
+        name=path.stem, objects=objects, source=str(path), label_config=lc, meta=meta,
+        origin=origin, crs=crs,
+    )
 
 
 # --------------------------------------------------------------------------- specs
@@ -494,6 +630,12 @@ def export_glb(scene: Scene, path: str | Path) -> Path:
     after the object's material with the object's colour as baseColorFactor (the exact
     float colour also goes into the mesh extras). Loading the file again with the built-in
     rules gives the same objects, labels, materials and triangles (vertices as float32).
+
+    Georeference: vertices stay in the scene's local frame; a non-zero ``scene.origin`` is
+    written as every node's translation (float64 in the glTF JSON, so other tools see the
+    original frame) and, with ``scene.crs``, into the scene extras under ``aerial_synth``
+    (``{"origin": [x, y, z], "crs": ...}``, z-up metres). The loader takes that origin off the
+    translation again, so the reload has the same local vertices, origin and CRS.
     """
     import trimesh
 
@@ -501,6 +643,18 @@ def export_glb(scene: Scene, path: str | Path) -> Path:
 
     path = Path(path)
     ts = trimesh.Scene()
+    origin = np.asarray(scene.origin, np.float64).reshape(3)
+    node_T = None
+    if origin.any():
+        node_T = np.eye(4)
+        node_T[:3, 3] = _zup_to_yup(origin[None])[0]
+    georef = {}
+    if origin.any():
+        georef["origin"] = [float(c) for c in origin]
+    if scene.crs is not None:
+        georef["crs"] = scene.crs
+    if georef:
+        ts.metadata[GLTF_EXTRAS_KEY] = georef
     for o in scene.objects:
         if not o.n_triangles:
             continue
@@ -513,7 +667,7 @@ def export_glb(scene: Scene, path: str | Path) -> Path:
         )
         m.metadata["extras"] = {"label": o.label, "color": list(o.color)}
         nm = f"{o.label}__{o.name}"
-        ts.add_geometry(m, node_name=nm, geom_name=nm)
+        ts.add_geometry(m, node_name=nm, geom_name=nm, transform=node_T)
     try:
         data = ts.export(file_type="glb")
     except Exception as exc:

@@ -158,16 +158,26 @@ class LabelConfig:
 
     @classmethod
     def from_mapping(cls, data: Mapping | None) -> "LabelConfig":
-        """Build from a YAML mapping with optional keys road/drivable/obstacles/ignore."""
+        """Build from a YAML mapping with optional keys road/drivable/obstacles/ignore, each
+        a list of label names (null = empty). Raises ConfigError naming the field."""
+        from ..validators import known_keys, mapping, show
+
+        if data is None:
+            return cls()
+        mapping("label_config", data)
         if not data:
             return cls()
-        unknown = set(data) - {"road", "drivable", "obstacles", "ignore"}
-        if unknown:
-            raise ConfigError(
-                f"label config: unknown key(s) {sorted(unknown)}; expected road, drivable, "
-                f"obstacles, ignore"
-            )
-        kw = {k: frozenset(v or ()) for k, v in data.items()}
+        keys = ("road", "drivable", "obstacles", "ignore")
+        known_keys("label_config", data, keys)
+        kw = {}
+        for k, v in data.items():
+            if v is None:
+                v = []
+            if not isinstance(v, (list, tuple)) or not all(isinstance(n, str) for n in v):
+                raise ConfigError(
+                    f"label_config.{k}: expected a list of label names, got {show(v)}"
+                )
+            kw[k] = frozenset(v)
         return cls(**kw)
 
     def ids(self, which: str) -> np.ndarray:
@@ -203,6 +213,12 @@ class SceneObject:
             raise ConfigError(f"object {self.name!r}: vertices must be (n, 3), got {v.shape}")
         if f.ndim != 2 or f.shape[1] != 3:
             raise ConfigError(f"object {self.name!r}: faces must be (m, 3), got {f.shape}")
+        if not np.isfinite(v).all():
+            i = int(np.argmax(~np.isfinite(v).all(axis=1)))
+            raise ConfigError(
+                f"object {self.name!r}: expected finite vertex coordinates, got "
+                f"{v[i].tolist()} at vertex {i}"
+            )
         if f.size and (f.min() < 0 or f.max() >= len(v)):
             raise ConfigError(f"object {self.name!r}: face index outside 0..{len(v) - 1}")
         mat = self.material or DEFAULT_MATERIAL_FOR_LABEL[self.label]
