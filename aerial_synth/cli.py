@@ -24,6 +24,7 @@ _COMMAND_MODULES = (
     "aerial_synth.placement.cli",
     "aerial_synth.render.cli",
     "aerial_synth.dataset.cli",
+    "aerial_synth.evaluate.cli",
 )
 
 

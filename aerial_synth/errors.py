@@ -17,6 +17,7 @@ __all__ = [
     "RenderError",
     "ExportError",
     "OutputError",
+    "EvaluationError",
 ]
 
 
@@ -54,3 +55,7 @@ class ExportError(AerialSynthError):
 
 class OutputError(AerialSynthError):
     """An output path cannot be written (not a regular file, parent is a file, read-only, ...)."""
+
+
+class EvaluationError(AerialSynthError):
+    """Evaluation, mixing or statistics input cannot be used (bad label or prediction file, ...)."""

@@ -1,0 +1,508 @@
+"""``aerial-synth mix``: real + synthetic training sets with an exact real share.
+
+- **Counts.** ``real_fraction`` F: all synthetic training images (or ``synthetic_images``)
+  plus ``round(F * S / (1 - F))`` real ones, so real / (real + synthetic) = F up to rounding
+  (F = 1: real images only, all of them). ``real_images`` N: N real images added. Counts are
+  of images as written: tiles when tiling.
+- **Determinism.** Source images are shuffled with ``numpy.random.default_rng(seed)``; the
+  real training images are the first N tiles of the shuffled real images (tiles of one image
+  in raster order). Same inputs and seed -> identical folder.
+- **Validation.** Real only by default: the real folder's ``val`` split, or, when it has
+  none, ``val_fraction`` of the real source images (whole images, so no tile leaks).
+- **GSD rescale** (``gsd``): each real image is resized by its ``gsd:`` header / target GSD
+  (``INTER_AREA`` when shrinking, ``INTER_CUBIC`` when enlarging), boxes scaled by the
+  exact pixel ratio new size / old size.
+- **Tiles** (``tile``, ``overlap``), as the DOTA devkit's ``ImgSplit``: tile origins every
+  ``tile - overlap`` px, the last tile flush with the right / bottom edge; a box wholly
+  inside a tile is kept unchanged; a cut box is kept when at least ``keep_threshold`` of its
+  area is inside, clipped to the tile (the clipped polygon reduced to four corners: merge the
+  shortest edge of a pentagon as the devkit does, else the minimum rotated rectangle clamped
+  to the tile; corner order rotated to fit the original box) and marked difficult; otherwise
+  dropped (the devkit writes those as difficult ``2``; we leave them out).
+- **Files.** Untouched images are hard-linked (copied when linking fails, e.g. across
+  devices; each copy is recorded in the manifest); tiles and rescaled images are written as
+  PNG. Labels are rewritten (class filter, DOTA v1 or YOLO-OBB). The mix is built in a
+  temporary sibling folder and renamed into place, so a failing run writes nothing.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import EvaluationError
+from ..io_utils import check_output_dir, dumps_json, is_inside
+from .labels import ImageLabels, dota_lines, image_size, read_dota_folder
+
+__all__ = ["MixConfig", "make_mix", "tile_origins", "clip_to_tile", "rescale_polygons",
+           "mix_counts"]
+
+MANIFEST_FORMAT = "aerial-synth-mix"
+
+
+@dataclass(frozen=True)
+class MixConfig:
+    real: Path
+    synthetic: Path
+    out: Path
+    real_fraction: float | None = None
+    real_images: int | None = None
+    synthetic_images: int | None = None
+    format: str = "dota"
+    seed: int = 0
+    val: str = "real"
+    val_fraction: float = 0.2
+    tile: int | None = None
+    overlap: int = 200
+    keep_threshold: float = 0.7
+    gsd: float | None = None
+    gsd_missing: str = "error"
+    classes: list[str] | None = ("small-vehicle", "large-vehicle")  # type: ignore[assignment]
+    force: bool = False
+
+    def __post_init__(self):
+        if (self.real_fraction is None) == (self.real_images is None):
+            raise EvaluationError("mix: expected exactly one of --real-fraction or --real-images")
+        if self.real_fraction is not None and not (0.0 <= self.real_fraction <= 1.0):
+            raise EvaluationError(f"--real-fraction: expected a number in [0, 1], got {self.real_fraction!r}")
+        if self.real_images is not None and self.real_images < 0:
+            raise EvaluationError(f"--real-images: expected a non-negative integer, got {self.real_images!r}")
+        if self.format not in ("dota", "yolo-obb"):
+            raise EvaluationError(f"--format: expected dota or yolo-obb, got {self.format!r}")
+        if self.val not in ("real", "synthetic", "both"):
+            raise EvaluationError(f"--val: expected real, synthetic or both, got {self.val!r}")
+        if not (0.0 <= self.val_fraction < 1.0):
+            raise EvaluationError(f"--val-fraction: expected a number in [0, 1), got {self.val_fraction!r}")
+        if self.tile is not None and self.tile < 1:
+            raise EvaluationError(f"--tile: expected a positive integer, got {self.tile!r}")
+        if self.tile is not None and not (0 <= self.overlap < self.tile):
+            raise EvaluationError(f"--overlap: expected 0 <= overlap < --tile ({self.tile}), got {self.overlap!r}")
+        if not (0.0 < self.keep_threshold <= 1.0):
+            raise EvaluationError(f"--keep-threshold: expected a number in (0, 1], got {self.keep_threshold!r}")
+        if self.gsd is not None and not (self.gsd > 0 and np.isfinite(self.gsd)):
+            raise EvaluationError(f"--gsd: expected a number > 0, got {self.gsd!r}")
+        if self.gsd_missing not in ("error", "keep", "skip"):
+            raise EvaluationError(f"--gsd-missing: expected error, keep or skip, got {self.gsd_missing!r}")
+
+
+# -- geometry (pure) ----------------------------------------------------------------------------
+
+
+def tile_origins(size: int, tile: int, overlap: int) -> list[int]:
+    """Tile starts along one axis, as the DOTA devkit: every ``tile - overlap`` px; the last
+    tile ends at ``size`` (one tile at 0 when ``size <= tile``)."""
+    slide = tile - overlap
+    out, left = [], 0
+    while True:
+        if left + tile >= size:
+            out.append(max(size - tile, 0))
+            return out
+        out.append(left)
+        left += slide
+
+
+def rescale_polygons(polygons_xy_px, sx: float, sy: float) -> np.ndarray:
+    """Pixel-edge coordinates scale with the image: (x, y) -> (x * sx, y * sy)."""
+    return np.asarray(polygons_xy_px, float).reshape(-1, 4, 2) * (sx, sy)
+
+
+def _four_corners(poly, original: np.ndarray) -> np.ndarray | None:
+    """A clipped polygon -> 4 corners (devkit: pentagon -> merge the shortest edge)."""
+    import shapely
+
+    g = shapely.orient_polygons(shapely.simplify(poly, 1e-9)) if hasattr(shapely, "orient_polygons") \
+        else shapely.geometry.polygon.orient(shapely.simplify(poly, 1e-9), 1.0)
+    if g.geom_type != "Polygon" or g.is_empty:
+        return None
+    pts = np.asarray(g.exterior.coords)[:-1]
+    if len(pts) == 5:
+        d = np.linalg.norm(np.roll(pts, -1, 0) - pts, axis=1)
+        k = int(np.argmin(d))
+        merged = (pts[k] + pts[(k + 1) % 5]) / 2
+        pts = np.array([merged if i == k else pts[i] for i in range(5) if i != (k + 1) % 5])
+    elif len(pts) != 4:
+        r = shapely.minimum_rotated_rectangle(g)
+        if r.geom_type != "Polygon":
+            return None
+        pts = np.asarray(r.exterior.coords)[:-1]
+    if len(pts) != 4:
+        return None
+    if np.sign(_shoelace(pts)) != np.sign(_shoelace(original)):
+        pts = pts[::-1]
+    # the cyclic rotation that best fits the original corners (devkit choose_best_pointorder)
+    rots = [np.roll(pts, -i, axis=0) for i in range(4)]
+    k = int(np.argmin([np.sum((r - original) ** 2) for r in rots]))
+    return rots[k]
+
+
+def _shoelace(p: np.ndarray) -> float:
+    x, y = p[:, 0], p[:, 1]
+    return float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) / 2)
+
+
+def clip_to_tile(polygons_xy_px, difficult, tile_xywh, keep_threshold: float = 0.7):
+    """Boxes of a whole image -> boxes of one tile, in tile pixels.
+
+    Returns (kept indices, polygons (k, 4, 2) in tile px, difficult (k,) bool, clipped (k,)
+    bool). Wholly inside: unchanged (shifted). Cut with inside area / area >= threshold:
+    clipped to the tile, four corners, difficult. Otherwise dropped."""
+    import shapely
+
+    x0, y0, w, h = tile_xywh
+    P = np.asarray(polygons_xy_px, float).reshape(-1, 4, 2)
+    diff = np.asarray(difficult, bool)
+    if len(P) == 0:
+        return np.zeros(0, int), np.zeros((0, 4, 2)), np.zeros(0, bool), np.zeros(0, bool)
+    from .ap import to_polygons
+
+    polys = to_polygons(P)
+    box = shapely.box(x0, y0, x0 + w, y0 + h)
+    area = shapely.area(polys)
+    inter = shapely.intersection(polys, box)
+    frac = np.where(area > 0, shapely.area(inter) / np.where(area > 0, area, 1), 0.0)
+    inside = shapely.covers(box, polys) & (area > 0)
+    keep, out, dout, cout = [], [], [], []
+    for i in np.nonzero(inside | (frac >= keep_threshold))[0]:
+        if inside[i]:
+            q = P[i]
+            d, c = bool(diff[i]), False
+        else:
+            q = _four_corners(inter[i], P[i])
+            if q is None:
+                continue
+            q = np.clip(q, (x0, y0), (x0 + w, y0 + h))
+            d, c = True, True
+        keep.append(i)
+        out.append(q - (x0, y0))
+        dout.append(d)
+        cout.append(c)
+    return (np.asarray(keep, int), np.asarray(out, float).reshape(-1, 4, 2),
+            np.asarray(dout, bool), np.asarray(cout, bool))
+
+
+def mix_counts(n_syn_avail: int, n_real_avail: int, real_fraction: float | None,
+               real_images: int | None, synthetic_images: int | None) -> tuple[int, int]:
+    """(synthetic, real) training image counts; raises when there are too few images."""
+    n_syn = n_syn_avail if synthetic_images is None else synthetic_images
+    if n_syn > n_syn_avail:
+        raise EvaluationError(f"--synthetic-images: expected at most {n_syn_avail} (the synthetic "
+                              f"training images), got {n_syn}")
+    if real_images is not None:
+        n_real = real_images
+    elif real_fraction >= 1.0:
+        n_syn, n_real = 0, n_real_avail
+    else:
+        n_real = int(round(real_fraction * n_syn / (1.0 - real_fraction)))
+    if n_real > n_real_avail:
+        raise EvaluationError(
+            f"--real-{'images' if real_images is not None else 'fraction'}: needs {n_real} real "
+            f"training images with {n_syn} synthetic ones, only {n_real_avail} available "
+            f"(use --synthetic-images to take fewer synthetic images)")
+    if n_real + n_syn == 0:
+        raise EvaluationError("mix: the mix would hold no training image")
+    return n_syn, n_real
+
+
+# -- sources ----------------------------------------------------------------------------------
+
+
+def _dota_splits(root: Path, option: str) -> dict[str, tuple[Path, Path]]:
+    """split -> (labelTxt, images) of a DOTA root, an export, or one split folder."""
+    if not root.exists():
+        raise EvaluationError(f"{option} {root}: no such folder")
+    if not root.is_dir():
+        raise EvaluationError(f"{option} {root}: expected a folder, found a file")
+    for base in (root / "dota", root):
+        if (base / "labelTxt").is_dir():
+            return {"train": (base / "labelTxt", base / "images")}
+        found = {s.name: (s / "labelTxt", s / "images")
+                 for s in sorted(p for p in base.iterdir() if p.is_dir()) if (s / "labelTxt").is_dir()} \
+            if base.is_dir() else {}
+        if found:
+            return found
+    raise EvaluationError(f"{option} {root}: expected a DOTA folder (labelTxt/ and images/, "
+                          f"<split>/labelTxt/, or an export with dota/), found none")
+
+
+def _read_split(lab: Path, img: Path, option: str) -> list[ImageLabels]:
+    if not img.is_dir():
+        raise EvaluationError(f"{option} {lab.parent}: expected an images/ folder beside labelTxt/")
+    items = read_dota_folder(lab, img, option=option, need_images=True)
+    return items
+
+
+@dataclass
+class _Item:
+    """One output image: a whole source image or a tile of it, possibly rescaled."""
+
+    origin: str  # real | synthetic
+    src: ImageLabels
+    scale: tuple[float, float]  # (sx, sy); (1, 1) = unscaled
+    size_wh: tuple[int, int]  # after scaling
+    tile: tuple[int, int, int, int] | None  # x, y, w, h in scaled pixels
+    out_stem: str
+
+
+def _plan_real(items: list[ImageLabels], cfg: MixConfig) -> list[list[_Item]]:
+    """Per source image, the output images it gives (tiles in raster order)."""
+    plans = []
+    for it in items:
+        w, h = image_size(it.image_path)
+        sx = sy = 1.0
+        gsd = it.gsd_m
+        if cfg.gsd is not None:
+            if it.gsd_m is None:
+                if cfg.gsd_missing == "error":
+                    raise EvaluationError(f"{it.label_path}: expected a 'gsd:' header to rescale to "
+                                          f"--gsd {cfg.gsd:g}, found none (see --gsd-missing)")
+                if cfg.gsd_missing == "skip":
+                    plans.append([])
+                    continue
+            else:
+                f = it.gsd_m / cfg.gsd
+                if abs(f - 1.0) > 1e-9:
+                    nw, nh = max(1, int(round(w * f))), max(1, int(round(h * f)))
+                    sx, sy = nw / w, nh / h
+                    w, h = nw, nh
+                    gsd = cfg.gsd
+        scale_tag = "" if (sx, sy) == (1.0, 1.0) else f"__{sx:.4g}"
+        out = []
+        if cfg.tile is None:
+            out.append(_Item("real", it, (sx, sy), (w, h), None, f"real-{it.name}{scale_tag}"))
+        else:
+            for y in tile_origins(h, cfg.tile, cfg.overlap):
+                for x in tile_origins(w, cfg.tile, cfg.overlap):
+                    tw, th = min(cfg.tile, w - x), min(cfg.tile, h - y)
+                    out.append(_Item("real", it, (sx, sy), (w, h), (x, y, tw, th),
+                                     f"real-{it.name}__{sx:.4g}__{x}___{y}"))
+        for o in out:
+            o.src.extra["gsd_out"] = gsd
+        plans.append(out)
+    return plans
+
+
+def _link(src: Path, dst: Path) -> str:
+    try:
+        os.link(src, dst)
+        return "hardlink"
+    except OSError as exc:
+        if exc.errno in (errno.EXDEV, errno.EPERM, errno.EMLINK, errno.ENOTSUP, errno.EACCES):
+            shutil.copyfile(src, dst)
+            return "copy"
+        raise
+
+
+def _load(path: Path):
+    import cv2
+
+    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise EvaluationError(f"{path}: expected an image, cannot decode it")
+    return img
+
+
+class _Writer:
+    def __init__(self, root: Path, fmt: str, classes: list[str], keep_threshold: float):
+        self.root, self.fmt, self.classes = root, fmt, classes
+        self._keep_threshold = keep_threshold
+        self._cache: tuple[Path, tuple, np.ndarray] | None = None
+
+    def dirs(self, split: str) -> tuple[Path, Path]:
+        if self.fmt == "dota":
+            return self.root / "dota" / split / "images", self.root / "dota" / split / "labelTxt"
+        return self.root / "yolo-obb" / "images" / split, self.root / "yolo-obb" / "labels" / split
+
+    def image(self, item: _Item) -> np.ndarray:
+        key = (item.src.image_path, item.scale)
+        if self._cache is None or self._cache[:2] != key:
+            import cv2
+
+            img = _load(item.src.image_path)
+            if item.scale != (1.0, 1.0):
+                w, h = item.size_wh
+                interp = cv2.INTER_AREA if item.scale[0] < 1 else cv2.INTER_CUBIC
+                img = cv2.resize(img, (w, h), interpolation=interp)
+            self._cache = (key[0], key[1], img)
+        return self._cache[2]
+
+    def write(self, item: _Item, split: str) -> dict:
+        import cv2
+
+        img_dir, lab_dir = self.dirs(split)
+        img_dir.mkdir(parents=True, exist_ok=True)
+        lab_dir.mkdir(parents=True, exist_ok=True)
+        src = item.src
+        keep_cls = np.array([self.classes is None or c in self.classes for c in src.classes], bool)
+        P = rescale_polygons(src.polygons_xy_px, *item.scale)[keep_cls]
+        C = [c for c, k in zip(src.classes, keep_cls) if k]
+        D = np.asarray(src.difficult, bool)[keep_cls]
+        clipped = np.zeros(len(C), bool)
+        if item.tile is not None:
+            idx, P, D, clipped = clip_to_tile(P, D, item.tile, self._keep_threshold)
+            C = [C[i] for i in idx]
+            w, h = item.tile[2], item.tile[3]
+        else:
+            w, h = item.size_wh
+        if item.tile is None and item.scale == (1.0, 1.0):
+            dst = img_dir / (item.out_stem + src.image_path.suffix.lower())
+            how = _link(src.image_path, dst)
+        else:
+            arr = self.image(item)
+            if item.tile is not None:
+                x, y, tw, th = item.tile
+                arr = arr[y:y + th, x:x + tw]
+            dst = img_dir / (item.out_stem + ".png")
+            ok, buf = cv2.imencode(".png", arr)
+            if not ok:  # pragma: no cover
+                raise EvaluationError(f"{src.image_path}: cannot encode a tile as PNG")
+            dst.write_bytes(buf.tobytes())
+            how = "written"
+        gsd = src.extra.get("gsd_out", src.gsd_m)
+        if self.fmt == "dota":
+            text = "\n".join(dota_lines(P, C, D, gsd, src.image_source or item.origin)) + "\n"
+        else:
+            lines = []
+            for p, c in zip(P, C):
+                k = self.classes.index(c) if self.classes else 0
+                q = np.clip(p / (w, h), 0.0, 1.0).reshape(-1)
+                lines.append(f"{k} " + " ".join(f"{v:.6f}" for v in q))
+            text = "".join(ln + "\n" for ln in lines)
+        (lab_dir / (item.out_stem + ".txt")).write_text(text, encoding="utf-8")
+        return {
+            "split": split, "origin": item.origin, "image": str(dst.relative_to(self.root)),
+            "file": how, "objects": len(C), "clipped": int(clipped.sum()),
+            "dropped_by_class": int((~keep_cls).sum()),
+            "tile_xywh": list(item.tile) if item.tile else None,
+            "scale": [round(item.scale[0], 8), round(item.scale[1], 8)],
+        }
+
+
+def _shuffle(items: list, rng: np.random.Generator) -> list:
+    order = rng.permutation(len(items))
+    return [items[i] for i in order]
+
+
+def make_mix(cfg: MixConfig) -> dict:
+    """Build the mix (see the module docstring); returns the manifest."""
+    out = Path(cfg.out)
+    for opt, p in (("--real", cfg.real), ("--synthetic", cfg.synthetic)):
+        if not Path(p).exists():
+            raise EvaluationError(f"{opt} {p}: no such folder")
+        if is_inside(out, p) or is_inside(p, out):
+            raise EvaluationError(f"--out {out}: overlaps the input folder {opt} {p}; choose another folder")
+    check_output_dir(out, "--out")
+    if out.exists() and any(out.iterdir()):
+        man = out / "manifest.json"
+        is_mix = man.is_file() and f'"{MANIFEST_FORMAT}"' in man.read_text(encoding="utf-8", errors="replace")
+        if not is_mix:
+            raise EvaluationError(f"--out {out}: exists, is not empty and is not a mix; choose a new folder")
+        if not cfg.force:
+            raise EvaluationError(f"--out {out}: holds a mix already (use --force to replace it)")
+
+    real_splits = _dota_splits(Path(cfg.real), "--real")
+    syn_splits = _dota_splits(Path(cfg.synthetic), "--synthetic")
+    rng = np.random.default_rng(cfg.seed)
+
+    real_train = _read_split(*real_splits.get("train", next(iter(real_splits.values()))), "--real")
+    real_val_src = [s for s in real_splits if s in ("val", "valid", "validation")]
+    if real_val_src:
+        real_val = _read_split(*real_splits[real_val_src[0]], "--real")
+        real_train = _shuffle(real_train, rng)
+    else:
+        real_train = _shuffle(real_train, rng)
+        n_val = int(round(cfg.val_fraction * len(real_train))) if cfg.val in ("real", "both") else 0
+        real_val, real_train = real_train[:n_val], real_train[n_val:]
+    syn_key = "train" if "train" in syn_splits else next(iter(syn_splits))
+    syn_train = _shuffle(_read_split(*syn_splits[syn_key], "--synthetic"), rng)
+    syn_val = _read_split(*syn_splits["val"], "--synthetic") if ("val" in syn_splits and cfg.val != "real") else []
+
+    train_plans = [t for p in _plan_real(real_train, cfg) for t in p]
+    n_syn, n_real = mix_counts(len(syn_train), len(train_plans), cfg.real_fraction, cfg.real_images,
+                               cfg.synthetic_images)
+    chosen = train_plans[:n_real] + [
+        _Item("synthetic", s, (1.0, 1.0), (0, 0), None, f"syn-{s.name}") for s in syn_train[:n_syn]]
+    val_items: list[_Item] = []
+    if cfg.val in ("real", "both"):
+        val_items += [t for p in _plan_real(real_val, cfg) for t in p]
+    if cfg.val in ("synthetic", "both"):
+        val_items += [_Item("synthetic", s, (1.0, 1.0), (0, 0), None, f"syn-{s.name}") for s in syn_val]
+    names = [i.out_stem for i in chosen]
+    if len(set(names)) != len(names):
+        raise EvaluationError("mix: two source images share a name; rename them")
+
+    classes = list(cfg.classes) if cfg.classes is not None else sorted(
+        {c for it in real_train + real_val + syn_train + syn_val for c in it.classes})
+
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
+    try:
+        w = _Writer(tmp, cfg.format, classes, cfg.keep_threshold)
+        entries = []
+        for split, items in (("train", chosen), ("val", val_items)):
+            for it in items:
+                e = w.write(it, split)
+                e["source_image"] = str(it.src.image_path)
+                e["source_label"] = str(it.src.label_path)
+                entries.append(e)
+        if cfg.format == "yolo-obb":
+            import yaml
+
+            val_dir = "images/val" if val_items else "images/train"
+            (tmp / "yolo-obb").mkdir(parents=True, exist_ok=True)
+            (tmp / "yolo-obb" / "images" / "train").mkdir(parents=True, exist_ok=True)
+            (tmp / "yolo-obb" / "data.yaml").write_text(yaml.safe_dump(
+                {"train": "images/train", "val": val_dir, "nc": len(classes),
+                 "names": dict(enumerate(classes))}, sort_keys=False), encoding="utf-8")
+        tr = [e for e in entries if e["split"] == "train"]
+        va = [e for e in entries if e["split"] == "val"]
+        n_r = sum(e["origin"] == "real" for e in tr)
+        counts = {
+            "train_real": n_r, "train_synthetic": len(tr) - n_r,
+            "real_share": (n_r / len(tr)) if tr else 0.0,
+            "val_real": sum(e["origin"] == "real" for e in va),
+            "val_synthetic": sum(e["origin"] == "synthetic" for e in va),
+            "objects": sum(e["objects"] for e in entries),
+            "clipped": sum(e["clipped"] for e in entries),
+            "copied": sum(e["file"] == "copy" for e in entries),
+        }
+        used = {}
+        for e in entries:
+            used.setdefault(e["source_image"], []).append(e["image"])
+        manifest = {
+            "format": MANIFEST_FORMAT, "version": 1,
+            "parameters": {
+                "real": str(cfg.real), "synthetic": str(cfg.synthetic), "real_fraction": cfg.real_fraction,
+                "real_images": cfg.real_images, "synthetic_images": cfg.synthetic_images,
+                "format": cfg.format, "seed": cfg.seed, "val": cfg.val, "val_fraction": cfg.val_fraction,
+                "tile": cfg.tile, "overlap": cfg.overlap, "keep_threshold": cfg.keep_threshold,
+                "gsd": cfg.gsd, "gsd_missing": cfg.gsd_missing, "classes": classes,
+            },
+            "counts": counts,
+            "sources": [{"source_image": k, "outputs": v} for k, v in used.items()],
+            "images": entries,
+        }
+        (tmp / "manifest.json").write_text(dumps_json(manifest), encoding="utf-8")
+        os.chmod(tmp, 0o777 & ~_umask())
+        if out.exists():
+            trash = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".old", dir=out.parent))
+            os.rename(out, trash / "old")
+            os.rename(tmp, out)
+            shutil.rmtree(trash, ignore_errors=True)
+        else:
+            os.rename(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return manifest
+
+
+def _umask() -> int:
+    m = os.umask(0)
+    os.umask(m)
+    return m
