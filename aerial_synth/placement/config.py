@@ -1,8 +1,14 @@
 """Scenario configuration: frozen dataclasses that map one to one onto scenario YAML files.
 
-Bundled scenarios live in ``scenes/scenarios/NAME.yaml`` (jam, normal, sparse, random).
-Every field can be overridden with dotted keys (``spacing.mean_m=12``), from Python or from
-``aerial-synth place --set KEY=VALUE``.
+Bundled scenarios live in ``scenes/scenarios/NAME.yaml``; :data:`SCENARIOS` lists them and is
+the one list every command uses. Every field can be overridden with dotted keys
+(``spacing.mean_m=12``), from Python or from ``aerial-synth place --set KEY=VALUE``.
+
+Validation lives here, in one place: :func:`parse_scenario` checks every field (type, finite,
+range) with :mod:`aerial_synth.validators` and names it in the error, prefixed by where it came
+from: ``scenarios/jam.yaml: spacing.mean_m: expected ...`` for a file,
+``--set spacing.mean_m: expected ...`` for an override. The dataclasses validate again in
+``__post_init__`` (same helpers), so a config built from Python is checked too.
 """
 
 from __future__ import annotations
@@ -14,6 +20,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .. import validators as V
 from ..errors import ConfigError, PlacementError
 from .spacing import SpacingSampler
 
@@ -25,10 +32,13 @@ __all__ = [
     "scenario_dir",
     "list_scenarios",
     "load_scenario",
+    "parse_scenario",
     "parse_overrides",
 ]
 
-SCENARIOS = ("jam", "normal", "sparse", "random")
+#: Upper bounds that keep a run finite and the geometry sane (metres unless named).
+MAX_COUNT = 10_000_000
+MAX_DISTANCE_M = 10_000.0
 
 
 def scenario_dir() -> Path:
@@ -36,20 +46,30 @@ def scenario_dir() -> Path:
 
 
 def list_scenarios() -> list[str]:
+    """Names of the bundled scenario files, sorted."""
     d = scenario_dir()
     return sorted(p.stem for p in d.glob("*.yaml")) if d.is_dir() else []
+
+
+#: The bundled scenarios (one per file in ``scenes/scenarios``): the single list that
+#: ``place``, ``render`` and ``export`` accept besides a .yaml path.
+SCENARIOS: tuple[str, ...] = tuple(list_scenarios())
+
+
+def _opt(check, name, v, **kw):
+    return None if v is None else check(name, v, **kw)
 
 
 @dataclass(frozen=True)
 class ProbeConfig:
     """Line-trace probing (thesis §3.2.2): 0.05 m steps, every 10 degrees.
 
-    step_m        : march step along a probe direction
-    directions    : number of directions around a seed point (36 = every 10 degrees)
-    max_distance_m: how far a probe marches before giving up (no edge found)
+    step_m        : march step along a probe direction, (0, 1] m
+    directions    : number of directions around a seed point (36 = every 10 degrees), 4..360
+    max_distance_m: how far a probe marches before giving up (no edge found), (0, 200] m
     side_angle_deg: the second direction of the two-direction re-probe (thesis: 10 degrees)
     refine_steps  : bisection iterations between the last road step and the first non-road
-                    step (0 = the thesis's 0.05 m resolution; 6 gives < 1 mm)
+                    step (0 = the thesis's 0.05 m resolution; 6 gives < 1 mm), 0..12
     median_max_m  : a gap of non-road narrower than this beyond an edge, followed by road,
                     marks a divided road (central median): right-hand traffic keeps the
                     median on the left, and the opposite lane is across it
@@ -69,42 +89,41 @@ class ProbeConfig:
     edge_jump_m: float = 1.5
 
     def __post_init__(self) -> None:
-        _positive("probe.step_m", self.step_m)
-        _positive("probe.edge_jump_m", self.edge_jump_m)
-        _positive("probe.max_distance_m", self.max_distance_m)
-        if int(self.directions) < 4:
-            raise ConfigError(f"probe.directions: expected an integer >= 4, got {self.directions}")
-        if not (0 < self.side_angle_deg < 90):
-            raise ConfigError(f"probe.side_angle_deg: expected in (0, 90), got {self.side_angle_deg}")
-        if self.refine_steps < 0:
-            raise ConfigError(f"probe.refine_steps: expected >= 0, got {self.refine_steps}")
-        if self.median_max_m < 0:
-            raise ConfigError(f"probe.median_max_m: expected >= 0, got {self.median_max_m}")
-        if not (0 < self.max_turn_deg <= 180):
-            raise ConfigError(f"probe.max_turn_deg: expected in (0, 180], got {self.max_turn_deg}")
+        p = "probe."
+        s = object.__setattr__
+        s(self, "step_m", V.in_range(p + "step_m", self.step_m, 0.0, 1.0, lo_open=True))
+        s(self, "directions", V.integer(p + "directions", self.directions, 4, 360))
+        s(self, "max_distance_m", V.in_range(p + "max_distance_m", self.max_distance_m, 0.0, 200.0,
+                                             lo_open=True))
+        s(self, "side_angle_deg", V.in_range(p + "side_angle_deg", self.side_angle_deg, 0.0, 90.0,
+                                             lo_open=True, hi_open=True))
+        s(self, "refine_steps", V.integer(p + "refine_steps", self.refine_steps, 0, 12))
+        s(self, "median_max_m", V.in_range(p + "median_max_m", self.median_max_m, 0.0, 100.0))
+        s(self, "max_turn_deg", V.in_range(p + "max_turn_deg", self.max_turn_deg, 0.0, 180.0,
+                                           lo_open=True))
+        s(self, "edge_jump_m", V.in_range(p + "edge_jump_m", self.edge_jump_m, 0.0, 20.0, lo_open=True))
 
 
 @dataclass(frozen=True)
 class LinesConfig:
-    """Vehicles per traffic line: N ~ Normal(mean, sd), at least ``min``."""
+    """Vehicles per traffic line: N ~ Normal(mean, sd), at least ``min``.
+
+    mean : > 0 (and at most 10 million), sd : >= 0, min : integer >= 1
+    """
 
     mean: float = 30.0
     sd: float = 8.0
     min: int = 1
 
     def __post_init__(self) -> None:
-        if self.sd < 0:
-            raise ConfigError(f"vehicles_per_line.sd: expected >= 0, got {self.sd}")
-        if self.min < 1:
-            raise ConfigError(f"vehicles_per_line.min: expected >= 1, got {self.min}")
+        p = "vehicles_per_line."
+        s = object.__setattr__
+        s(self, "mean", V.in_range(p + "mean", self.mean, 0.0, MAX_COUNT, lo_open=True))
+        s(self, "sd", V.in_range(p + "sd", self.sd, 0.0, MAX_COUNT))
+        s(self, "min", V.integer(p + "min", self.min, 1, MAX_COUNT))
 
     def sample(self, rng: np.random.Generator) -> int:
         return max(int(self.min), int(round(rng.normal(self.mean, self.sd))))
-
-
-def _positive(name: str, v: float) -> None:
-    if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
-        raise ConfigError(f"{name}: expected a positive number, got {v!r}")
 
 
 @dataclass(frozen=True)
@@ -114,15 +133,21 @@ class ScenarioConfig:
     kind              : "lines" (thesis traffic lines) or "random" (EXP2 baseline: anywhere on
                         road, uniformly random heading)
     spacing           : centre-to-centre spacing law (ignored by "random")
-    lane_offset_m     : d, distance from the road edge to the vehicle centre (half a 3.5 m lane)
+    lane_offset_m     : d, distance from the road edge to the vehicle centre (half a 3.5 m lane),
+                        (0, 50] m
     lane_offsets_m    : optional list of d values for multi-lane roads (thesis §6 future work):
                         each seeded line picks one lane, e.g. [1.75, 5.25, 8.75] for three
                         3.5 m lanes per direction; null = every line uses lane_offset_m
     traffic           : "right" (edge on the vehicle's right) or "left"
-    double_lane_probability : chance that a finished line gets an opposite lane
-    gap_m             : clearance kept between footprints (each footprint grows by gap/2)
+    double_lane_probability : chance that a finished line gets an opposite lane, [0, 1]
+    gap_m             : the clearance kept between two vehicle footprints, [0, 10] m: two
+                        bare footprints closer than gap_m are refused, gap_m apart or more are
+                        accepted (each footprint is grown by gap_m / 2 on every side for the
+                        overlap test)
     min_center_distance_m : optional thesis rule (8 m centre to centre); null = off
-    lines / vehicles  : default amount when the caller gives neither
+    lines / vehicles  : default amount when the caller gives neither (positive or null)
+    seed_batch        : random traces per batch when looking for line seeds
+    max_seed_attempts : give up seeding after this many random traces
     """
 
     name: str = "jam"
@@ -142,82 +167,237 @@ class ScenarioConfig:
     max_seed_attempts: int = 50000
 
     def __post_init__(self) -> None:
-        if self.kind not in ("lines", "random"):
-            raise ConfigError(f"scenario {self.name!r} kind: expected 'lines' or 'random', got {self.kind!r}")
+        s = object.__setattr__
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise ConfigError(f"name: expected a non-empty string, got {V.show(self.name)}")
+        V.one_of("kind", self.kind, ("lines", "random"))
+        if self.spacing is not None and not isinstance(self.spacing, SpacingSampler):
+            raise ConfigError(f"spacing: expected a spacing block, got {V.show(self.spacing)}")
         if self.kind == "lines" and self.spacing is None:
-            raise ConfigError(f"scenario {self.name!r}: a 'lines' scenario needs a spacing block")
-        if self.traffic not in ("right", "left"):
-            raise ConfigError(f"scenario {self.name!r} traffic: expected 'right' or 'left', got {self.traffic!r}")
-        _positive(f"scenario {self.name!r} lane_offset_m", self.lane_offset_m)
+            raise ConfigError("spacing: a 'lines' scenario needs a spacing block, got null")
+        if not isinstance(self.vehicles_per_line, LinesConfig):
+            raise ConfigError(f"vehicles_per_line: expected a mapping, got {V.show(self.vehicles_per_line)}")
+        if not isinstance(self.probe, ProbeConfig):
+            raise ConfigError(f"probe: expected a mapping, got {V.show(self.probe)}")
+        V.one_of("traffic", self.traffic, ("right", "left"))
+        s(self, "lane_offset_m", V.in_range("lane_offset_m", self.lane_offset_m, 0.0, 50.0, lo_open=True))
         if self.lane_offsets_m is not None:
-            offs = tuple(float(v) for v in self.lane_offsets_m) if isinstance(
-                self.lane_offsets_m, (list, tuple)) else None
-            if not offs or any(not (v > 0) for v in offs):
+            offs = V.sequence_of_numbers("lane_offsets_m", self.lane_offsets_m, positive_only=True)
+            if not offs or max(offs) > 50.0:
                 raise ConfigError(
-                    f"scenario {self.name!r} lane_offsets_m: expected a non-empty list of positive "
-                    f"distances or null, got {self.lane_offsets_m!r}")
-            object.__setattr__(self, "lane_offsets_m", offs)
-        if self.gap_m < 0:
-            raise ConfigError(f"scenario {self.name!r} gap_m: expected >= 0, got {self.gap_m}")
-        if not (0 <= self.double_lane_probability <= 1):
-            raise ConfigError(
-                f"scenario {self.name!r} double_lane_probability: expected in [0, 1], got "
-                f"{self.double_lane_probability}"
-            )
-        if self.min_center_distance_m is not None and self.min_center_distance_m < 0:
-            raise ConfigError(f"scenario {self.name!r} min_center_distance_m: expected >= 0 or null")
+                    f"lane_offsets_m: expected a non-empty list of distances in (0, 50] m or null, "
+                    f"got {V.show(self.lane_offsets_m)}")
+            s(self, "lane_offsets_m", offs)
+        s(self, "double_lane_probability",
+          V.probability("double_lane_probability", self.double_lane_probability))
+        s(self, "gap_m", V.in_range("gap_m", self.gap_m, 0.0, 10.0))
+        s(self, "min_center_distance_m",
+          _opt(V.in_range, "min_center_distance_m", self.min_center_distance_m, lo=0.0, hi=100.0))
         for k in ("lines", "vehicles"):
-            v = getattr(self, k)
-            if v is not None and (not isinstance(v, int) or v < 1):
-                raise ConfigError(f"scenario {self.name!r} {k}: expected a positive integer or null, got {v!r}")
+            s(self, k, _opt(V.integer, k, getattr(self, k), lo=1, hi=MAX_COUNT))
+        s(self, "seed_batch", V.integer("seed_batch", self.seed_batch, 1, 1_000_000))
+        s(self, "max_seed_attempts", V.integer("max_seed_attempts", self.max_seed_attempts, 1, 10**9))
 
     def to_dict(self) -> dict:
         d = asdict(self)
         d["spacing"] = self.spacing.to_dict() if self.spacing is not None else None
+        if d["lane_offsets_m"] is not None:
+            d["lane_offsets_m"] = list(d["lane_offsets_m"])
         return d
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any], source: str = "<mapping>") -> "ScenarioConfig":
-        data = dict(data)
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(data) - known)
-        if unknown:
-            raise ConfigError(f"{source}: unknown scenario field(s) {unknown}; expected {sorted(known)}")
-        try:
-            sp = data.get("spacing")
-            if sp is not None:
-                sp = dict(sp)
-                sp.pop("distribution", None)
-                sp.pop("solved_loc_m", None)
-                sp.pop("solved_scale_m", None)
-                data["spacing"] = SpacingSampler(**sp)
-            if "vehicles_per_line" in data and data["vehicles_per_line"] is not None:
-                data["vehicles_per_line"] = LinesConfig(**data["vehicles_per_line"])
-            if "probe" in data and data["probe"] is not None:
-                data["probe"] = ProbeConfig(**data["probe"])
-            return cls(**data)
-        except TypeError as exc:
-            raise ConfigError(f"{source}: {exc}") from None
+        """Build from a mapping (a scenario YAML's content); errors start with ``source: ``."""
+        return parse_scenario(data, _Labels(source))
 
 
-def parse_overrides(items: list[str] | None) -> dict:
-    """Turn ["spacing.mean_m=12", "traffic=left"] into a nested dict (values parsed as YAML)."""
+# ------------------------------------------------------------------------------- parsing
+
+
+_SPACING_KEYS = tuple(f.name for f in fields(SpacingSampler))
+_SPACING_OUTPUT_ONLY = ("distribution", "solved_loc_m", "solved_scale_m")  # from to_dict()
+_LINES_KEYS = tuple(f.name for f in fields(LinesConfig))
+_PROBE_KEYS = tuple(f.name for f in fields(ProbeConfig))
+_SCENARIO_KEYS = tuple(f.name for f in fields(ScenarioConfig))
+
+
+class _Labels:
+    """Names a field for an error: ``--set spacing.mean_m`` when an override set it (or a key
+    below it), else ``<source>: spacing.mean_m``."""
+
+    def __init__(self, source: str, overridden: set[str] | None = None, override_label: str = "--set"):
+        self.source = source
+        self.overridden = overridden or set()
+        self.override_label = override_label
+
+    def __call__(self, path: str) -> str:
+        if path in self.overridden:
+            return f"{self.override_label} {path}"
+        return f"{self.source}: {path}"
+
+    def wrap(self, path: str, exc: ConfigError) -> ConfigError:
+        """Re-label an error raised by a dataclass (whose message starts with the bare field)."""
+        msg = str(exc)
+        head = msg.split(":", 1)[0]
+        label = self(head) if head.startswith(path) else self(path) + ":"
+        if head.startswith(path):
+            return ConfigError(label + msg[len(head):])
+        return ConfigError(f"{label} {msg}")
+
+
+def _block(labels: _Labels, path: str, value: Any, keys: tuple[str, ...],
+           tolerated: tuple[str, ...] = ()) -> dict:
+    if not isinstance(value, Mapping):
+        if not path:
+            raise ConfigError(f"{labels.source}: expected a mapping of scenario fields, "
+                              f"got {V.show(value)}")
+        V.mapping(labels(path), value)
+    bad = [k for k in value if not isinstance(k, str)]
+    if bad:
+        where = labels(path) if path else labels.source
+        raise ConfigError(f"{where}: keys must be names, got {V.show(bad[0])}")
+    unknown = sorted(k for k in value if k not in keys and k not in tolerated)
+    if unknown:
+        raise ConfigError(f"{labels(path + '.' + unknown[0]) if path else labels(unknown[0])}: "
+                          f"unknown key; expected one of {', '.join(keys)}")
+    return {k: v for k, v in value.items() if k in keys}
+
+
+def _checked(labels: _Labels, prefix: str, data: dict, checks: dict) -> dict:
+    """Apply one validator per key; the error names the key through ``labels``."""
+    out = {}
+    for k, v in data.items():
+        check = checks[k]
+        out[k] = check(labels(prefix + k), v)
+    return out
+
+
+def _num(lo=None, hi=None, lo_open=False, hi_open=False, nullable=False):
+    def check(name, v):
+        if v is None and nullable:
+            return None
+        return V.in_range(name, v, lo, hi, lo_open=lo_open, hi_open=hi_open)
+    return check
+
+
+def _int(lo=None, hi=None, nullable=False):
+    def check(name, v):
+        if v is None and nullable:
+            return None
+        return V.integer(name, v, lo, hi)
+    return check
+
+
+_SPACING_CHECKS = {
+    "skewness": _num(-1000.0, 1000.0),
+    "mean_m": _num(0.0, MAX_DISTANCE_M, lo_open=True),
+    "sd_m": _num(0.0, MAX_DISTANCE_M, lo_open=True),
+    "min_m": _num(0.0, MAX_DISTANCE_M),
+    "max_m": _num(0.0, MAX_DISTANCE_M, lo_open=True),
+    "floor_m": _num(0.0, MAX_DISTANCE_M, nullable=True),
+}
+
+
+def parse_scenario(data: Any, labels: _Labels) -> ScenarioConfig:
+    """Validate a scenario mapping field by field and build the :class:`ScenarioConfig`.
+
+    Raises :class:`ConfigError` with one line naming the field (see :class:`_Labels`).
+    """
+    top = _block(labels, "", data, _SCENARIO_KEYS)
+    kw: dict[str, Any] = {}
+    for k, v in top.items():
+        name = labels(k)
+        if k == "spacing":
+            if v is None:
+                kw[k] = None
+                continue
+            sp = _block(labels, "spacing", v, _SPACING_KEYS, _SPACING_OUTPUT_ONLY)
+            missing = [f for f in _SPACING_KEYS if f not in sp and f != "floor_m"]
+            if missing:
+                raise ConfigError(f"{labels('spacing.' + missing[0])}: missing; the spacing block "
+                                  f"needs {', '.join(f for f in _SPACING_KEYS if f != 'floor_m')}")
+            sp = _checked(labels, "spacing.", sp, _SPACING_CHECKS)
+            try:
+                kw[k] = SpacingSampler(**sp)
+            except ConfigError as exc:
+                raise labels.wrap("spacing", exc) from None
+        elif k == "vehicles_per_line":
+            vl = _block(labels, k, {} if v is None else v, _LINES_KEYS)
+            try:
+                kw[k] = LinesConfig(**vl)
+            except ConfigError as exc:
+                raise labels.wrap(k, exc) from None
+        elif k == "probe":
+            pr = _block(labels, k, {} if v is None else v, _PROBE_KEYS)
+            try:
+                kw[k] = ProbeConfig(**pr)
+            except ConfigError as exc:
+                raise labels.wrap(k, exc) from None
+        elif k == "name":
+            if not isinstance(v, (str, int, float)) or isinstance(v, bool) or str(v).strip() == "":
+                raise ConfigError(f"{name}: expected a non-empty string, got {V.show(v)}")
+            kw[k] = str(v)
+        elif k == "lane_offsets_m" and v is not None:
+            offs = V.sequence_of_numbers(name, v, positive_only=True)
+            if not offs or max(offs) > 50.0:
+                raise ConfigError(f"{name}: expected a non-empty list of distances in (0, 50] m or "
+                                  f"null, got {V.show(v)}")
+            kw[k] = offs
+        else:
+            kw[k] = v
+    try:
+        return ScenarioConfig(**kw)
+    except ConfigError as exc:
+        msg = str(exc)
+        head = msg.split(":", 1)[0]
+        if head in _SCENARIO_KEYS:
+            raise ConfigError(labels(head) + msg[len(head):]) from None
+        raise ConfigError(f"{labels.source}: {msg}") from None
+
+
+def parse_overrides(items: list[str] | None, option: str = "--set") -> dict:
+    """Turn ["spacing.mean_m=12", "traffic=left"] into a nested dict (values parsed as YAML).
+
+    Keys are dotted names (letters, digits, underscores); a later item wins over an earlier
+    one. A malformed item raises :class:`ConfigError` naming it.
+    """
     import yaml
 
     out: dict = {}
     for item in items or []:
-        if "=" not in item:
-            raise ConfigError(f"--set {item!r}: expected KEY=VALUE, e.g. spacing.mean_m=12")
+        if not isinstance(item, str) or "=" not in item:
+            raise ConfigError(f"{option} {V.show(item)}: expected KEY=VALUE, e.g. spacing.mean_m=12")
         key, _, raw = item.partition("=")
-        try:
-            val = yaml.safe_load(raw)
-        except yaml.YAMLError:
-            val = raw
-        node = out
         parts = key.strip().split(".")
+        if not all(p.isidentifier() and p.isascii() for p in parts):
+            raise ConfigError(f"{option} {V.show(item)}: expected KEY=VALUE with a dotted key such as "
+                              f"spacing.mean_m, got key {V.show(key)}")
+        if "\n" in raw or "\r" in raw:
+            val: Any = raw
+        else:
+            try:
+                val = yaml.safe_load(raw)
+            except yaml.YAMLError:
+                val = raw
+            except (ValueError, TypeError, OverflowError, RecursionError):
+                val = raw
+        node = out
         for p in parts[:-1]:
-            node = node.setdefault(p, {})
+            if not isinstance(node.get(p), dict):
+                node[p] = {}
+            node = node[p]
         node[parts[-1]] = val
+    return out
+
+
+def _leaf_paths(d: Mapping, prefix: str = "") -> set[str]:
+    """Every dotted path of ``d`` (leaves and the blocks above them)."""
+    out = set()
+    for k, v in d.items():
+        p = f"{prefix}{k}"
+        out.add(p)
+        if isinstance(v, Mapping):
+            out |= _leaf_paths(v, p + ".")
     return out
 
 
@@ -227,20 +407,34 @@ def _deep_merge(base: dict, over: Mapping) -> dict:
         if isinstance(v, Mapping) and isinstance(out.get(k), Mapping):
             out[k] = _deep_merge(dict(out[k]), v)
         else:
-            out[k] = v
+            out[k] = copy.deepcopy(v)
     return out
 
 
-def load_scenario(name_or_path: str | ScenarioConfig, overrides: Mapping | None = None) -> ScenarioConfig:
-    """Load a bundled scenario by name or a scenario YAML file, then apply overrides."""
+def _bundled_label(p: Path) -> str:
+    return f"scenarios/{p.name}" if p.parent == scenario_dir() else str(p)
+
+
+def load_scenario(name_or_path: str | ScenarioConfig, overrides: Mapping | None = None,
+                  override_label: str = "--set") -> ScenarioConfig:
+    """Load a bundled scenario by name or a scenario YAML file, then apply overrides.
+
+    Errors name the file and field (``scenarios/jam.yaml: spacing.mean_m: ...``), or the
+    override (``--set spacing.mean_m: ...``; ``override_label`` replaces ``--set``).
+    """
     import yaml
 
+    if overrides is not None and not isinstance(overrides, Mapping):
+        raise ConfigError(f"overrides: expected a mapping of key: value, got {V.show(overrides)}")
     if isinstance(name_or_path, ScenarioConfig):
         if not overrides:
             return name_or_path
         base = name_or_path.to_dict()
         source = f"scenario {name_or_path.name!r}"
     else:
+        if not isinstance(name_or_path, (str, Path)) or str(name_or_path).strip() == "":
+            raise PlacementError(f"--scenario: expected one of {', '.join(SCENARIOS)} or a .yaml file, "
+                                 f"got {V.show(name_or_path)}")
         p = Path(str(name_or_path))
         if p.suffix.lower() in (".yaml", ".yml"):
             if not p.is_file():
@@ -248,18 +442,37 @@ def load_scenario(name_or_path: str | ScenarioConfig, overrides: Mapping | None 
             source = str(p)
         else:
             p = scenario_dir() / f"{name_or_path}.yaml"
-            if not p.is_file():
+            if str(name_or_path) not in SCENARIOS or not p.is_file():
                 raise PlacementError(
-                    f"unknown scenario {name_or_path!r}: expected one of {', '.join(list_scenarios())} "
+                    f"unknown scenario {str(name_or_path)!r}: expected one of {', '.join(SCENARIOS)} "
                     f"or a .yaml file"
                 )
-            source = str(p)
+            source = _bundled_label(p)
         try:
-            base = yaml.safe_load(p.read_text()) or {}
+            text = p.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ConfigError(f"{source}: cannot read it ({getattr(exc, 'strerror', None) or exc})") from None
+        try:
+            base = yaml.safe_load(text)
         except yaml.YAMLError as exc:
-            raise ConfigError(f"{p}: broken YAML ({str(exc).splitlines()[0]})") from None
+            raise ConfigError(f"{source}: broken YAML ({' '.join(str(exc).split())})") from None
+        except (ValueError, TypeError, OverflowError, RecursionError) as exc:
+            raise ConfigError(f"{source}: broken YAML ({type(exc).__name__})") from None
+        if base is None:
+            base = {}
         if not isinstance(base, dict):
-            raise ConfigError(f"{p}: expected a mapping at the top level, got {type(base).__name__}")
+            raise ConfigError(f"{source}: expected a mapping at the top level, got {type(base).__name__}")
         base.setdefault("name", p.stem)
-    merged = _deep_merge(base, overrides or {})
-    return ScenarioConfig.from_mapping(merged, source=source)
+    over = dict(overrides or {})
+    merged = _deep_merge(base, over)
+    labels = _Labels(source, _leaf_paths(over), override_label)
+    return parse_scenario(merged, labels)
+
+
+def describe_keys() -> str:
+    """Every key ``--set`` accepts, for help texts."""
+    keys = []
+    for k in _SCENARIO_KEYS:
+        sub = {"spacing": _SPACING_KEYS, "vehicles_per_line": _LINES_KEYS, "probe": _PROBE_KEYS}.get(k)
+        keys += [f"{k}.{s}" for s in sub] if sub else [k]
+    return ", ".join(keys)

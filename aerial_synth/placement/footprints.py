@@ -9,11 +9,57 @@ import numpy as np
 from ..scene.model import LABEL_IDS
 from .model import Placement, footprint_corners_xy
 
-__all__ = ["FootprintIndex", "ValidationReport", "validate_placement"]
+__all__ = ["FootprintIndex", "ValidationReport", "validate_placement", "footprint_samples", "drivable_area"]
+
+
+#: Distance tolerance of the gap rule (metres): footprints exactly gap_m apart are accepted.
+GAP_TOL_M = 1e-6
+#: Default spacing of the traced samples along a footprint's edges and inside it (metres).
+EDGE_STEP_M = 0.25
+INNER_STEP_M = 1.0
+
+
+def footprint_samples(x, y, heading, length, width, edge_step_m: float = EDGE_STEP_M,
+                      inner_step_m: float = INNER_STEP_M) -> np.ndarray:
+    """Points that stand for the whole footprint of each of n vehicles: (n, k, 2), metres.
+
+    Order: the 4 corners (front-left, front-right, rear-right, rear-left), the centre, the 4
+    edge midpoints, then points along every edge no more than ``edge_step_m`` apart, then an
+    inner grid no more than ``inner_step_m`` apart. A kerb or a building corner that cuts
+    into a footprint crosses its edge, so it meets an edge sample once it reaches more than
+    ``edge_step_m`` / 2 along the edge; the inner grid catches posts and trunks inside.
+    The counts follow the longest/widest vehicle of the batch so the array is regular.
+    """
+    x, y, h, ln, w = (np.atleast_1d(np.asarray(a, dtype=np.float64)) for a in (x, y, heading, length, width))
+    x, y, h, ln, w = np.broadcast_arrays(x, y, h, ln, w)
+    n = len(x)
+    if n == 0:
+        return np.zeros((0, 9, 2))
+    kl = max(2, int(np.ceil(float(ln.max()) / edge_step_m)))
+    kw = max(2, int(np.ceil(float(w.max()) / edge_step_m)))
+    tl = np.arange(1, kl) / kl - 0.5  # interior points of a long edge, as a fraction
+    tw = np.arange(1, kw) / kw - 0.5
+    u = [0.5, 0.5, -0.5, -0.5, 0.0, 0.5, 0.0, -0.5, 0.0]  # corners, centre, edge midpoints
+    v = [0.5, -0.5, -0.5, 0.5, 0.0, 0.0, -0.5, 0.0, 0.5]
+    u += list(tl) + list(tl) + [0.5] * len(tw) + [-0.5] * len(tw)
+    v += [0.5] * len(tl) + [-0.5] * len(tl) + list(tw) + list(tw)
+    il = max(1, int(np.ceil(float(ln.max()) / inner_step_m)))
+    iw = max(1, int(np.ceil(float(w.max()) / inner_step_m)))
+    gu, gv = np.meshgrid((np.arange(il) + 0.5) / il - 0.5, (np.arange(iw) + 0.5) / iw - 0.5, indexing="ij")
+    u = np.concatenate([u, gu.ravel()])
+    v = np.concatenate([v, gv.ravel()])
+    lx = u[None, :] * ln[:, None]
+    ly = v[None, :] * w[:, None]
+    c, s = np.cos(h)[:, None], np.sin(h)[:, None]
+    return np.stack([x[:, None] + c * lx - s * ly, y[:, None] + s * lx + c * ly], axis=-1)
 
 
 class FootprintIndex:
-    """Placed footprints (rotated rectangles grown by gap/2 each side) for overlap checks.
+    """Placed footprints (bare rotated rectangles) for the clearance and overlap checks.
+
+    A new footprint collides when it comes closer than ``gap_m`` to a placed one (the
+    clearance between two footprints is gap_m: exactly gap_m apart is accepted, within a
+    1 µm tolerance), or, with ``gap_m`` = 0, when their interiors overlap (touching is fine).
 
     shapely's STRtree is immutable, so new footprints go to a short list that is checked
     directly and folded into a rebuilt tree every ``rebuild_every`` insertions.
@@ -32,10 +78,10 @@ class FootprintIndex:
         return len(self._polys)
 
     def polygon(self, x, y, heading, length, width):
+        """The bare footprint (no gap added): the gap is a distance between footprints."""
         import shapely
 
-        c = footprint_corners_xy(x, y, heading, length + self.gap_m, width + self.gap_m)
-        return shapely.Polygon(c)
+        return shapely.Polygon(footprint_corners_xy(x, y, heading, length, width))
 
     def point_zone(self, xy, radius_m: float = 2.0):
         """A disc around a seed point: seeds this close to a placed vehicle are skipped."""
@@ -43,13 +89,28 @@ class FootprintIndex:
 
         return shapely.Point(float(xy[0]), float(xy[1])).buffer(radius_m, quad_segs=4)
 
-    def collides(self, poly, center_xy=None) -> bool:
+    def _close(self, others, poly) -> bool:
+        """Does any of ``others`` (array of polygons) come closer to ``poly`` than the gap?"""
         import shapely
 
-        if self._tree is not None and len(self._tree.query(poly, predicate="intersects")):
-            return True
+        d = self.gap_m - GAP_TOL_M
+        if d > 0:
+            return bool(np.any(shapely.dwithin(others, poly, d)))
+        hit = others[shapely.intersects(others, poly)]
+        return bool(len(hit)) and bool(np.any(shapely.area(shapely.intersection(hit, poly)) > 1e-9))
+
+    def collides(self, poly, center_xy=None) -> bool:
+        d = self.gap_m - GAP_TOL_M
+        if self._tree is not None:
+            if d > 0:
+                if len(self._tree.query(poly, predicate="dwithin", distance=d)):
+                    return True
+            else:
+                idx = self._tree.query(poly, predicate="intersects")
+                if len(idx) and self._close(np.asarray(self._tree.geometries)[idx], poly):
+                    return True
         recent = self._polys[self._tree_n :]
-        if recent and bool(np.any(shapely.intersects(np.array(recent, dtype=object), poly))):
+        if recent and self._close(np.array(recent, dtype=object), poly):
             return True
         if self.min_center and center_xy is not None and self._centers:
             c = np.asarray(self._centers)
@@ -72,20 +133,35 @@ class FootprintIndex:
 class ValidationReport:
     """What the validator found for one placement.
 
-    on_road_fraction : (n,) fraction of each footprint's sample points on drivable labels
+    footprint_ok     : (n,) bool, the whole footprint is on drivable surface: every traced
+                       sample of :func:`footprint_samples` (corners, edge midpoints, centre,
+                       edges every 0.25 m, an inner grid) hits a drivable label, and, where the
+                       scene has truth, the footprint polygon lies inside the drivable area
+    footprint_drivable : fraction of vehicles with footprint_ok (the figure to watch: 1.0)
+    on_road_fraction : (n,) fraction of each footprint's traced samples on drivable labels
+    area_drivable    : (n,) fraction of each footprint's area inside the truth's drivable area
+                       (nan without truth)
     corners_drivable : fraction of all footprint corners (and centres) on drivable labels
     overlaps         : number of vehicle pairs whose bare footprints intersect
+    gap_violations   : number of pairs closer than the placement's gap_m (0 when unknown)
     heading_error_deg: (n,) against the true road direction (nan where the scene knows none)
     lateral_offset_m : (n,) distance from the centre to the nearest road edge (truth if
-                       known, else probed)
+                       known, else nan)
     """
 
     n: int
+    footprint_ok: np.ndarray
     on_road_fraction: np.ndarray
+    area_drivable: np.ndarray
     corners_drivable: float
     overlaps: int
+    gap_violations: int
     heading_error_deg: np.ndarray
     lateral_offset_m: np.ndarray
+
+    @property
+    def footprint_drivable(self) -> float:
+        return float(self.footprint_ok.mean()) if self.n else 1.0
 
     def summary(self) -> dict:
         def stats(a):
@@ -99,15 +175,36 @@ class ValidationReport:
                 "mean": round(float(a.mean()), 4),
             }
 
+        area = self.area_drivable[np.isfinite(self.area_drivable)]
         return {
             "vehicles": self.n,
+            "footprint_drivable": round(self.footprint_drivable, 6),
+            "footprint_off_drivable": int((~self.footprint_ok).sum()),
             "footprint_on_road_min": round(float(self.on_road_fraction.min()), 4) if self.n else None,
             "footprint_on_road_mean": round(float(self.on_road_fraction.mean()), 4) if self.n else None,
+            "footprint_area_drivable_min": round(float(area.min()), 6) if len(area) else None,
             "corners_drivable": round(self.corners_drivable, 6),
             "overlaps": self.overlaps,
+            "gap_violations": self.gap_violations,
             "heading_error_deg": stats(self.heading_error_deg),
             "lateral_offset_m": stats(self.lateral_offset_m),
         }
+
+
+def drivable_area(truth, label_config):
+    """The truth's drivable area (road, plus parking where parking is drivable), or None."""
+    import shapely
+
+    if truth is None or truth.road_area is None:
+        return None
+    parts = []
+    if label_config.drivable & {"road", "lane_marking"}:
+        parts.append(truth.road_area)
+    if "parking" in label_config.drivable and getattr(truth, "parking_area", None) is not None:
+        parts.append(truth.parking_area)
+    if not parts:
+        return None
+    return shapely.union_all(parts)
 
 
 def _heading_errors(truth, x, y, h, traffic: str) -> np.ndarray:
@@ -144,8 +241,13 @@ def _heading_errors(truth, x, y, h, traffic: str) -> np.ndarray:
 
 
 def validate_placement(rayscene, placement: Placement, truth=None, traffic: str = "right",
-                       grid: tuple[int, int] = (8, 4)) -> ValidationReport:
+                       edge_step_m: float = EDGE_STEP_M, area_tol_m: float = 0.01) -> ValidationReport:
     """Check a placement against the scene (traces) and, where known, the scene's truth.
+
+    A vehicle's footprint is on drivable surface when every one of its traced samples
+    (:func:`footprint_samples`) hits a drivable label and, with truth, its polygon lies
+    inside the truth's drivable area grown by ``area_tol_m`` (mesh and polygon agree to
+    far less than that).
 
     Heading error is measured against the true centre line's tangent, taking the driving
     side into account: on a two-way road a right-hand vehicle must drive along the tangent
@@ -159,7 +261,7 @@ def validate_placement(rayscene, placement: Placement, truth=None, traffic: str 
     n = len(vs)
     if n == 0:
         e = np.zeros(0)
-        return ValidationReport(0, e, 1.0, 0, e, e)
+        return ValidationReport(0, np.zeros(0, bool), e, e, 1.0, 0, 0, e, e)
     x = np.array([v.x_m for v in vs])
     y = np.array([v.y_m for v in vs])
     h = np.array([v.heading_rad for v in vs])
@@ -167,26 +269,23 @@ def validate_placement(rayscene, placement: Placement, truth=None, traffic: str 
     W = np.array([v.width_m for v in vs])
     drv = np.array(sorted(LABEL_IDS[s] for s in rayscene.label_config.drivable))
 
-    # sample grid inside each footprint (cell centres)
-    gi, gj = grid
-    u = (np.arange(gi) + 0.5) / gi - 0.5
-    w = (np.arange(gj) + 0.5) / gj - 0.5
-    uu, ww = np.meshgrid(u, w, indexing="ij")
-    lx = uu.ravel()[None, :] * L[:, None]
-    ly = ww.ravel()[None, :] * W[:, None]
-    c, s = np.cos(h)[:, None], np.sin(h)[:, None]
-    px = x[:, None] + c * lx - s * ly
-    py = y[:, None] + s * lx + c * ly
-    tr = rayscene.trace_down(np.stack([px.ravel(), py.ravel()], axis=1))
-    on = np.isin(tr.label_id, drv).reshape(n, -1)
+    pts = footprint_samples(x, y, h, L, W, edge_step_m=edge_step_m)  # (n, k, 2)
+    k = pts.shape[1]
+    tr = rayscene.trace_down(pts.reshape(-1, 2))
+    on = np.isin(tr.label_id, drv).reshape(n, k)
     on_frac = on.mean(axis=1)
+    corners_ok = float(on[:, :5].mean())  # 4 corners and the centre
+    ok = on.all(axis=1)
 
     corners = footprint_corners_xy(x, y, h, L, W)  # (n, 4, 2)
-    pts = np.concatenate([corners.reshape(-1, 2), np.stack([x, y], 1)])
-    tc = rayscene.trace_down(pts)
-    corners_ok = float(np.isin(tc.label_id, drv).mean())
-
     polys = shapely.polygons(corners)
+    area_frac = np.full(n, np.nan)
+    area = drivable_area(truth, rayscene.label_config)
+    if area is not None:
+        inside = shapely.area(shapely.intersection(polys, area)) / shapely.area(polys)
+        area_frac = np.asarray(inside, dtype=float)
+        ok &= shapely.within(polys, shapely.buffer(area, area_tol_m))
+
     tree = shapely.STRtree(polys)
     a, b = tree.query(polys, predicate="intersects")
     pairs = a < b
@@ -194,6 +293,11 @@ def validate_placement(rayscene, placement: Placement, truth=None, traffic: str 
     if pairs.any():
         inter = shapely.area(shapely.intersection(polys[a[pairs]], polys[b[pairs]]))
         overlaps = int((inter > 1e-6).sum())
+    gap = placement.parameters.get("gap_m") if isinstance(placement.parameters, dict) else None
+    gap_viol = 0
+    if isinstance(gap, (int, float)) and gap - GAP_TOL_M > 0:
+        a, b = tree.query(polys, predicate="dwithin", distance=float(gap) - GAP_TOL_M)
+        gap_viol = int((a < b).sum())
 
     herr = np.full(n, np.nan)
     lat = np.full(n, np.nan)
@@ -202,9 +306,12 @@ def validate_placement(rayscene, placement: Placement, truth=None, traffic: str 
         lat = shapely.distance(shapely.points(np.stack([x, y], 1)), truth.road_area.boundary)
     return ValidationReport(
         n=n,
+        footprint_ok=ok,
         on_road_fraction=on_frac,
+        area_drivable=area_frac,
         corners_drivable=corners_ok,
         overlaps=overlaps,
+        gap_violations=gap_viol,
         heading_error_deg=herr,
         lateral_offset_m=np.asarray(lat, dtype=float),
     )

@@ -15,7 +15,11 @@ class PlacedVehicle:
     """One placed vehicle.
 
     id          : instance id >= 1 (the renderer's instance buffer uses the same ids)
-    x_m, y_m, z_m : footprint centre on the ground, metres, world frame (z up)
+    x_m, y_m, z_m : footprint centre on the ground, metres, the scene's local frame (z up),
+                  where ray casting and rendering happen
+    x_orig_m, y_orig_m, z_orig_m : the same point in the scene file's original frame
+                  (``Scene.to_original``: local + the scene's float64 origin; in the CRS
+                  named by the placement's georeference when there is one); nan if unknown
     heading_rad : 0 = +x (east), counter-clockwise, in [0, 2 pi)
     line_id     : traffic line (-1 for the random scenario)
     lane        : 0 = the line's own lane, 1 = the opposite lane of a double lane
@@ -38,6 +42,9 @@ class PlacedVehicle:
     lane: int = 0
     direction: str = "forward"
     spacing_m: float = float("nan")
+    x_orig_m: float = float("nan")
+    y_orig_m: float = float("nan")
+    z_orig_m: float = float("nan")
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -50,15 +57,22 @@ class PlacedVehicle:
     def from_dict(cls, d: dict) -> "PlacedVehicle":
         names = {f.name for f in fields(cls)}
         kw = {k: v for k, v in d.items() if k in names}
-        if kw.get("spacing_m") is None:
-            kw["spacing_m"] = float("nan")
+        for k in ("spacing_m", "x_orig_m", "y_orig_m", "z_orig_m"):
+            if kw.get(k) is None:
+                kw[k] = float("nan")
         return cls(**kw)
 
     def corners_xy(self, gap_m: float = 0.0) -> np.ndarray:
-        """(4, 2) footprint corners, metres, world: front-left, front-right, rear-right,
-        rear-left, of the rectangle grown by ``gap_m`` on every side."""
+        """(4, 2) footprint corners, metres, scene (local) frame: front-left, front-right,
+        rear-right, rear-left.
+
+        ``gap_m`` has the meaning of the scenario's ``gap_m``, the clearance between two
+        footprints: the rectangle is grown by ``gap_m / 2`` on every side, so the grown
+        rectangles of two vehicles are disjoint exactly when their bare footprints are at
+        least ``gap_m`` apart. A negative value shrinks the rectangle the same way.
+        """
         return footprint_corners_xy(
-            self.x_m, self.y_m, self.heading_rad, self.length_m + 2 * gap_m, self.width_m + 2 * gap_m
+            self.x_m, self.y_m, self.heading_rad, self.length_m + gap_m, self.width_m + gap_m
         )
 
 
@@ -79,7 +93,11 @@ def footprint_corners_xy(x, y, heading_rad, length_m, width_m) -> np.ndarray:
 
 @dataclass
 class Placement:
-    """A placement: scene, scenario, parameters, seed and the vehicles."""
+    """A placement: scene, scenario, parameters, seed and the vehicles.
+
+    georeference : ``Scene.georeference()`` of the scene it was placed on: ``{"origin":
+                   [x, y, z], "crs": str|None}``, original = local + origin (None if unknown)
+    """
 
     scene: str
     scenario: str
@@ -87,6 +105,7 @@ class Placement:
     parameters: dict = field(default_factory=dict)
     vehicles: list[PlacedVehicle] = field(default_factory=list)
     stats: dict = field(default_factory=dict)
+    georeference: dict | None = None
     #: wall-clock figures of the run that made it; never serialised (they differ per run)
     timing: dict = field(default_factory=dict, compare=False)
 
@@ -97,6 +116,7 @@ class Placement:
             "seed": self.seed,
             "parameters": self.parameters,
             "stats": self.stats,
+            "georeference": self.georeference,
             "vehicles": [v.to_dict() for v in self.vehicles],
         }
 
@@ -111,6 +131,7 @@ class Placement:
             seed=d.get("seed"),
             parameters=d.get("parameters", {}),
             stats=d.get("stats", {}),
+            georeference=d.get("georeference"),
             vehicles=[PlacedVehicle.from_dict(v) for v in d.get("vehicles", [])],
         )
 

@@ -21,9 +21,9 @@ import numpy as np
 
 from ..errors import PlacementError
 from .config import ScenarioConfig, load_scenario
-from .footprints import FootprintIndex
+from .footprints import FootprintIndex, footprint_samples
 from .linetrace import Prober, unit
-from .model import PlacedVehicle, Placement, footprint_corners_xy
+from .model import PlacedVehicle, Placement
 
 __all__ = ["place", "PlacementWarning"]
 
@@ -168,17 +168,20 @@ class _Engine:
         c.reason[bad] = "junction"
 
     def check_footprints(self, c: _Cand, L: np.ndarray, W: np.ndarray) -> np.ndarray:
-        """Corners and centre must trace (through ignorable vegetation only) to drivable
-        labels. Returns z of the centre hit; marks failures in c.ok / c.reason."""
+        """The whole footprint must trace (through ignorable vegetation only) to drivable
+        labels: corners, centre, edge midpoints, the edges every 0.25 m and an inner grid
+        (:func:`.footprints.footprint_samples`), so a kerb or a building corner that cuts
+        into the body between the corners refuses the vehicle. Returns z of the centre hit;
+        marks failures in c.ok / c.reason."""
         sel = np.flatnonzero(c.ok)
         z = np.full(len(c.ok), np.nan)
         if not len(sel):
             return z
-        corners = footprint_corners_xy(c.x[sel], c.y[sel], c.heading[sel], L[sel], W[sel])
-        pts = np.concatenate([corners, np.stack([c.x[sel], c.y[sel]], 1)[:, None, :]], axis=1)
+        pts = footprint_samples(c.x[sel], c.y[sel], c.heading[sel], L[sel], W[sel])
+        k = pts.shape[1]
         tr = self.prober.trace(pts.reshape(-1, 2))
-        good = np.isin(tr.label_id, self.drivable_ids).reshape(len(sel), 5).all(axis=1)
-        z[sel] = tr.z.reshape(len(sel), 5)[:, 4]
+        good = np.isin(tr.label_id, self.drivable_ids).reshape(len(sel), k).all(axis=1)
+        z[sel] = tr.z.reshape(len(sel), k)[:, 4]  # sample 4 is the centre
         bad = sel[~good]
         c.ok[bad] = False
         c.reason[bad] = "off_road"
@@ -216,12 +219,18 @@ class _Engine:
             lane=line.lane if line is not None else 0,
             direction=("forward" if line.lane == 0 else "opposite") if line is not None else "random",
             spacing_m=float(spacing),
+            **self._original(float(c.x[i]), float(c.y[i]), float(z)),
         )
         self.vehicles.append(pv)
         if line is not None:
             line.placed.append(len(self.vehicles) - 1)
             line.x, line.y, line.heading = pv.x_m, pv.y_m, pv.heading_rad
         return pv
+
+    def _original(self, x: float, y: float, z: float) -> dict:
+        """The vehicle's position in the scene's original frame (``Scene.to_original``)."""
+        o = self.rs.scene.to_original(np.array([x, y, z], dtype=np.float64))
+        return {"x_orig_m": float(o[0]), "y_orig_m": float(o[1]), "z_orig_m": float(o[2])}
 
     def full(self) -> bool:
         return self.limit is not None and len(self.vehicles) >= self.limit
@@ -550,6 +559,7 @@ def place(
         vehicles=eng.vehicles,
         stats=stats,
         timing=timing,
+        georeference=rayscene.scene.georeference(),
     )
     if asked is not None and len(eng.vehicles) < asked:
         msg = (f"the roads of {placement.scene!r} held {len(eng.vehicles)} of the {asked} vehicles asked "

@@ -56,7 +56,8 @@ def register(sub) -> None:
     )
     add_scene_args(p)
     p.add_argument("--scenario", default="jam", metavar="NAME|FILE",
-                   help="traffic scenario: jam, normal, sparse, random or a YAML file (jam)")
+                   help="traffic scenario: a bundled name (listed by 'aerial-synth place --help') "
+                   "or a YAML file (jam)")
     p.add_argument("--vehicles", type=int, default=None, metavar="N",
                    help="vehicles to place (default: the scenario's)")
     p.add_argument("--images", type=int, default=1, metavar="N", help="frames to render (1)")
@@ -80,7 +81,7 @@ def register(sub) -> None:
 
 
 def _check_args(args) -> None:
-    from ..errors import ConfigError, PlacementError
+    from ..errors import ConfigError
 
     if args.images < 1:
         raise ConfigError(f"--images: expected a positive integer, got {args.images}")
@@ -88,16 +89,10 @@ def _check_args(args) -> None:
         raise ConfigError(f"--seed: expected a non-negative integer, got {args.seed}")
     if args.vehicles is not None and args.vehicles < 1:
         raise ConfigError(f"--vehicles: expected a positive integer, got {args.vehicles}")
-    from pathlib import Path
+    from ..placement import load_scenario
 
-    from ..placement import SCENARIOS
-
-    sc = args.scenario
-    if sc not in SCENARIOS and not (sc.endswith((".yaml", ".yml")) and Path(sc).is_file()):
-        raise PlacementError(
-            f"--scenario: unknown scenario {sc!r}; expected one of {', '.join(SCENARIOS)} "
-            f"or an existing .yaml file"
-        )
+    # the one list of bundled scenarios (placement.SCENARIOS) or a .yaml file, every field checked
+    load_scenario(args.scenario)
 
 
 def run(args) -> int:

@@ -20,7 +20,7 @@ def straight_glb(tmp_path_factory):
 def _one_error_line(capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1, err
-    assert err[0].startswith("aerial-synth: error:")
+    assert err[0].startswith(("aerial-synth: error:", "aerial-synth place: ")), err[0]
     return err[0]
 
 

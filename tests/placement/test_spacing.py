@@ -72,7 +72,7 @@ def test_impossible_truncation_is_refused():
         ({"spacing": {"mean_m": 50.0}}, "mean_m"),
         ({"traffic": "middle"}, "traffic"),
         ({"double_lane_probability": 2}, "double_lane_probability"),
-        ({"bogus": 1}, "unknown scenario field"),
+        ({"bogus": 1}, "unknown key"),
     ],
 )
 def test_bad_scenario_values(over, match):
