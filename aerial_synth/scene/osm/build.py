@@ -1,0 +1,482 @@
+"""Build a labelled :class:`~aerial_synth.scene.model.Scene` from what the OSM reader kept.
+
+Frame: the local metric frame of the scene, metres, x east / y north of the chosen CRS (grid
+north), origin at the bbox centre rounded to whole metres; ``Scene.origin`` holds that
+centre's projected coordinates (float64) and ``Scene.crs`` the CRS. Terrain is flat.
+
+Layers (heights keep coincident surfaces apart so the first hit of a vertical trace is the
+right one): ground plane -0.10 m, grass/soil -0.08, water -0.06, sidewalk -0.04,
+parking -0.02, road 0.00, lane markings +0.01; buildings, trees and trunks stand on 0.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ...errors import SceneError
+from ..build import flat_polygon, merge_meshes, prism
+from ..hints import META_KEY, HintRoad, RoadHints
+from ..model import RoadTruth, Scene, SceneObject, SceneTruth
+from .read import OsmData
+from .tags import (
+    EDGE_LINE_CLASSES,
+    SIDEWALK_WIDTH_M,
+    UNMARKED_CLASSES,
+    building_height_m,
+    parse_metres,
+    road_params,
+    waterway_width_m,
+)
+
+__all__ = ["build_scene", "ATTRIBUTION", "Z"]
+
+ATTRIBUTION = "© OpenStreetMap contributors"
+
+#: surface heights, metres
+Z = {"ground": -0.10, "grass": -0.08, "water": -0.06, "sidewalk": -0.04, "parking": -0.02,
+     "road": 0.0, "marking": 0.01}
+
+#: morphological closing radius of the road surface (fills slivers and cracks in junctions)
+CLOSE_M = 0.5
+#: holes in the road surface thinner than this (metres) are filled
+SLIVER_M = 1.0
+MARKING_W_M = 0.15
+CENTRE_DASH = (3.0, 6.0)
+DIVIDER_DASH = (3.0, 9.0)
+EDGE_INSET_M = 0.3
+JUNCTION_CLEAR_M = 2.0
+MIN_CENTRE_LINE_WIDTH_M = 5.0
+TREE_ROW_SPACING_M = 8.0
+FOREST_SPACING_M = 6.0
+MAX_FOREST_TREES = 30000
+
+
+class _Road:
+    __slots__ = ("osm_id", "tags", "p", "line", "name")
+
+    def __init__(self, osm_id, tags, p, line):
+        self.osm_id = osm_id
+        self.tags = tags
+        self.p = p
+        self.line = line
+        self.name = str(tags.get("name") or tags.get("ref") or p.cls)
+
+
+def _project(geoms: np.ndarray, transformer, origin_xy) -> np.ndarray:
+    import shapely
+
+    if not len(geoms):
+        return geoms
+    ox, oy = origin_xy
+
+    def fn(xy):
+        x, y = transformer.transform(xy[:, 0], xy[:, 1])
+        return np.column_stack([np.asarray(x) - ox, np.asarray(y) - oy])
+
+    return shapely.transform(geoms, fn)
+
+
+def _fill_slivers(poly):
+    """Remove holes thinner than SLIVER_M (cracks between way polygons)."""
+    import shapely
+    from shapely.geometry import MultiPolygon, Polygon
+
+    out = []
+    for part in shapely.get_parts(poly):
+        holes = [shapely.Polygon(r) for r in part.interiors]
+        if holes:
+            thin = shapely.is_empty(shapely.buffer(np.array(holes, dtype=object), -SLIVER_M / 2))
+            keep = [h.exterior.coords for h, t in zip(holes, thin) if not t]
+            part = Polygon(part.exterior.coords, keep)
+        out.append(part)
+    return out[0] if len(out) == 1 else MultiPolygon(out)
+
+
+def road_surface(lines, widths, clip=None):
+    """Union of the buffered centre lines (round caps and joins), closed by CLOSE_M and with
+    sliver holes filled, clipped to ``clip``. One connected, crack-free network per component.
+    """
+    import shapely
+
+    bufs = shapely.buffer(np.asarray(lines, dtype=object), np.asarray(widths, float) / 2,
+                          quad_segs=6)
+    area = shapely.union_all(bufs)
+    if CLOSE_M > 0:
+        area = shapely.buffer(shapely.buffer(area, CLOSE_M, quad_segs=4), -CLOSE_M, quad_segs=4)
+    area = _fill_slivers(area)
+    if clip is not None:
+        area = shapely.intersection(area, clip)
+    return shapely.make_valid(area) if not area.is_valid else area
+
+
+def _dashes(curves, dash: float, gap: float):
+    """Straight chords [s, s + dash] every dash + gap metres along each curve."""
+    import shapely
+
+    parts = shapely.get_parts(np.asarray(curves, dtype=object))
+    parts = parts[shapely.get_type_id(parts) == 1] if len(parts) else parts
+    if not len(parts):
+        return np.array([], dtype=object)
+    L = shapely.length(parts)
+    period = dash + gap
+    counts = np.maximum(np.floor((L - dash) / period).astype(int) + 1, 0)
+    counts[L < dash] = 0
+    if counts.sum() == 0:
+        return np.array([], dtype=object)
+    idx = np.repeat(np.arange(len(parts)), counts)
+    k = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+    phase = (L - (counts - 1) * period - dash) / 2  # centre the pattern on the curve
+    s0 = phase[idx] + k * period
+    a = shapely.get_coordinates(shapely.line_interpolate_point(parts[idx], s0))
+    b = shapely.get_coordinates(shapely.line_interpolate_point(parts[idx], s0 + dash))
+    return shapely.linestrings(np.stack([a, b], axis=1))
+
+
+def _markings(roads: list[_Road], road_area, junctions):
+    """Centre lines (two-way), lane dividers (from lanes), edge lines (motorway/trunk),
+    cleared in junctions and kept inside the road surface."""
+    import shapely
+
+    dashed = {CENTRE_DASH: ([], []), DIVIDER_DASH: ([], [])}
+    solid_l, solid_o = [], []
+    for r in roads:
+        p = r.p
+        w, n = p.width_m, p.marking_lanes
+        if p.cls not in UNMARKED_CLASSES and n >= 2:
+            if p.oneway:
+                kc = -1
+            else:
+                kc = p.lanes_backward if p.lanes_backward > 0 else n // 2
+                if w < MIN_CENTRE_LINE_WIDTH_M:
+                    kc = -1
+            for k in range(1, n):
+                off = w / 2 - k * w / n  # > 0: left of the line's direction
+                if k == kc or (not p.oneway and kc == -1 and k == n // 2):
+                    if kc == -1:
+                        continue
+                    dashed[CENTRE_DASH][0].append(r.line)
+                    dashed[CENTRE_DASH][1].append(off)
+                else:
+                    dashed[DIVIDER_DASH][0].append(r.line)
+                    dashed[DIVIDER_DASH][1].append(off)
+        if p.cls in EDGE_LINE_CLASSES and w > 2 * EDGE_INSET_M + 1.0:
+            for off in (w / 2 - EDGE_INSET_M, -(w / 2 - EDGE_INSET_M)):
+                solid_l.append(r.line)
+                solid_o.append(off)
+    pieces = []
+    for (dash, gap), (ls, offs) in dashed.items():
+        if ls:
+            curves = shapely.offset_curve(np.array(ls, dtype=object), np.array(offs), quad_segs=4)
+            segs = _dashes(curves, dash, gap)
+            if len(segs):
+                pieces.append(shapely.buffer(segs, MARKING_W_M / 2, cap_style="flat"))
+    if solid_l:
+        curves = shapely.offset_curve(np.array(solid_l, dtype=object), np.array(solid_o),
+                                      quad_segs=4)
+        pieces.append(shapely.buffer(curves, MARKING_W_M / 2, cap_style="flat", quad_segs=2))
+    if not pieces:
+        return shapely.Polygon()
+    polys = np.concatenate(pieces)
+    polys = polys[~shapely.is_empty(polys)]
+    clip = shapely.buffer(road_area, -EDGE_INSET_M / 2)
+    if len(junctions):
+        disks = shapely.buffer(shapely.points(junctions[:, :2]), junctions[:, 2])
+        clip = shapely.difference(clip, shapely.union_all(disks))
+    shapely.prepare(clip)
+    inside = shapely.contains_properly(clip, polys)
+    rest = polys[~inside]
+    if len(rest):
+        rest = shapely.intersection(rest, clip)
+    return shapely.union_all(np.concatenate([polys[inside], rest]))
+
+
+def _junctions(roads: list[_Road]) -> np.ndarray:
+    """(k, 3): x, y, clear radius of every vertex shared by two or more ways."""
+    import shapely
+
+    if not roads:
+        return np.zeros((0, 3))
+    xy, owner, half = [], [], []
+    for i, r in enumerate(roads):
+        c = shapely.get_coordinates(r.line)
+        xy.append(c)
+        owner.append(np.full(len(c), i))
+        half.append(np.full(len(c), r.p.width_m / 2))
+    xy = np.concatenate(xy)
+    owner = np.concatenate(owner)
+    half = np.concatenate(half)
+    key = np.round(xy, 3)
+    _, inv = np.unique(key, axis=0, return_inverse=True)
+    inv = inv.ravel()
+    n_ways = np.zeros(inv.max() + 1, int)
+    pairs = np.unique(np.stack([inv, owner], 1), axis=0)
+    np.add.at(n_ways, pairs[:, 0], 1)
+    rad = np.zeros(inv.max() + 1)
+    np.maximum.at(rad, inv, half)
+    first = np.zeros(inv.max() + 1, int)
+    first[inv[::-1]] = np.arange(len(inv))[::-1]
+    sel = np.flatnonzero(n_ways >= 2)
+    return np.column_stack([xy[first[sel]], rad[sel] + JUNCTION_CLEAR_M])
+
+
+def _crowns(centres, radii_xy, radii_z):
+    """Merged icosphere crowns: centres (n, 3), radii (n,), (n,)."""
+    import trimesh
+
+    s = trimesh.creation.icosphere(subdivisions=1)
+    uv, uf = np.asarray(s.vertices), np.asarray(s.faces, np.int64)
+    n = len(centres)
+    if not n:
+        return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
+    scale = np.stack([radii_xy, radii_xy, radii_z], 1)
+    v = uv[None] * scale[:, None, :] + centres[:, None, :]
+    f = uf[None] + (np.arange(n) * len(uv))[:, None, None]
+    return v.reshape(-1, 3), f.reshape(-1, 3)
+
+
+def _trunks(xy, top_z, radius=0.15, sections=6):
+    import trimesh
+
+    n = len(xy)
+    if not n:
+        return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
+    c = trimesh.creation.cylinder(radius=radius, height=1.0, sections=sections)
+    uv, uf = np.asarray(c.vertices), np.asarray(c.faces, np.int64)
+    v = np.repeat(uv[None], n, axis=0)
+    v[:, :, 2] = (v[:, :, 2] + 0.5) * top_z[:, None]
+    v[:, :, :2] += xy[:, None, :]
+    f = uf[None] + (np.arange(n) * len(uv))[:, None, None]
+    return v.reshape(-1, 3), f.reshape(-1, 3)
+
+
+def _union(geoms):
+    import shapely
+
+    g = [x for x in geoms if x is not None and not x.is_empty]
+    if not g:
+        return shapely.Polygon()
+    return shapely.union_all(np.array(g, dtype=object))
+
+
+def _polys(geoms, clip):
+    """Only the polygonal parts of ``geoms`` ∩ clip, unioned."""
+    import shapely
+
+    if not len(geoms):
+        return shapely.Polygon()
+    g = shapely.intersection(np.asarray(geoms, dtype=object), clip)
+    parts = shapely.get_parts(g)
+    parts = parts[np.isin(shapely.get_type_id(parts), (3,))]
+    return _union(list(parts))
+
+
+def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: str,
+                seed: int = 0) -> Scene:
+    """Turn reader output into a Scene (see the module docstring for frame and layers).
+
+    crs         : the CRS string stored in the scene (e.g. "EPSG:32632")
+    transformer : pyproj Transformer WGS84 (lon, lat) -> crs (x, y)
+    origin_xy   : projected coordinates of the local origin (float64)
+    Raises SceneError when the bbox holds no drivable road.
+    """
+    import shapely
+
+    t0 = time.perf_counter()
+    bx0, by0, bx1, by1 = data.bbox
+    ring = shapely.segmentize(shapely.box(bx0, by0, bx1, by1), max(bx1 - bx0, by1 - by0) / 64)
+    clip = _project(np.array([ring], dtype=object), transformer, origin_xy)[0]
+    clip = shapely.make_valid(clip)
+    shapely.prepare(clip)
+    margin = shapely.buffer(clip, 60.0, join_style="mitre")
+
+    kinds = np.array([k for k, *_ in data.lines], dtype=object)
+    lgeoms = _project(np.array([g for *_, g in data.lines], dtype=object), transformer, origin_xy)
+    akinds = np.array([k for k, *_ in data.areas], dtype=object)
+    ageoms = _project(np.array([g for *_, g in data.areas], dtype=object), transformer, origin_xy)
+    if len(ageoms):
+        ageoms = shapely.make_valid(ageoms)
+
+    # -------------------------------------------------------------- roads
+    roads: list[_Road] = []
+    sel = np.flatnonzero(kinds == "road")
+    if len(sel):
+        near = shapely.intersection(lgeoms[sel], margin)
+        for i, g in zip(sel, near):
+            _, oid, tags, _ = data.lines[i]
+            p = road_params(tags)
+            for part in shapely.get_parts(g):
+                if shapely.get_type_id(part) != 1 or part.length < 0.5:
+                    continue
+                if p.reverse:
+                    part = shapely.reverse(part)
+                roads.append(_Road(oid, tags, p, part))
+    if not roads:
+        raise SceneError(
+            f"OSM file {source}: no drivable road (highway=motorway ... service) inside bbox "
+            f"{_fmt_bbox(data.bbox)}; expected at least one"
+        )
+    widths = np.array([r.p.width_m for r in roads])
+    road_area = road_surface([r.line for r in roads], widths, clip)
+    if road_area.is_empty:
+        raise SceneError(f"OSM file {source}: no drivable road surface inside bbox "
+                         f"{_fmt_bbox(data.bbox)}")
+    # centre lines inside the scene: truth and hints
+    truth_roads, hint_roads = [], []
+    inside = shapely.intersection(np.array([r.line for r in roads], dtype=object), clip)
+    for r, g in zip(roads, inside):
+        for part in shapely.get_parts(g):
+            if shapely.get_type_id(part) != 1 or part.length < 0.5:
+                continue
+            truth_roads.append(RoadTruth(centerline=part, width_m=r.p.width_m,
+                                         oneway=r.p.oneway, name=r.name))
+            hint_roads.append(HintRoad(shapely.get_coordinates(part), r.p.width_m, r.p.oneway,
+                                       r.p.lanes_forward, r.p.lanes_backward, int(r.osm_id),
+                                       r.name))
+    t_roads = time.perf_counter()
+    junctions = _junctions(roads)
+    markings = _markings(roads, road_area, junctions)
+
+    # -------------------------------------------------------------- other surfaces
+    side_l = np.flatnonzero(kinds == "sidewalk")
+    side_geoms = []
+    if len(side_l):
+        w = np.array([parse_metres(data.lines[i][2].get("width"), lo=0.5, hi=50)
+                      or SIDEWALK_WIDTH_M.get(data.lines[i][2].get("highway"), 2.0)
+                      for i in side_l])
+        side_geoms.append(shapely.buffer(lgeoms[side_l], w / 2, quad_segs=3))
+    water_l = np.flatnonzero(kinds == "waterway")
+    water_geoms = []
+    if len(water_l):
+        w = np.array([waterway_width_m(data.lines[i][2]) for i in water_l])
+        water_geoms.append(shapely.buffer(lgeoms[water_l], w / 2, cap_style="flat", quad_segs=3))
+
+    def areas(kind):
+        return ageoms[akinds == kind] if len(ageoms) else np.array([], dtype=object)
+
+    sidewalk = _polys(np.concatenate(side_geoms + [areas("sidewalk")]), clip)
+    water = _polys(np.concatenate(water_geoms + [areas("water")]), clip)
+    parking = _polys(areas("parking"), clip)
+    grass = _polys(np.concatenate([areas("grass"), areas("forest")]), clip)
+    soil = _polys(areas("soil"), clip)
+
+    objects: list[SceneObject] = []
+
+    def flat(name, label, poly, z, material=None):
+        if poly is None or poly.is_empty:
+            return
+        v, f = flat_polygon(poly, z)
+        if len(f):
+            objects.append(SceneObject(name, label, v, f, material or ""))
+
+    flat("ground", "ground", clip, Z["ground"], "concrete")
+    flat("grass", "ground", grass, Z["grass"], "grass")
+    flat("soil", "ground", soil, Z["grass"], "soil")
+    flat("water", "water", water, Z["water"])
+    flat("sidewalks", "sidewalk", sidewalk, Z["sidewalk"])
+    flat("parking", "parking", parking, Z["parking"])
+    flat("road", "road", road_area, Z["road"])
+    flat("lane_markings", "lane_marking", markings, Z["marking"])
+
+    # -------------------------------------------------------------- buildings
+    bsel = np.flatnonzero(akinds == "building") if len(akinds) else np.zeros(0, int)
+    n_buildings = 0
+    if len(bsel):
+        bg = shapely.intersection(ageoms[bsel], clip)
+        roofs, walls = [], []
+        for i, g in zip(bsel, bg):
+            parts = [p for p in shapely.get_parts(g) if shapely.get_type_id(p) == 3
+                     and p.area >= 1.0]
+            if not parts:
+                continue
+            h = building_height_m(data.areas[i][2])
+            poly = shapely.MultiPolygon(parts) if len(parts) > 1 else parts[0]
+            roofs.append(flat_polygon(poly, h))
+            walls.append(prism(poly, 0.0, h, top=False))
+            n_buildings += 1
+        v, f = merge_meshes(roofs)
+        if len(f):
+            objects.append(SceneObject("building_roofs", "building", v, f, "roof"))
+        v, f = merge_meshes(walls)
+        if len(f):
+            objects.append(SceneObject("building_walls", "building", v, f, "wall"))
+
+    # -------------------------------------------------------------- trees
+    txy, tr, th = [], [], []
+    if data.trees:
+        ll = np.array([[lon, lat] for _, lon, lat, _ in data.trees])
+        x, y = transformer.transform(ll[:, 0], ll[:, 1])
+        xy = np.column_stack([np.asarray(x) - origin_xy[0], np.asarray(y) - origin_xy[1]])
+        ok = shapely.contains_xy(clip, xy[:, 0], xy[:, 1])
+        for k in np.flatnonzero(ok):
+            tags = data.trees[k][3]
+            d = parse_metres(tags.get("diameter_crown"), lo=0.5, hi=40)
+            txy.append(xy[k])
+            tr.append(d / 2 if d else 2.5)
+            th.append(parse_metres(tags.get("height"), lo=2.0, hi=60) or 8.0)
+    rows = np.flatnonzero(kinds == "tree_row")
+    if len(rows):
+        g = shapely.intersection(lgeoms[rows], clip)
+        for part in shapely.get_parts(g):
+            if shapely.get_type_id(part) != 1:
+                continue
+            s = np.arange(0.0, part.length + 1e-9, TREE_ROW_SPACING_M)
+            pts = shapely.get_coordinates(shapely.line_interpolate_point(part, s))
+            txy.extend(pts)
+            tr.extend([2.0] * len(pts))
+            th.extend([7.0] * len(pts))
+    fsel = np.flatnonzero(akinds == "forest") if len(akinds) else np.zeros(0, int)
+    n_forest = 0
+    for i in fsel:
+        poly = shapely.intersection(ageoms[i], clip)
+        if poly.is_empty or poly.area < 10:
+            continue
+        rng = np.random.default_rng([int(seed), abs(int(data.areas[i][1]))])
+        x0, y0, x1, y1 = poly.bounds
+        gx, gy = np.meshgrid(np.arange(x0, x1, FOREST_SPACING_M), np.arange(y0, y1, FOREST_SPACING_M))
+        pts = np.column_stack([gx.ravel(), gy.ravel()])
+        pts = pts + rng.uniform(-0.35, 0.35, pts.shape) * FOREST_SPACING_M
+        pts = pts[shapely.contains_xy(poly, pts[:, 0], pts[:, 1])]
+        pts = pts[: max(0, MAX_FOREST_TREES - n_forest)]
+        n_forest += len(pts)
+        txy.extend(pts)
+        tr.extend(rng.uniform(2.0, 3.5, len(pts)))
+        th.extend(rng.uniform(10.0, 18.0, len(pts)))
+    if txy:
+        txy = np.asarray(txy, float).reshape(-1, 2)
+        tr = np.asarray(tr, float)
+        th = np.asarray(th, float)
+        rz = np.minimum(tr * 0.8, th / 2.5)
+        cz = th - rz
+        v, f = _crowns(np.column_stack([txy, cz]), tr, rz)
+        objects.append(SceneObject("trees", "tree", v, f))
+        v, f = _trunks(txy, cz)
+        objects.append(SceneObject("trunks", "trunk", v, f))
+
+    hints = RoadHints(hint_roads)
+    truth = SceneTruth(road_area=road_area, roads=tuple(truth_roads),
+                       parking_area=None if parking.is_empty else parking)
+    meta = {
+        "file": source,
+        "format": "osm",
+        "bbox": [float(c) for c in data.bbox],
+        "attribution": ATTRIBUTION,
+        META_KEY: hints,
+        "osm": {
+            "roads": len(roads),
+            "oneway_roads": int(sum(r.p.oneway for r in roads)),
+            "buildings": n_buildings,
+            "trees": int(len(txy)),
+            "junctions": int(len(junctions)),
+            "objects_read": dict(data.counts),
+        },
+        "build_seconds": {"roads": round(t_roads - t0, 3),
+                          "total": round(time.perf_counter() - t0, 3)},
+    }
+    return Scene(name=name, objects=objects, source=source, truth=truth, meta=meta,
+                 origin=(float(origin_xy[0]), float(origin_xy[1]), 0.0), crs=crs)
+
+
+def _fmt_bbox(b) -> str:
+    return ",".join(f"{c:.6f}" for c in b)

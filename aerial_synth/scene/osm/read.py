@@ -1,0 +1,209 @@
+"""Streaming OSM reader: one pyosmium pass, only the features a scene needs, inside a bbox.
+
+pyosmium reads ``.osm``, ``.osm.bz2``, ``.osm.gz`` and ``.osm.pbf``. A ``FileProcessor`` with
+a node-location index gives ways their coordinates; its area assembler turns closed ways and
+multipolygon relations (courtyards, lakes with islands) into areas. A C++ key filter drops
+every object without an interesting key before Python sees it, and candidates are tested
+against the bbox in batches, so memory holds the location index and what lies in the bbox,
+never the whole file.
+
+Coordinates stay WGS84 longitude/latitude here; :mod:`.build` projects them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ...errors import SceneError
+from .tags import area_kind, road_class, waterway_width_m
+
+__all__ = ["OsmData", "read_osm", "OSM_SUFFIXES", "is_osm_path"]
+
+#: File name endings read as OSM data.
+OSM_SUFFIXES = (".osm", ".osm.bz2", ".osm.gz", ".osm.pbf", ".pbf")
+
+_KEYS = ("highway", "building", "natural", "landuse", "amenity", "leisure", "water", "waterway")
+_FLUSH = 20000
+
+
+def is_osm_path(path) -> bool:
+    """True when ``path`` names an OSM file by its ending."""
+    name = str(path).lower()
+    return any(name.endswith(s) for s in OSM_SUFFIXES)
+
+
+@dataclass
+class OsmData:
+    """What the reader kept (WGS84 lon/lat).
+
+    lines : list of (kind, osm id, tags dict, shapely LineString); kind is road, sidewalk,
+            tree_row or waterway
+    areas : list of (kind, area id, tags dict, shapely (Multi)Polygon); kind from
+            :func:`.tags.area_kind`
+    trees : list of (osm id, lon, lat, tags dict)
+    bbox  : (minlon, minlat, maxlon, maxlat) actually used
+    counts: objects seen by Python per type
+    """
+
+    lines: list = field(default_factory=list)
+    areas: list = field(default_factory=list)
+    trees: list = field(default_factory=list)
+    bbox: tuple | None = None
+    counts: dict = field(default_factory=dict)
+
+    @property
+    def empty(self) -> bool:
+        return not (self.lines or self.areas or self.trees)
+
+
+def _fmt(path: Path) -> str:
+    n = path.name.lower()
+    for s, f in ((".osm.pbf", "PBF"), (".pbf", "PBF"), (".osm.bz2", "OSM XML (bzip2)"),
+                 (".osm.gz", "OSM XML (gzip)"), (".osm", "OSM XML")):
+        if n.endswith(s):
+            return f
+    return "OSM"
+
+
+class _Batch:
+    """Pending candidates, tested against the bbox in one vectorised call per batch."""
+
+    def __init__(self, bbox_poly, out: list):
+        self.bbox_poly = bbox_poly
+        self.out = out
+        self.items: list = []
+        self.wkb: list = []
+
+    def add(self, item, wkb) -> None:
+        self.items.append(item)
+        self.wkb.append(wkb)
+        if len(self.wkb) >= _FLUSH:
+            self.flush()
+
+    def flush(self) -> None:
+        import shapely
+
+        if not self.wkb:
+            return
+        geoms = shapely.from_wkb(self.wkb, on_invalid="ignore")
+        ok = ~shapely.is_missing(geoms)
+        if self.bbox_poly is not None:
+            ok &= shapely.intersects(geoms, self.bbox_poly)
+        for i in np.flatnonzero(ok):
+            kind, oid, tags = self.items[i]
+            self.out.append((kind, oid, tags, geoms[i]))
+        self.items, self.wkb = [], []
+
+
+def _way_wkb(fab, way) -> bytes | None:
+    """WKB of a way's line; with nodes missing from the extract, the part that is there."""
+    import osmium
+    import shapely
+
+    try:
+        return fab.create_linestring(way)
+    except (osmium.InvalidLocationError, RuntimeError):
+        pts = [(n.lon, n.lat) for n in way.nodes if n.location.valid()]
+        if len(pts) < 2:
+            return None
+        return shapely.to_wkb(shapely.linestrings(pts))
+
+
+def read_osm(path: str | Path, bbox: tuple | None = None) -> OsmData:
+    """Read the scene features of an OSM file, keeping those that intersect ``bbox``.
+
+    bbox : (minlon, minlat, maxlon, maxlat) WGS84, or None for everything (then the file's
+           own bounds, else the extent of what was read, become ``OsmData.bbox``)
+    Raises :class:`SceneError` (one line) for a missing, unreadable, malformed or truncated
+    file.
+    """
+    import osmium
+    import osmium.filter
+    import osmium.geom
+    import shapely
+
+    path = Path(path)
+    if not path.is_file():
+        raise SceneError(f"OSM file {path}: file not found")
+    fmt = _fmt(path)
+    bbox_poly = shapely.box(*bbox) if bbox is not None else None
+    if bbox_poly is not None:
+        shapely.prepare(bbox_poly)
+    data = OsmData(bbox=tuple(bbox) if bbox is not None else None)
+    lines = _Batch(bbox_poly, data.lines)
+    areas = _Batch(bbox_poly, data.areas)
+    fab = osmium.geom.WKBFactory()
+    counts = {"nodes": 0, "ways": 0, "areas": 0}
+    header_box = None
+    if bbox is not None:
+        x0, y0, x1, y1 = bbox
+    try:
+        fp = osmium.FileProcessor(str(path)).with_areas(osmium.filter.KeyFilter(*_KEYS))
+        fp = fp.with_filter(osmium.filter.KeyFilter(*_KEYS))
+        hb = fp.header.box()
+        if hb.valid():
+            header_box = (hb.bottom_left.lon, hb.bottom_left.lat, hb.top_right.lon,
+                          hb.top_right.lat)
+        for obj in fp:
+            t = obj.type_str()
+            if t == "n":
+                counts["nodes"] += 1
+                if obj.tags.get("natural") != "tree":
+                    continue
+                loc = obj.location
+                if not loc.valid():
+                    continue
+                lon, lat = loc.lon, loc.lat
+                if bbox is not None and not (x0 <= lon <= x1 and y0 <= lat <= y1):
+                    continue
+                data.trees.append((obj.id, lon, lat, dict(obj.tags)))
+            elif t == "w":
+                counts["ways"] += 1
+                tags = obj.tags
+                kind = road_class(tags)
+                if kind is None:
+                    if tags.get("natural") == "tree_row":
+                        kind = "tree_row"
+                    elif "waterway" in tags and waterway_width_m(tags) is not None:
+                        kind = "waterway"
+                    else:
+                        continue
+                wkb = _way_wkb(fab, obj)
+                if wkb is not None:
+                    lines.add((kind, obj.id, dict(tags)), wkb)
+            elif t == "a":
+                counts["areas"] += 1
+                kind = area_kind(obj.tags)
+                if kind is None:
+                    continue
+                try:
+                    wkb = fab.create_multipolygon(obj)
+                except (osmium.InvalidLocationError, RuntimeError):
+                    continue
+                areas.add((kind, obj.id, dict(obj.tags)), wkb)
+        lines.flush()
+        areas.flush()
+    except SceneError:
+        raise
+    except Exception as exc:  # osmium reports malformed/truncated input as RuntimeError etc.
+        msg = " ".join(str(exc).split())[:200] or type(exc).__name__
+        raise SceneError(f"OSM file {path}: cannot read as {fmt} ({msg})") from None
+    data.counts = counts
+    if data.bbox is None:
+        if header_box is not None:
+            data.bbox = header_box
+        elif not data.empty:
+            geoms = [g for *_, g in data.lines] + [g for *_, g in data.areas]
+            b = shapely.total_bounds(np.array(geoms, dtype=object)) if geoms else None
+            pts = np.array([[lon, lat] for _, lon, lat, _ in data.trees]).reshape(-1, 2)
+            lo = [b[:2]] if b is not None else []
+            hi = [b[2:]] if b is not None else []
+            if len(pts):
+                lo.append(pts.min(0))
+                hi.append(pts.max(0))
+            lo, hi = np.min(lo, axis=0), np.max(hi, axis=0)
+            data.bbox = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
+    return data
