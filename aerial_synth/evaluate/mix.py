@@ -348,7 +348,7 @@ class _Writer:
             C = [C[i] for i in idx]
             w, h = item.tile[2], item.tile[3]
         else:
-            w, h = item.size_wh
+            w, h = item.size_wh if item.size_wh != (0, 0) else image_size(src.image_path)
         if item.tile is None and item.scale == (1.0, 1.0):
             dst = img_dir / (item.out_stem + src.image_path.suffix.lower())
             how = _link(src.image_path, dst)

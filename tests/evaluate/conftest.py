@@ -1,0 +1,58 @@
+"""Tiny DOTA / YOLO-OBB folders built in tmp folders."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+
+def rect(cx, cy, w, h, angle_deg=0.0):
+    """(4, 2) corners of a w x h rectangle centred at (cx, cy), clockwise on screen."""
+    a = np.deg2rad(angle_deg)
+    c, s = np.cos(a), np.sin(a)
+    pts = np.array([[-w / 2, -h / 2], [w / 2, -h / 2], [w / 2, h / 2], [-w / 2, h / 2]])
+    return pts @ np.array([[c, s], [-s, c]]) + (cx, cy)
+
+
+def write_dota_image(folder: Path, name: str, boxes, classes=None, difficult=None, *,
+                     size=(200, 160), gsd=0.12, header=True, draw=True, ext=".png",
+                     background=90) -> Path:
+    """folder/images/name.png (boxes drawn bright on a grey background) + folder/labelTxt/name.txt."""
+    (folder / "images").mkdir(parents=True, exist_ok=True)
+    (folder / "labelTxt").mkdir(parents=True, exist_ok=True)
+    w, h = size
+    img = np.full((h, w, 3), background, np.uint8)
+    boxes = [np.asarray(b, float) for b in boxes]
+    if draw:
+        for b in boxes:
+            cv2.fillPoly(img, [np.round(b * 16).astype(np.int32)], (230, 230, 230), cv2.LINE_8, shift=4)
+    cv2.imwrite(str(folder / "images" / f"{name}{ext}"), img)
+    lines = []
+    if header:
+        lines += ["imagesource:test", f"gsd:{gsd}" if gsd is not None else "gsd:null"]
+    classes = classes or ["small-vehicle"] * len(boxes)
+    difficult = difficult or [0] * len(boxes)
+    for b, c, d in zip(boxes, classes, difficult):
+        lines.append(" ".join(f"{v:.2f}" for v in b.reshape(-1)) + f" {c} {d}")
+    p = folder / "labelTxt" / f"{name}.txt"
+    p.write_text("\n".join(lines) + "\n")
+    return p
+
+
+def make_dota(folder: Path, n: int, prefix="img", *, seed=0, size=(200, 160), gsd=0.12,
+              per_image=3) -> Path:
+    rng = np.random.default_rng(seed)
+    for i in range(n):
+        boxes = [rect(rng.uniform(30, size[0] - 30), rng.uniform(30, size[1] - 30), 20, 9,
+                      rng.uniform(0, 180)) for _ in range(per_image)]
+        cls = ["small-vehicle" if rng.random() < 0.7 else "large-vehicle" for _ in boxes]
+        write_dota_image(folder, f"{prefix}{i:03d}", boxes, cls, size=size, gsd=gsd)
+    return folder
+
+
+@pytest.fixture
+def tiny_dota(tmp_path):
+    return make_dota(tmp_path / "gt", 4)
