@@ -20,6 +20,7 @@ import numpy as np
 from ..errors import AssetError
 from ..scene.model import DEFAULT_COLOR_FOR_MATERIAL, MATERIAL_IDS
 from .model import VehicleColor, VehicleModel
+from .large import LARGE_BUILDERS
 from .user_mesh import load_user_mesh_parts
 
 __all__ = ["VehicleMesh", "build_mesh"]
@@ -595,3 +596,14 @@ _BUILDERS = {
     "box_truck": _box_truck,
     "campervan": _campervan,
 }
+
+
+def _wrap_large(fn):
+    def build(L, W, H):
+        return [_Part(name, mat, rgb, v, f) for name, mat, rgb, v, f in fn(L, W, H)]
+
+    return build
+
+
+# buses, coach, delivery van, semi-trailer truck (vehicles/large.py)
+_BUILDERS.update({name: _wrap_large(fn) for name, fn in LARGE_BUILDERS.items()})

@@ -38,6 +38,11 @@ BODY_TYPES: tuple[str, ...] = (
     "pickup",
     "box_truck",
     "campervan",
+    "city_bus",
+    "school_bus",
+    "coach",
+    "delivery_van",
+    "semi_trailer",
 )
 
 #: Axis names accepted for a user mesh's ``forward`` and ``up``.
