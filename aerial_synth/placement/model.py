@@ -7,7 +7,7 @@ from dataclasses import asdict, dataclass, field, fields
 
 import numpy as np
 
-__all__ = ["PlacedVehicle", "Placement", "footprint_corners_xy"]
+__all__ = ["PlacedVehicle", "Placement", "footprint_corners_xy", "with_lonlat"]
 
 
 @dataclass(frozen=True)
@@ -20,6 +20,8 @@ class PlacedVehicle:
     x_orig_m, y_orig_m, z_orig_m : the same point in the scene file's original frame
                   (``Scene.to_original``: local + the scene's float64 origin; in the CRS
                   named by the placement's georeference when there is one); nan if unknown
+    lon_deg, lat_deg : WGS84 longitude/latitude of that point when the scene has a CRS
+                  (see :func:`with_lonlat`; written with 9 decimals, about 0.1 mm); nan if not
     heading_rad : 0 = +x (east), counter-clockwise, in [0, 2 pi)
     line_id     : traffic line (-1 for the random scenario)
     lane        : 0 = the line's own lane, 1 = the opposite lane of a double lane
@@ -45,19 +47,21 @@ class PlacedVehicle:
     x_orig_m: float = float("nan")
     y_orig_m: float = float("nan")
     z_orig_m: float = float("nan")
+    lon_deg: float = float("nan")
+    lat_deg: float = float("nan")
 
     def to_dict(self) -> dict:
         d = asdict(self)
         for k, v in d.items():
             if isinstance(v, float):
-                d[k] = None if not np.isfinite(v) else round(v, 6)
+                d[k] = None if not np.isfinite(v) else round(v, 9 if k in _DEGREES else 6)
         return d
 
     @classmethod
     def from_dict(cls, d: dict) -> "PlacedVehicle":
         names = {f.name for f in fields(cls)}
         kw = {k: v for k, v in d.items() if k in names}
-        for k in ("spacing_m", "x_orig_m", "y_orig_m", "z_orig_m"):
+        for k in ("spacing_m", "x_orig_m", "y_orig_m", "z_orig_m", "lon_deg", "lat_deg"):
             if kw.get(k) is None:
                 kw[k] = float("nan")
         return cls(**kw)
@@ -74,6 +78,28 @@ class PlacedVehicle:
         return footprint_corners_xy(
             self.x_m, self.y_m, self.heading_rad, self.length_m + gap_m, self.width_m + gap_m
         )
+
+
+_DEGREES = ("lon_deg", "lat_deg")
+
+
+def with_lonlat(vehicles: list, crs: str | None) -> list:
+    """The vehicles with ``lon_deg``/``lat_deg`` from their original-frame position in
+    ``crs`` (pyproj, always x = easting / longitude first). Unchanged when crs is None."""
+    if not crs or not vehicles:
+        return list(vehicles)
+    import dataclasses
+
+    import pyproj
+
+    xy = np.array([[v.x_orig_m, v.y_orig_m] for v in vehicles], dtype=np.float64)
+    try:
+        tr = pyproj.Transformer.from_crs(crs, "EPSG:4326", always_xy=True)
+    except pyproj.exceptions.CRSError:  # a CRS pyproj does not know: no lon/lat
+        return list(vehicles)
+    lon, lat = (np.where(np.isfinite(a), a, np.nan) for a in tr.transform(xy[:, 0], xy[:, 1]))
+    return [dataclasses.replace(v, lon_deg=float(a), lat_deg=float(b))
+            for v, a, b in zip(vehicles, np.atleast_1d(lon), np.atleast_1d(lat))]
 
 
 def footprint_corners_xy(x, y, heading_rad, length_m, width_m) -> np.ndarray:

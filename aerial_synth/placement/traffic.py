@@ -23,7 +23,10 @@ from ..errors import PlacementError
 from .config import ScenarioConfig, load_scenario
 from .footprints import FootprintIndex, footprint_samples
 from .linetrace import Prober, unit
-from .model import PlacedVehicle, Placement
+from .model import PlacedVehicle, Placement, with_lonlat
+
+# Direction hints (OSM scenes, aerial_synth.scene.hints): the few hooks that read them are
+# marked "direction hints"; line traces still find every edge and heading.
 
 __all__ = ["place", "PlacementWarning"]
 
@@ -86,6 +89,9 @@ class _Engine:
         self.seed_batches = 0
         self.road_seen = False
         self.limit = None
+        from ..scene.hints import road_hints  # direction hints: None for most scenes
+
+        self.hints = road_hints(rayscene.scene)
 
     # ------------------------------------------------------------------ seeds
     def next_seeds(self, n: int) -> np.ndarray:
@@ -232,6 +238,50 @@ class _Engine:
         o = self.rs.scene.to_original(np.array([x, y, z], dtype=np.float64))
         return {"x_orig_m": float(o[0]), "y_orig_m": float(o[1]), "z_orig_m": float(o[2])}
 
+    # ------------------------------------------------------------------ direction hints
+    def wrong_way(self, c: _Cand) -> np.ndarray:
+        """Direction hints: mark candidates heading against a one-way road's direction
+        (reason "wrong_way"). Returns the hint vectors (n, 2), NaN on two-way roads."""
+        d = np.full((len(c.x), 2), np.nan)
+        if self.hints is None:
+            return d
+        sel = np.flatnonzero(c.ok)
+        if len(sel):
+            d[sel] = self.hints.direction_at(np.stack([c.x[sel], c.y[sel]], 1))
+            u = unit(c.heading[sel])
+            bad = sel[(d[sel] * u).sum(axis=1) < 0]  # NaN compares False: two-way stays
+            c.ok[bad] = False
+            c.reason[bad] = "wrong_way"
+        return d
+
+    def apply_hints(self, c: _Cand, offs: np.ndarray) -> None:
+        """Direction hints at a line's first vehicle. Geometry gives the road's axis but not
+        which way a one-way road runs: where the hint is one-way and the heading found points
+        against it, take the other along-road heading (re-probe towards the other edge, as
+        the median rule does). Lanes: an offset beyond the lanes the road has in that
+        direction (``lanes:forward``/``lanes:backward``) is refused ("lane_count")."""
+        if self.hints is None:
+            return
+        sel = np.flatnonzero(c.ok)
+        if not len(sel):
+            return
+        pos = np.stack([c.x[sel], c.y[sel]], 1)
+        d = self.hints.direction_at(pos)
+        back = sel[(d * unit(c.heading[sel])).sum(axis=1) < 0]
+        if len(back):
+            cf = self.locate(np.stack([c.x[back], c.y[back]], 1), c.heading[back] + np.pi, offs[back])
+            c.x[back], c.y[back], c.heading[back] = cf.x, cf.y, cf.heading
+            c.ok[back] &= cf.ok
+            c.reason[back] = np.where(cf.ok, c.reason[back], cf.reason)
+            c.edge_dist[back] = cf.edge_dist
+        self.wrong_way(c)
+        sel = np.flatnonzero(c.ok)
+        if len(sel) and self.cfg.lane_offsets_m:
+            n_dir, lane_w = self.hints.lanes_along(np.stack([c.x[sel], c.y[sel]], 1), c.heading[sel])
+            over = (n_dir > 0) & np.isfinite(lane_w) & (offs[sel] > n_dir * lane_w)
+            c.ok[sel[over]] = False
+            c.reason[sel[over]] = "lane_count"
+
     def full(self) -> bool:
         return self.limit is not None and len(self.vehicles) >= self.limit
 
@@ -272,6 +322,7 @@ class _Engine:
                 c.x[flip], c.y[flip], c.heading[flip] = cf.x, cf.y, cf.heading
                 c.ok[flip] &= cf.ok
                 c.edge_dist[flip] = cf.edge_dist
+        self.apply_hints(c, offs)  # direction hints
         variants = self.sample_variants(P)
         L = np.array([v.model.length_m for v in variants])
         W = np.array([v.model.width_m for v in variants])
@@ -327,6 +378,9 @@ class _Engine:
         for ln in lines:
             if self.rng.random() < cfg.double_lane_probability and ln.placed:
                 picks.append((ln, self.vehicles[ln.placed[int(self.rng.integers(len(ln.placed)))]]))
+        if picks and self.hints is not None:  # direction hints: no opposite lane on a one-way road
+            d = self.hints.direction_at(np.array([[v.x_m, v.y_m] for _, v in picks]))
+            picks = [pk for pk, one in zip(picks, np.isfinite(d[:, 0])) if not one]
         if not picks:
             return []
         pos = np.array([[v.x_m, v.y_m] for _, v in picks])
@@ -377,6 +431,7 @@ class _Engine:
         bad = c.ok & (turned | jump)
         c.ok[bad] = False
         c.reason[bad] = "junction"
+        self.wrong_way(c)  # direction hints: a line never runs into a one-way road backwards
         variants = self.sample_variants(n)
         L = np.array([v.model.length_m for v in variants])
         W = np.array([v.model.width_m for v in variants])
@@ -556,7 +611,7 @@ def place(
         scenario=cfg.name,
         seed=seed,
         parameters=cfg.to_dict(),
-        vehicles=eng.vehicles,
+        vehicles=with_lonlat(eng.vehicles, rayscene.scene.crs),  # lon/lat where the CRS is known
         stats=stats,
         timing=timing,
         georeference=rayscene.scene.georeference(),
