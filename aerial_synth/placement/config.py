@@ -290,8 +290,8 @@ def _int(lo=None, hi=None, nullable=False):
 
 _SPACING_CHECKS = {
     "skewness": _num(-1000.0, 1000.0),
-    "mean_m": _num(0.0, MAX_DISTANCE_M, lo_open=True),
-    "sd_m": _num(0.0, MAX_DISTANCE_M, lo_open=True),
+    "mean_m": _num(0.0, lo_open=True),  # below max_m, checked by the sampler
+    "sd_m": _num(0.0, lo_open=True),
     "min_m": _num(0.0, MAX_DISTANCE_M),
     "max_m": _num(0.0, MAX_DISTANCE_M, lo_open=True),
     "floor_m": _num(0.0, MAX_DISTANCE_M, nullable=True),

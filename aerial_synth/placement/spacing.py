@@ -51,11 +51,24 @@ def skewnorm_loc_scale(mean: float, sd: float, a: float) -> tuple[float, float]:
     return mean - scale * m1, scale
 
 
+def _support(loc, scale, a, lo, hi) -> tuple[float, float]:
+    """[lo, hi] narrowed to where the law has mass (quantiles 1e-13 and 1 - 1e-13), so a
+    narrow law inside wide bounds still gets a fine grid."""
+    from scipy.stats import skewnorm
+
+    with np.errstate(all="ignore"):
+        qa, qb = skewnorm.ppf([1e-13, 1.0 - 1e-13], a, loc=loc, scale=scale)
+    if not (np.isfinite(qa) and np.isfinite(qb)):
+        return lo, hi
+    a_, b_ = max(lo, float(qa)), min(hi, float(qb))
+    return (a_, b_) if b_ > a_ else (lo, hi)
+
+
 def _truncated_moments(loc, scale, a, lo, hi):
     """Mean, sd and mass of the skew-normal truncated to [lo, hi] (quadrature of its pdf)."""
     from scipy.stats import skewnorm
 
-    x = np.linspace(lo, hi, _GRID)
+    x = np.linspace(*_support(loc, scale, a, lo, hi), _GRID)
     with np.errstate(all="ignore"):
         p = skewnorm.pdf(x, a, loc=loc, scale=scale)
     trap = np.trapezoid if hasattr(np, "trapezoid") else np.trapz
@@ -150,7 +163,7 @@ class SpacingSampler:
         from scipy.stats import skewnorm
 
         loc, scale = self._solve_params()
-        lo, hi = self.lower_m, self.max_m
+        lo, hi = _support(loc, scale, float(self.skewness), self.lower_m, self.max_m)
         x = np.linspace(lo, hi, _GRID * 4)
         with np.errstate(all="ignore"):
             p = skewnorm.pdf(x, float(self.skewness), loc=loc, scale=scale)

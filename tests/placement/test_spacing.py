@@ -78,3 +78,41 @@ def test_impossible_truncation_is_refused():
 def test_bad_scenario_values(over, match):
     with pytest.raises(ConfigError, match=match):
         load_scenario("jam", over)
+
+
+@pytest.mark.parametrize("name", ["jam", "normal", "sparse", "multilane"])
+def test_tabulated_inverse_cdf_agrees_with_scipy_skewnorm(name):
+    s = load_scenario(name).spacing
+    u = np.linspace(0.0005, 0.9995, 2001)
+    ref = s.ppf(u)  # scipy.stats.skewnorm.ppf of the truncated law
+    assert np.max(np.abs(s.quantile(u) - ref)) < 1e-3  # < 1 mm
+    # the density behind the table is scipy's: its CDF matches skewnorm's at a few points
+    law = s.law()
+    v = np.quantile(ref, [0.1, 0.5, 0.9])
+    lo, hi = law.cdf([s.lower_m, s.max_m])
+    assert np.allclose(s.cdf(v), (law.cdf(v) - lo) / (hi - lo), atol=1e-5)
+
+
+def test_cut_law_table_agrees_with_scipy_too():
+    s = load_scenario("normal", {"spacing": {"min_m": 21.5, "max_m": 30.0}}).spacing
+    u = np.linspace(0.001, 0.999, 999)
+    assert np.max(np.abs(s.quantile(u) - s.ppf(u))) < 1e-3
+
+
+@pytest.mark.parametrize("name", sorted(TABLE_3_1))
+def test_skewnorm_moments_are_table_3_1(name):
+    sign, mean, sd, lo, hi = TABLE_3_1[name]
+    s = load_scenario(name).spacing
+    m, sdev, skew = s.moments()  # scipy.stats.skewnorm.stats of the solved law
+    assert abs(m - mean) < 1e-4 and abs(sdev - sd) < 1e-4
+    assert np.sign(round(skew, 9)) == sign
+    assert s.skewness == {1: 30, 0: 0, -1: -30}[sign]
+    # the truncation to [d_min, d_max] keeps those moments (it removes < 1e-9 of the mass)
+    x = s.quantile((np.arange(200_000) + 0.5) / 200_000)
+    assert abs(x.mean() - mean) < 2e-3 and abs(x.std() - sd) < 2e-3
+
+
+def test_narrow_law_inside_wide_bounds_is_tabulated_finely():
+    s = load_scenario("jam", {"spacing": {"max_m": 10000, "mean_m": 9999, "sd_m": 0.001}}).spacing
+    x = s.sample(np.random.default_rng(0), 50_000)
+    assert abs(x.mean() - 9999) < 1e-4 and abs(x.std() - 0.001) < 5e-5
