@@ -106,6 +106,8 @@ def register(sub) -> None:
     s.add_argument("--max-images", type=arg_int("--max-images", 1), default=500, metavar="N",
                    help="pixel statistics on at most N images per dataset, drawn by --seed (500)")
     s.add_argument("--seed", type=arg_int("--seed", 0), default=0, metavar="S", help="(0)")
+    s.add_argument("--classes", default="small-vehicle,large-vehicle", metavar="LIST|all",
+                   help="classes whose boxes are measured (small-vehicle,large-vehicle)")
     s.set_defaults(func=_cmd_stats)
 
 
@@ -168,6 +170,6 @@ def _cmd_stats(args) -> int:
     out = check_report_dir(args.out, inputs)
     text = run_stats(Path(args.dir), out, compare=Path(args.compare) if args.compare else None,
                      gsd=args.gsd, compare_gsd=args.compare_gsd, max_images=args.max_images,
-                     seed=args.seed)
+                     seed=args.seed, classes=None if args.classes == "all" else _classes(args.classes))
     print(text)
     return 0

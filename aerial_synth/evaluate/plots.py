@@ -104,15 +104,16 @@ class _Axes:
 
 
 def line_chart(title: str, series, xlabel: str, ylabel: str, xlim=None, ylim=None) -> np.ndarray:
-    """``series``: list of (label, xs, ys). Limits default to the data's range."""
+    """``series``: list of (label, xs, ys) or (label, xs, ys, bgr colour). Limits default to
+    the data's range."""
     xs_all = np.concatenate([np.asarray(s[1], float) for s in series] or [np.zeros(1)])
     ys_all = np.concatenate([np.asarray(s[2], float) for s in series] or [np.zeros(1)])
     xlim = xlim or (float(np.nanmin(xs_all)), float(np.nanmax(xs_all)))
     ylim = ylim or (float(np.nanmin(ys_all)), float(np.nanmax(ys_all)))
     ax = _Axes(title, xlabel, ylabel, xlim, ylim)
-    colors = [COLORS[i % len(COLORS)] for i in range(len(series))]
-    for (_label, xs, ys), c in zip(series, colors):
-        ax.polyline(np.asarray(xs, float), np.asarray(ys, float), c)
+    colors = [s[3] if len(s) > 3 else COLORS[i % len(COLORS)] for i, s in enumerate(series)]
+    for s, c in zip(series, colors):
+        ax.polyline(np.asarray(s[1], float), np.asarray(s[2], float), c)
     ax.legend([s[0] for s in series], colors)
     return ax.img
 
