@@ -570,6 +570,9 @@ def load_mesh_scene(path: str | Path, labels: str | Path | None = None) -> Scene
         "unmatched": unmatched,
         "n_unmatched": len(unmatched),
     }
+    from .hints import meta_from_extras
+
+    meta.update(meta_from_extras(getattr(tscene, "metadata", None), origin, f"scene file {path}"))
     return Scene(
         name=path.stem, objects=objects, source=str(path), label_config=lc, meta=meta,
         origin=origin, crs=crs,
@@ -597,15 +600,33 @@ def load_scene(
     name_or_path: str | Path,
     labels: str | Path | None = None,
     seed: int | None = None,
+    bbox=None,
+    crs: str | None = None,
 ) -> Scene:
-    """Load a bundled scene by name, a scene spec (.yaml) or a mesh file (.glb/.gltf/.obj/.ply).
+    """Load a bundled scene by name, a scene spec (.yaml), a mesh file (.glb/.gltf/.obj/.ply)
+    or an OpenStreetMap extract (.osm/.osm.bz2/.osm.pbf; built once, then cached, see
+    :func:`aerial_synth.scene.osm.load_osm_scene`).
 
     labels : label-rules YAML for mesh files (default: sidecar ``NAME.labels.yaml``, else
              the built-in rules); ignored for procedural specs
     seed   : overrides a procedural spec's seed (0 is a valid seed); ignored for meshes
+    bbox   : OSM only: "MINLON,MINLAT,MAXLON,MAXLAT" (or 4 numbers) to cut the extract
+    crs    : OSM only: projected CRS to build in (default: the local UTM zone)
     """
     s = str(name_or_path)
     p = Path(s)
+    from .osm.read import is_osm_path
+
+    if is_osm_path(s):
+        from .osm import load_osm_scene
+
+        if labels is not None:
+            raise SceneError(f"--labels {labels}: label rules apply to mesh files; {s!r} is an "
+                             f"OSM extract whose features are labelled by their tags; drop --labels")
+        return load_osm_scene(p, bbox=bbox, crs=crs, seed=0 if seed is None else seed)
+    if bbox is not None or crs is not None:
+        raise SceneError(f"--bbox/--crs apply to OSM extracts (.osm, .osm.bz2, .osm.pbf), but "
+                         f"{s!r} is not one; drop them")
     if p.suffix.lower() in SPEC_EXTENSIONS:
         if not p.is_file():
             raise SceneError(f"scene spec {p}: file not found")
@@ -655,6 +676,9 @@ def export_glb(scene: Scene, path: str | Path) -> Path:
         georef["crs"] = scene.crs
     if georef:
         ts.metadata[GLTF_EXTRAS_KEY] = georef
+    from .hints import extras_for
+
+    ts.metadata.update(extras_for(scene))  # OSM direction hints and attribution (hints.py)
     for o in scene.objects:
         if not o.n_triangles:
             continue

@@ -135,7 +135,32 @@ def render_map(
     if legend:
         _draw_scale_bar(view)
         _draw_legend(view, {LABELS[i] for i in np.unique(top.label_id) if i > 0})
+    if (scene.meta or {}).get("attribution"):  # OSM scenes: the data licence asks for it
+        draw_attribution(view.image, str(scene.meta["attribution"]))
     return view
+
+
+def draw_attribution(image: np.ndarray, text: str) -> None:
+    """Draw a data attribution ("© OpenStreetMap contributors") in the bottom-right corner.
+    OpenCV's fonts are ASCII only, so a leading "©" is drawn as a circled c."""
+    import cv2
+
+    H, W = image.shape[:2]
+    mark = text.startswith("©")
+    body = text[1:].strip() if mark else text
+    font, scale = cv2.FONT_HERSHEY_SIMPLEX, 0.45
+    (tw, th), _ = cv2.getTextSize(body, font, scale, 1)
+    extra = 16 if mark else 0
+    x1, y1 = W - 6, H - 6
+    x0, y0 = max(0, x1 - tw - extra - 8), max(0, y1 - th - 10)
+    cv2.rectangle(image, (x0, y0), (x1, y1), (255, 255, 255), -1)
+    x = x0 + 4
+    if mark:
+        cy = (y0 + y1) // 2
+        cv2.circle(image, (x + 6, cy), 6, (0, 0, 0), 1, cv2.LINE_AA)
+        cv2.putText(image, "c", (x + 2, cy + 3), font, 0.35, (0, 0, 0), 1, cv2.LINE_AA)
+        x += extra
+    cv2.putText(image, body, (x, y1 - 5), font, scale, (0, 0, 0), 1, cv2.LINE_AA)
 
 
 def _draw_scale_bar(view: MapView) -> None:
