@@ -20,7 +20,8 @@ import numpy as np
 
 from ..errors import SceneError
 
-__all__ = ["HintRoad", "RoadHints", "road_hints", "META_KEY", "EXTRAS_KEY"]
+__all__ = ["HintRoad", "RoadHints", "road_hints", "extras_for", "meta_from_extras", "META_KEY",
+           "EXTRAS_KEY"]
 
 #: Key of the hints in ``Scene.meta``.
 META_KEY = "road_hints"
@@ -242,3 +243,40 @@ def road_hints(scene) -> RoadHints | None:
     meta = getattr(scene, "meta", None) or {}
     h = meta.get(META_KEY)
     return h if isinstance(h, RoadHints) and len(h) else None
+
+
+def extras_for(scene) -> dict:
+    """glTF scene extras that carry the hints (with the frame they are in) and the data
+    attribution through GLB export; {} for a scene without either."""
+    out: dict = {}
+    h = road_hints(scene)
+    if h is not None:
+        d = h.to_dict()
+        d["origin"] = [float(c) for c in getattr(scene, "origin", (0.0, 0.0, 0.0))]
+        out[EXTRAS_KEY] = d
+    attribution = (getattr(scene, "meta", None) or {}).get("attribution")
+    if attribution:
+        out["attribution"] = str(attribution)
+    return out
+
+
+def meta_from_extras(extras, origin, where: str) -> dict:
+    """Scene meta entries ({"road_hints": ..., "attribution": ...}) from glTF scene extras.
+
+    origin : the reloaded scene's origin; hints written in a frame with another origin are
+             shifted into the reloaded frame (original = local + origin in both).
+    """
+    out: dict = {}
+    if not isinstance(extras, Mapping):
+        return out
+    d = extras.get(EXTRAS_KEY)
+    if d is not None:
+        h = RoadHints.from_dict(d, f"{where}: glTF extras {EXTRAS_KEY}")
+        o_old = np.asarray(d.get("origin") or (0.0, 0.0, 0.0), float).reshape(-1)[:2]
+        o_new = np.asarray(origin, float).reshape(-1)[:2]
+        if not np.array_equal(o_old, o_new):
+            h = h.shifted(o_old - o_new)
+        out[META_KEY] = h
+    if isinstance(extras.get("attribution"), str):
+        out["attribution"] = extras["attribution"]
+    return out
