@@ -1,6 +1,7 @@
 """``aerial-synth place`` end to end on small scenes, and its bad-input handling."""
 
 import json
+import os
 
 import pytest
 
@@ -35,6 +36,10 @@ def test_place_writes_json_png_and_summary(straight_glb, tmp_path, capsys):
     assert (out / "placement.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     text = capsys.readouterr().out
     assert "vehicles" in text and "spacing m: mean" in text and "overlaps 0" in text
+    assert "footprint on drivable 100.0 %" in text
+    assert d["stats"]["validation"]["footprint_drivable"] == 1.0
+    assert d["georeference"] == {"origin": [0.0, 0.0, 0.0], "crs": None}
+    assert all(v["x_orig_m"] == v["x_m"] and v["y_orig_m"] == v["y_m"] for v in d["vehicles"])
     # the same seed again: byte-identical placement.json
     out2 = tmp_path / "out2"
     assert main(["place", "--scenario", "jam", "--scene", str(straight_glb), "--seed", "2",
@@ -53,25 +58,104 @@ def test_overrides_from_the_cli(straight_glb, tmp_path):
     assert all(v["lane"] == 0 for v in d["vehicles"])
 
 
-@pytest.mark.parametrize(
-    "extra, needle",
-    [
-        (["--scenario", "gridlock"], "unknown scenario 'gridlock'"),
-        (["--set", "spacing.min_m=30"], "d_min"),
-        (["--set", "spacing.sd_m=-0.5"], "sd_m"),
-        (["--set", "spacing"], "KEY=VALUE"),
-        (["--vehicles", "0"], "--vehicles"),
-    ],
-)
+BAD_INPUTS = [
+    (["--scenario", "gridlock"], "unknown scenario 'gridlock': expected one of jam, multilane, normal"),
+    (["--set", "spacing.min_m=30"], "--set spacing: d_min (30 m) must not exceed d_max (23.5 m)"),
+    (["--set", "spacing.sd_m=-0.5"], "--set spacing.sd_m: expected a finite number > 0, got -0.5"),
+    (["--set", "spacing"], "--set 'spacing': expected KEY=VALUE"),
+    (["--set", "spacing.mean_m=abc"], "--set spacing.mean_m: expected a finite number > 0, got 'abc'"),
+    (["--set", "spacing.mean_m=nan"], "--set spacing.mean_m: expected a finite number > 0, got 'nan'"),
+    (["--set", "spacing.mean_m=inf"], "--set spacing.mean_m: expected a finite number > 0, got 'inf'"),
+    (["--set", "spacing.bogus_m=1"], "--set spacing.bogus_m: unknown key; expected one of skewness, "
+                                     "mean_m, sd_m, min_m, max_m, floor_m"),
+    (["--set", "spacing=[1,2]"], "--set spacing: expected a mapping of key: value, got [1, 2]"),
+    (["--set", "vehicles_per_line.mean=-3"], "--set vehicles_per_line.mean: expected a finite number > 0"),
+    (["--set", "gap_m=.nan"], "--set gap_m: expected a finite number >= 0 and <= 10, got nan"),
+    (["--vehicles", "0"], "--vehicles: expected an integer >= 1 and <= 10000000, got '0'"),
+    (["--vehicles", "-5"], "--vehicles: expected an integer >= 1"),
+    (["--vehicles", "1e3"], "--vehicles: expected an integer >= 1"),
+    (["--lines", "0"], "--lines: expected an integer >= 1 and <= 1000000, got '0'"),
+    (["--seed", "-1"], "--seed: expected a non-negative integer, got '-1'"),
+    (["--seed", "1.5"], "--seed: expected a non-negative integer, got '1.5'"),
+    (["--seed", "abc"], "--seed: expected a non-negative integer, got 'abc'"),
+    (["--gap", "nan"], "--gap: expected a finite number >= 0 and <= 10, got 'nan'"),
+    (["--gap", "-0.5"], "--gap: expected a finite number >= 0 and <= 10, got '-0.5'"),
+    (["--gap", "11"], "--gap: expected a finite number >= 0 and <= 10, got '11'"),
+    (["--lane-offset", "0"], "--lane-offset: expected a finite number > 0 and <= 50, got '0'"),
+    (["--lane-offset", "inf"], "--lane-offset: expected a finite number > 0 and <= 50, got 'inf'"),
+    (["--lane-offset", "x"], "--lane-offset: expected a finite number > 0 and <= 50, got 'x'"),
+    (["--m-per-px", "0"], "--m-per-px: expected a finite number >= 0.01 and <= 100, got '0'"),
+    (["--m-per-px", "nan"], "--m-per-px: expected a finite number >= 0.01 and <= 100, got 'nan'"),
+    (["--m-per-px", "0.01"], "--m-per-px: expected at least 0.0"),  # 200 m scene: 2e4 px
+    (["--traffic", "middle"], "--traffic: expected one of right, left, got 'middle'"),
+    (["--vehicles", "5", "--lines", "2"], "not allowed with argument"),
+]
+
+
+@pytest.mark.parametrize("extra, needle", BAD_INPUTS, ids=[" ".join(b[0]) for b in BAD_INPUTS])
 def test_bad_input_one_line_exit_2(straight_glb, tmp_path, capsys, extra, needle):
     out = tmp_path / "bad"
-    args = ["place", "--scene", str(straight_glb), "--out", str(out), "--no-png"]
+    args = ["place", "--scene", str(straight_glb), "--out", str(out)]
+    if "--m-per-px" not in extra:
+        args += ["--no-png"]
     if "--scenario" not in extra:
         args += ["--scenario", "jam"]
     rc = main(args + extra)
     assert rc == 2
     assert needle in _one_error_line(capsys)
     assert not out.exists()
+
+
+def _fifo(path):
+    os.mkfifo(path)
+    return path
+
+
+@pytest.mark.parametrize(
+    "make, needle",
+    [
+        (lambda d: (d / "afile").write_text("keep") and d / "afile", "expected a folder, found a file"),
+        (lambda d: (d / "afile").write_text("keep") and d / "afile" / "sub", "found a file"),
+        (lambda d: _fifo(d / "fifo"), "expected a folder, found a FIFO"),
+    ],
+    ids=["file", "below-a-file", "fifo"],
+)
+def test_out_that_is_not_a_folder_is_refused_before_any_work(straight_glb, tmp_path, capsys, make, needle):
+    target = make(tmp_path)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    rc = main(["place", "--scene", str(straight_glb), "--out", str(target), "--lines", "1"])
+    assert rc == 2
+    line = _one_error_line(capsys)
+    assert line.startswith(f"aerial-synth: error: --out {target}: ") and needle in line
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+    if (tmp_path / "afile").exists():
+        assert (tmp_path / "afile").read_text() == "keep"
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root may write into a read-only folder")
+def test_read_only_out_is_refused(straight_glb, tmp_path, capsys):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    try:
+        rc = main(["place", "--scene", str(straight_glb), "--out", str(ro / "x"), "--lines", "1"])
+        assert rc == 2
+        assert "not writable" in _one_error_line(capsys)
+        assert list(ro.iterdir()) == []
+    finally:
+        ro.chmod(0o755)
+
+
+def test_failed_run_leaves_an_existing_output_as_it_was(straight_glb, tmp_path, capsys):
+    out = tmp_path / "o"
+    assert main(["place", "--scene", str(straight_glb), "--lines", "2", "--out", str(out), "--no-png"]) == 0
+    before = (out / "placement.json").read_bytes()
+    capsys.readouterr()
+    rc = main(["place", "--scene", str(straight_glb), "--out", str(out), "--set", "gap_m=.nan"])
+    assert rc == 2
+    _one_error_line(capsys)
+    assert sorted(p.name for p in out.iterdir()) == ["placement.json"]
+    assert (out / "placement.json").read_bytes() == before
 
 
 def test_scene_whose_traces_find_no_road(tmp_path, capsys):
