@@ -1,0 +1,166 @@
+"""Tiled placement: vehicles on a world far larger than memory, one tile at a time.
+
+For every tile of a :class:`~aerial_synth.scene.tiles.TileGrid`, in raster order:
+
+1. build the scene of the tile's **window** (core + margin) and its RayScene;
+2. call the public :func:`aerial_synth.placement.place` on it with the tile's own seed
+   (``SeedSequence(entropy, spawn_key + (i, j))`` of the caller's seed; a grid of one tile
+   uses the caller's seed itself, so it equals untiled placement);
+3. keep only the vehicles whose footprint centre lies in the tile's **core** (cores are
+   half-open, so each point of the world has exactly one owner: a vehicle is decided once,
+   by one tile);
+4. drop the scene (peak memory is one window, whatever the world's size).
+
+Vehicles of neighbouring tiles were placed independently, so two of them may come closer
+than the scenario's gap across a border. That is resolved deterministically: tiles are
+merged in raster order and a vehicle near its core's border that collides with an already
+kept vehicle of another tile is dropped (counted in ``stats["tiles"]["dropped_at_borders"]``).
+Ids are renumbered 1..N in merge order; line ids are offset per tile so they stay unique.
+
+``n_vehicles`` is for the whole world: each tile asks for its window's share by area
+(the core keeps about its core's share). None uses the scenario's default per tile.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+import warnings
+
+import numpy as np
+
+from ..errors import PlacementError
+from .model import Placement
+
+__all__ = ["place_tiled", "tile_seed"]
+
+
+def tile_seed(seed, i: int, j: int, n_tiles: int) -> np.random.SeedSequence | int | None:
+    """The seed of tile (i, j): the caller's seed for a single tile, else an independent
+    child ``SeedSequence(entropy, spawn_key + (i, j))``."""
+    if n_tiles == 1:
+        return seed
+    ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+    return np.random.SeedSequence(ss.entropy, spawn_key=tuple(ss.spawn_key) + (int(i), int(j)))
+
+
+def place_tiled(
+    world,
+    grid,
+    scenario="jam",
+    seed=0,
+    n_vehicles: int | None = None,
+    catalog=None,
+    overrides: dict | None = None,
+    progress=None,
+) -> Placement:
+    """Place vehicles tile by tile on ``world`` (a :class:`~aerial_synth.scene.tiles.TiledWorld`)
+    over ``grid`` (its :class:`~aerial_synth.scene.tiles.TileGrid`).
+
+    seed : an int or a numpy SeedSequence (per-tile seeds: :func:`tile_seed`)
+    n_vehicles : vehicles for the whole world (approximate when tiled), or None
+    progress : optional callable(done_tiles, n_tiles, kept_so_far)
+    Raises PlacementError when the grid's tiles are smaller than the longest vehicle.
+    """
+    from ..scene.raycast import RayScene
+    from ..scene.tiles import min_tile_m
+    from . import place
+    from .config import load_scenario
+    from .footprints import FootprintIndex
+    from .traffic import PlacementWarning
+
+    if catalog is None:
+        from ..vehicles import load_catalog
+
+        catalog = load_catalog()
+    longest = min_tile_m(catalog)
+    if grid.tile_m < longest:
+        raise PlacementError(
+            f"--tile-m: expected a tile size of at least the longest vehicle ({longest:g} m), got {grid.tile_m:g}"
+        )
+    cfg = load_scenario(scenario, overrides)
+    tiles = grid.tiles()
+    n_tiles = len(tiles)
+    world_area = float(np.prod(grid.bounds[1] - grid.bounds[0]))
+    index = FootprintIndex(cfg.gap_m, cfg.min_center_distance_m)
+    reach = longest + max(cfg.gap_m, 0.0) + float(cfg.min_center_distance_m or 0.0)
+    kept: list = []
+    line_base = 0
+    per_tile = []
+    dropped = 0
+    warned: list[str] = []
+    single_stats = None
+    t0 = time.perf_counter()
+    for k, tile in enumerate(tiles):
+        scene = world.scene_for(tile.window)
+        rs = RayScene(scene, nthreads=0)
+        want = None
+        if n_vehicles is not None:
+            x0, y0, x1, y1 = tile.window
+            want = n_vehicles if n_tiles == 1 else max(1, int(round(n_vehicles * (x1 - x0) * (y1 - y0) / world_area)))
+        rng = np.random.default_rng(tile_seed(seed, tile.i, tile.j, n_tiles))
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", PlacementWarning)
+            try:
+                pl = place(rs, cfg, rng, n_vehicles=want, catalog=catalog, scene_name=world.name)
+            except PlacementError as exc:
+                if "found no road" not in str(exc):
+                    raise
+                pl = None  # a tile without roads (a park, a lake) holds no vehicles
+        warned += [str(w.message) for w in caught]
+        del rs, scene
+        if pl is None:
+            per_tile.append({"tile": [tile.i, tile.j], "placed": 0, "kept": 0})
+            continue
+        xy = np.array([[v.x_m, v.y_m] for v in pl.vehicles]).reshape(-1, 2)
+        own = grid.owns(tile, xy) if len(xy) else np.zeros(0, bool)
+        x0, y0, x1, y1 = tile.core
+        n_kept = 0
+        max_line = -1
+        for v, o, (x, y) in zip(pl.vehicles, own, xy):
+            max_line = max(max_line, v.line_id)
+            if not o:
+                continue
+            near = n_tiles > 1 and min(x - x0, x1 - x, y - y0, y1 - y) < reach
+            if near:
+                poly = index.polygon(x, y, v.heading_rad, v.length_m, v.width_m)
+                if index.collides(poly, (x, y)):
+                    dropped += 1
+                    continue
+                index.add(poly, (x, y))
+            kept.append(dataclasses.replace(
+                v, id=len(kept) + 1, line_id=v.line_id + line_base if v.line_id >= 0 else -1,
+            ))
+            n_kept += 1
+        line_base += max_line + 1
+        per_tile.append({"tile": [tile.i, tile.j], "placed": len(pl.vehicles), "kept": n_kept})
+        if progress is not None:
+            progress(k + 1, n_tiles, len(kept))
+        if n_tiles == 1:
+            single_stats = dict(pl.stats)
+    elapsed = time.perf_counter() - t0
+    if single_stats is not None:
+        stats = single_stats
+    else:
+        stats = {"vehicles": len(kept), "requested_vehicles": n_vehicles}
+    stats["tiles"] = {
+        "grid": list(grid.shape),
+        "tile_m": grid.tile_m,
+        "margin_m": grid.margin_m,
+        "dropped_at_borders": dropped,
+        "per_tile": per_tile,
+    }
+    if not kept and not any(t["placed"] for t in per_tile):
+        raise PlacementError(f"tiled world {world.name!r}: no tile held a road to place vehicles on")
+    out = Placement(
+        scene=world.name,
+        scenario=cfg.name,
+        seed=seed if isinstance(seed, (int, type(None))) else None,
+        parameters=cfg.to_dict(),
+        vehicles=kept,
+        stats=stats,
+        timing={"seconds": elapsed, "vehicles_per_s": len(kept) / elapsed if elapsed else 0.0},
+    )
+    if warned and n_tiles == 1:
+        warnings.warn(warned[0], PlacementWarning, stacklevel=2)
+    return out

@@ -1,0 +1,100 @@
+"""Tiled placement: one tile equals untiled; no vehicle lost or duplicated at borders."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+from aerial_synth.errors import PlacementError
+from aerial_synth.placement import place
+from aerial_synth.placement.footprints import FootprintIndex
+from aerial_synth.placement.tiled import place_tiled, tile_seed
+from aerial_synth.scene.raycast import RayScene
+from aerial_synth.scene.tiles import TiledWorld
+
+N = 240
+
+
+@pytest.fixture(scope="module")
+def world(small_city_spec):
+    return TiledWorld.from_spec(small_city_spec)
+
+
+@pytest.fixture(scope="module")
+def tiled(world):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        g = world.grid(250.0, 50.0)
+        return g, place_tiled(world, g, "jam", seed=7, n_vehicles=N)
+
+
+def _dicts(pl):
+    return [v.to_dict() for v in pl.vehicles]
+
+
+def test_one_tile_equals_untiled(world, small_city_scene):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        one = place_tiled(world, world.grid(600.0, 40.0), "jam", seed=7, n_vehicles=N)
+        ref = place(RayScene(small_city_scene), "jam", seed=7, n_vehicles=N, scene_name=world.name)
+    assert one.stats["tiles"]["grid"] == [1, 1]
+    assert len(ref.vehicles) > 100
+    assert _dicts(one) == _dicts(ref)
+
+
+def test_every_vehicle_decided_once_by_its_owner(world, tiled):
+    """Re-run each tile on its own: the merged vehicles of a tile are exactly that tile's
+    core-owned vehicles minus the ones dropped at borders (nothing lost, nothing added)."""
+    g, pl = tiled
+    assert g.shape == (2, 2)
+    xy = np.array([[v.x_m, v.y_m] for v in pl.vehicles])
+    owner = g.owner(xy)
+    assert (owner >= 0).all()
+    keys = {tuple(round(c, 6) for c in (v.x_m, v.y_m, v.heading_rad)) for v in pl.vehicles}
+    assert len(keys) == len(pl.vehicles)  # no duplicates
+    assert [v.id for v in pl.vehicles] == list(range(1, len(pl.vehicles) + 1))
+    dropped_total = 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for t in g.tiles():
+            sc = world.scene_for(t.window)
+            want = max(1, int(round(N * (t.window[2] - t.window[0]) * (t.window[3] - t.window[1]) / 500.0**2)))
+            own = place(RayScene(sc), "jam", np.random.default_rng(tile_seed(7, t.i, t.j, 4)), n_vehicles=want)
+            oxy = np.array([[v.x_m, v.y_m] for v in own.vehicles])
+            mine = {tuple(round(c, 6) for c in (v.x_m, v.y_m, v.heading_rad))
+                    for v, o in zip(own.vehicles, g.owns(t, oxy)) if o}
+            merged = {tuple(round(c, 6) for c in (v.x_m, v.y_m, v.heading_rad))
+                      for v, o in zip(pl.vehicles, owner) if tuple(o) == t.key}
+            assert merged <= mine
+            dropped_total += len(mine - merged)
+            assert len(mine) > 20
+    assert dropped_total == pl.stats["tiles"]["dropped_at_borders"]
+
+
+def test_no_overlap_across_borders(tiled):
+    g, pl = tiled
+    gap = pl.parameters["gap_m"]
+    idx = FootprintIndex(gap)
+    for v in pl.vehicles:
+        poly = idx.polygon(v.x_m, v.y_m, v.heading_rad, v.length_m, v.width_m)
+        assert not idx.collides(poly), f"vehicle {v.id} comes closer than {gap} m to another"
+        idx.add(poly, (v.x_m, v.y_m))
+    # vehicles stand near the borders too (no empty band along the tile edges)
+    xy = np.array([[v.x_m, v.y_m] for v in pl.vehicles])
+    near = (np.abs(xy[:, 0]) < 15) | (np.abs(xy[:, 1]) < 15)
+    assert near.sum() >= 5
+
+
+def test_deterministic(world, tiled):
+    g, pl = tiled
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        again = place_tiled(world, g, "jam", seed=7, n_vehicles=N)
+    assert _dicts(again) == _dicts(pl)
+
+
+def test_tile_smaller_than_longest_vehicle_refused(world):
+    with pytest.raises(PlacementError) as e:
+        place_tiled(world, world.grid(3.0, 1.0), "jam", seed=0, n_vehicles=10)
+    msg = str(e.value)
+    assert "--tile-m" in msg and "3" in msg and "\n" not in msg
