@@ -325,7 +325,7 @@ def resolve_dota_folder(path, split: str | None = None, option: str = "--gt") ->
                 lab = base / s / "labelTxt"
                 img = base / s / "images"
                 return lab, (img if img.is_dir() else None)
-    if any(p.suffix == ".txt" for p in path.iterdir()):
+    if path.name == "labelTxt" or any(p.suffix == ".txt" for p in path.iterdir()):
         img = path.parent / "images"
         return path, (img if img.is_dir() else None)
     raise EvaluationError(

@@ -56,3 +56,27 @@ def make_dota(folder: Path, n: int, prefix="img", *, seed=0, size=(200, 160), gs
 @pytest.fixture
 def tiny_dota(tmp_path):
     return make_dota(tmp_path / "gt", 4)
+
+
+@pytest.fixture(scope="session")
+def tiny_export(tmp_path_factory) -> Path:
+    """A 2-image synthetic export (DOTA + YOLO-OBB, 256 px, box vehicles) on an 80 m scene."""
+    from aerial_synth.dataset.export import ExportConfig, export_dataset
+
+    lines = []
+    off = 0
+    for name, (x0, y0, x1, y1, z) in {"ground": (-40, -40, 40, 40, 0.0),
+                                      "road_ew": (-40, -4, 40, 4, 0.05),
+                                      "road_ns": (-4, -40, 4, 40, 0.051)}.items():
+        lines.append(f"o {name}")
+        lines += [f"v {x} {y} {z}" for x, y in ((x0, y0), (x1, y0), (x1, y1), (x0, y1))]
+        lines += [f"f {off + 1} {off + 2} {off + 3}", f"f {off + 1} {off + 3} {off + 4}"]
+        off += 4
+    root = tmp_path_factory.mktemp("export")
+    scene = root / "tiny.obj"
+    scene.write_text("\n".join(lines) + "\n")
+    out = root / "ds"
+    export_dataset(ExportConfig(scene=str(scene), images=2, formats="dota,yolo-obb", split=0.5,
+                                seed=1, images_per_placement=2, n_vehicles=10, width_px=256,
+                                height_px=256, simple_vehicles=True), out, workers=1, progress=False)
+    return out

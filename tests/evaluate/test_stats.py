@@ -1,0 +1,152 @@
+"""aerial-synth stats: exact figures on hand-built folders, and the domain-gap report of a
+synthetic export against a small DOTA-format folder."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+from scipy.stats import ks_2samp
+
+from aerial_synth.cli import main
+from aerial_synth.evaluate.stats import box_geometry, compare_stats, dataset_stats
+
+from .conftest import write_dota_image
+
+
+def car(cx, cy, length, width, heading_deg):
+    """Corners front-left, front-right, rear-right, rear-left (clockwise on screen)."""
+    t = np.deg2rad(heading_deg)
+    f = np.array([np.cos(t), -np.sin(t)])
+    r = np.array([np.sin(t), np.cos(t)])
+    c = np.array([cx, cy], float)
+    return np.array([c + f * length / 2 - r * width / 2, c + f * length / 2 + r * width / 2,
+                     c - f * length / 2 + r * width / 2, c - f * length / 2 - r * width / 2])
+
+
+def test_box_geometry_heading_axis_and_size():
+    g = box_geometry([car(0, 0, 40, 16, h) for h in (0, 90, 200, 315)])
+    np.testing.assert_allclose(g["heading_deg"], [0, 90, 200, 315], atol=1e-9)
+    np.testing.assert_allclose(g["axis_deg"], [0, 90, 20, 135], atol=1e-9)
+    np.testing.assert_allclose(g["length_px"], 40)
+    np.testing.assert_allclose(g["width_px"], 16)
+
+
+@pytest.fixture
+def real_like(tmp_path):
+    """Three 200 x 160 images: axis-aligned integer boxes, 230 gray on 90 gray."""
+    d = tmp_path / "real"
+    boxes = {
+        "a": [car(50, 40, 20, 8, 0), car(120, 40, 20, 8, 0), car(50, 110, 30, 10, 90)],
+        "b": [car(100, 80, 20, 8, 180)],
+        "c": [car(60, 60, 24, 8, 270), car(69, 60, 24, 8, 270)],  # a plane 1 px beside the car
+    }
+    cls = {"a": ["small-vehicle", "small-vehicle", "large-vehicle"], "b": ["small-vehicle"],
+           "c": ["small-vehicle", "plane"]}
+    diff = {"a": [0, 1, 0], "b": [0], "c": [0, 0]}
+    for k in boxes:
+        write_dota_image(d, k, boxes[k], cls[k], diff[k], gsd=0.25)
+    return d, boxes
+
+
+def test_dataset_stats_exact_on_a_built_folder(real_like):
+    d, boxes = real_like
+    s, dist, hist = dataset_stats(d)
+    assert s["layout"] == "dota" and s["images"] == 3 and s["objects"] == 5
+    assert s["classes"] == {"large-vehicle": 1, "small-vehicle": 4}
+    assert s["other_classes_left_out"] == {"plane": 1}
+    assert s["difficult_fraction"] == 1 / 5 and s["truncated_fraction"] == 0.0
+    np.testing.assert_array_equal(np.sort(dist["vehicles_per_image"]), [1, 1, 3])
+    np.testing.assert_allclose(np.sort(dist["length_px"]), [20, 20, 20, 24, 30], atol=0.01)
+    np.testing.assert_allclose(np.sort(dist["length_m"]), np.array([20, 20, 20, 24, 30]) * 0.25, atol=0.01)
+    np.testing.assert_allclose(np.sort(dist["heading_deg"]), [0, 0, 90, 180, 270], atol=0.1)
+    # nearest neighbours: image a has centres (50,40), (120,40), (50,110)
+    np.testing.assert_allclose(np.sort(dist["nn_distance_px"]), [70, 70, 70], atol=0.01)
+    # pixels: 230 inside every box, 90 around it -> contrast (230 - 90) / the image's gray sd
+    np.testing.assert_allclose(dist["box_gray_mean"], 230.0)
+    np.testing.assert_allclose(dist["ring_gray_mean"], 90.0)
+    sds = {}
+    for k in "abc":
+        g = cv2.imread(str(d / "images" / f"{k}.png"), cv2.IMREAD_GRAYSCALE)
+        sds[k] = g.std()
+    expected = [140 / sds["a"]] * 3 + [140 / sds["b"]] + [140 / sds["c"]]
+    np.testing.assert_allclose(np.sort(dist["vehicle_contrast"]), np.sort(expected), rtol=1e-9)
+    assert s["vehicle_contrast_median"] == pytest.approx(np.median(expected))
+    # the ring of a vehicle leaves out the plane beside it (a labelled object, not ground)
+    assert s["distributions"]["image_gray_mean"]["n"] == 3
+    assert hist["inside"].sum() > 0 and hist["ring"].sum() > 0
+    # the inside histogram is one bin (230 // 8 = 28) per channel
+    assert hist["inside"][:, 28].sum() == hist["inside"].sum()
+
+
+def test_compare_identical_is_zero_and_shifted_is_found(real_like):
+    d, _ = real_like
+    _, da, ha = dataset_stats(d)
+    gaps = compare_stats(da, da, ha, ha)
+    assert gaps and all(g["ks"] == 0 and g["wasserstein"] == pytest.approx(0, abs=1e-9) for g in gaps)
+    shifted = {k: v * 2 for k, v in da.items()}
+    gaps = compare_stats(da, shifted)
+    assert [g["ks"] for g in gaps] == sorted((g["ks"] for g in gaps), reverse=True)
+    g = {x["name"]: x for x in gaps}["length_px"]
+    assert g["ks"] == pytest.approx(ks_2samp(da["length_px"], shifted["length_px"]).statistic)
+    assert g["wasserstein"] == pytest.approx(np.mean(da["length_px"]))  # W of x vs 2x = mean(x)
+
+
+def test_yolo_obb_and_image_only_folders(tmp_path):
+    root = tmp_path / "dota8like"
+    (root / "images" / "train").mkdir(parents=True)
+    (root / "labels" / "train").mkdir(parents=True)
+    img = np.full((100, 200, 3), 60, np.uint8)
+    cv2.imwrite(str(root / "images/train/x.jpg"), img)
+    b = car(100, 50, 40, 10, 0) / (200, 100)
+    (root / "labels/train/x.txt").write_text("1 " + " ".join(f"{v:.6f}" for v in b.reshape(-1)) + "\n")
+    (root / "data.yaml").write_text("train: images/train\nnames:\n  0: large vehicle\n  1: small vehicle\n")
+    s, dist, _ = dataset_stats(root)
+    assert s["layout"] == "yolo-obb" and s["classes"] == {"small-vehicle": 1}
+    np.testing.assert_allclose(dist["length_px"], [40], atol=1e-3)
+    assert s["gsd_m"] is None and len(dist["length_m"]) == 0
+    s2, dist2, _ = dataset_stats(root, gsd=0.5)
+    np.testing.assert_allclose(dist2["length_m"], [20], atol=1e-3)
+    only = tmp_path / "only"
+    only.mkdir()
+    cv2.imwrite(str(only / "p.png"), img)
+    s3, dist3, _ = dataset_stats(only)
+    assert s3["layout"] == "images" and s3["objects"] == 0
+    np.testing.assert_allclose(dist3["image_gray_mean"], [60.0])
+
+
+def test_report_synthetic_export_vs_dota_folder(tiny_export, real_like, tmp_path, capsys):
+    d, _ = real_like
+    out = tmp_path / "report"
+    rc = main(["stats", str(tiny_export), "--compare", str(d), "--out", str(out)])
+    text = capsys.readouterr().out
+    assert rc == 0, text
+    assert "domain gap, largest first" in text
+    rep = json.loads((out / "stats.json").read_text())
+    a, b = rep["datasets"]["A"], rep["datasets"]["B"]
+    assert a["layout"] == "dota" and a["objects"] > 0 and b["objects"] == 5
+    assert a["gsd_m"]["median"] == pytest.approx(0.12, rel=0.05)  # the export's gsd: headers
+    ks = [g["ks"] for g in rep["gaps"]]
+    assert ks == sorted(ks, reverse=True) and all(0 <= k <= 1 for k in ks)
+    names = {g["name"] for g in rep["gaps"]}
+    assert {"vehicles_per_image", "length_m", "vehicle_contrast", "image_gray_mean", "image_gray_sd"} <= names
+    assert rep["realism"]["vehicle_contrast_median"]["B"] == pytest.approx(b["vehicle_contrast_median"])
+    assert rep["realism"]["image_gray_sd"]["ks"] is not None
+    for p in rep["plots"]:
+        img = cv2.imread(str(out / p))
+        assert img is not None and img.shape[0] >= 380 and (img < 250).mean() > 0.01
+    assert "overview.png" in rep["plots"] and "colour_histograms.png" in rep["plots"]
+    # bad input: one line, exit 2, nothing written
+    for argv, msg in (
+        (["stats", str(tmp_path / "nope"), "--out", str(tmp_path / "r2")], "no such folder"),
+        (["stats", str(d), "--out", str(d / "r")], "inside the input folder DIR"),
+        (["stats", str(d), "--compare", str(d / "labelTxt" / "a.txt"), "--out", str(tmp_path / "r2")],
+         "expected a folder, found a file"),
+        (["stats", str(d), "--max-images", "0", "--out", str(tmp_path / "r2")], "--max-images"),
+    ):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and msg in err, err
+        assert not (tmp_path / "r2").exists()
