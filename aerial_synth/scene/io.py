@@ -608,7 +608,7 @@ def load_scene(
     :func:`aerial_synth.scene.osm.load_osm_scene`).
 
     labels : label-rules YAML for mesh files (default: sidecar ``NAME.labels.yaml``, else
-             the built-in rules); ignored for procedural specs
+             the built-in rules); refused (SceneError) for procedural specs
     seed   : overrides a procedural spec's seed (0 is a valid seed); ignored for meshes
     bbox   : OSM only: "MINLON,MINLAT,MAXLON,MAXLAT" (or 4 numbers) to cut the extract
     crs    : OSM only: projected CRS to build in (default: the local UTM zone)
@@ -630,6 +630,7 @@ def load_scene(
     if p.suffix.lower() in SPEC_EXTENSIONS:
         if not p.is_file():
             raise SceneError(f"scene spec {p}: file not found")
+        _no_labels_for_spec(labels, s)
         return _load_spec(p, seed)
     if p.suffix or "/" in s or "\\" in s or p.exists():
         return load_mesh_scene(p, labels)
@@ -640,7 +641,18 @@ def load_scene(
             f"scene {s!r}: not a bundled scene name and not a file; expected one of {avail} "
             f"or a path to a .glb/.gltf/.obj/.ply/.yaml file"
         )
+    _no_labels_for_spec(labels, s)
     return _load_spec(spec, seed)
+
+
+def _no_labels_for_spec(labels, scene: str) -> None:
+    """A label-rules file names mesh nodes; a procedural scene has none to label: refuse it
+    rather than ignore it silently."""
+    if labels is not None:
+        raise SceneError(
+            f"--labels {labels}: label rules apply to mesh files (.glb/.gltf/.obj/.ply), but "
+            f"{scene!r} is a procedural scene spec whose objects are labelled already; drop --labels"
+        )
 
 
 # --------------------------------------------------------------------------- export

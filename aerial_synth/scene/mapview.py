@@ -32,6 +32,7 @@ LABEL_COLORS_BGR: dict[str, tuple[int, int, int]] = {
     "trunk": (30, 60, 110),
     "pole": (0, 200, 255),
     "vehicle": (0, 0, 255),
+    "parking_marking": (210, 225, 235),
 }
 _NOTHING_BGR = (0, 0, 0)
 _TREE_ALPHA = 0.55
@@ -95,23 +96,24 @@ def render_map(
     Returns a :class:`MapView` covering the scene's xy bounds.
     """
     from ..errors import ConfigError
+    from ..validators import positive
 
-    m_per_px = float(m_per_px)
-    if not m_per_px > 0:
-        raise ConfigError(f"m_per_px must be > 0, got {m_per_px}")
-    if rayscene is None:
-        from .raycast import RayScene
-
-        rayscene = RayScene(scene)
+    m_per_px = positive("--m-per-px", m_per_px)
     b = scene.bounds()
     x0, y0, x1, y1 = b[0, 0], b[0, 1], b[1, 0], b[1, 1]
     W = max(1, int(np.ceil((x1 - x0) / m_per_px)))
     H = max(1, int(np.ceil((y1 - y0) / m_per_px)))
     if max(W, H) > max_px:
+        need = max(x1 - x0, y1 - y0) / max_px
         raise ConfigError(
-            f"m_per_px={m_per_px} gives a {W}x{H} px map; larger than {max_px} px, use a "
-            f"coarser --m-per-px"
+            f"--m-per-px: {m_per_px:g} gives a {W}x{H} px map of {scene.name} "
+            f"({x1 - x0:.0f} m x {y1 - y0:.0f} m); expected at least {need:.3g} m/px "
+            f"(at most {max_px} px a side)"
         )
+    if rayscene is None:
+        from .raycast import RayScene
+
+        rayscene = RayScene(scene)
     origin = np.array([x0, y1], dtype=np.float64)
     jj, ii = np.meshgrid(np.arange(W), np.arange(H))
     xy = np.column_stack(
