@@ -453,7 +453,21 @@ class _Engine:
             else:
                 ln.reason = str(c.reason[i]) or "blocked"
                 done.append(ln)
+        self.mark_road_ends([ln for ln in done if ln.reason in ("off_road", "no_edge", "junction")])
         return still, done
+
+    def mark_road_ends(self, lines: list[_Line]) -> None:
+        """A line whose next spot failed because the road ahead stops is recorded as ended at
+        a ``road_end``: straight ahead of its last vehicle, along its heading, the road gives
+        out within one maximum spacing plus half a long vehicle (6 m)."""
+        if not lines or self.cfg.spacing is None:
+            return
+        reach = float(self.cfg.spacing.max_m) + 6.0
+        pos = np.array([[ln.x, ln.y] for ln in lines])
+        ahead = self.prober.march(pos, np.array([[ln.heading] for ln in lines]), max_distance_m=reach)
+        for ln, found in zip(lines, ahead.found[:, 0], strict=True):
+            if found:
+                ln.reason = "road_end"
 
     # ------------------------------------------------------------------ scenarios
     def run_lines(self, n_vehicles: int | None, n_lines: int | None, in_flight: int = 64) -> None:

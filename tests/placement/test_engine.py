@@ -76,16 +76,47 @@ def test_curves_follow_the_tangent(catalog, layout):
     assert rep.overlaps == 0
 
 
-@pytest.mark.parametrize("layout", [layouts.t_junction, layouts.dead_end])
-def test_lines_stop_at_road_ends_and_never_leave(catalog, layout):
-    scene = layout()
+def test_t_junction_lines_never_leave_the_road(catalog):
+    scene = layouts.t_junction()
     rs, p, rep = _run(scene, catalog, n_lines=12, overrides={"double_lane_probability": 1.0})
     assert len(p.vehicles) >= 15
     road = scene.truth.road_area.buffer(1e-6)
     assert all(shapely.within(_footprints(p), road))
-    assert rep.corners_drivable == 1.0
-    ends = p.stats["line_end_reasons"]
-    assert set(ends) & {"off_road", "junction", "no_edge", "blocked", "complete"}
+    assert rep.corners_drivable == 1.0 and rep.footprint_drivable == 1.0
+
+
+def test_lines_stop_at_road_ends():
+    """On a dead-end road (x from 0 to 300, flat caps) every line that stops for a geometric
+    reason stops at a road end: no vehicle past the end, its last vehicle within one maximum
+    spacing + half a length of the end it drives towards, and the reason recorded as road_end."""
+    length = 300.0
+    scene = layouts.dead_end(length=length)
+    rs = RayScene(scene)
+    catalog = load_catalog()
+    d_max = 23.5  # jam's d_max
+    ended_at_end = 0
+    for seed in range(4):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", PlacementWarning)
+            p = place(rs, "jam", seed=seed, catalog=catalog, n_lines=2,
+                      overrides={"vehicles_per_line": {"mean": 500, "sd": 0}, "double_lane_probability": 1.0})
+        xs = np.array([v.corners_xy()[:, 0] for v in p.vehicles])
+        assert xs.max() <= length + 1e-6 and xs.min() >= -1e-6  # nobody past either end
+        by_line = {}
+        for v in p.vehicles:
+            by_line.setdefault((v.line_id, v.lane), []).append(v)
+        for line_id, lane, reason, n in p.stats["line_table"]:
+            vs = by_line[(line_id, lane)]
+            assert len(vs) == n
+            assert reason in ("road_end", "blocked"), reason  # nothing else can stop a line here
+            if reason != "road_end":
+                continue
+            last = vs[-1]
+            east = np.cos(last.heading_rad) > 0
+            to_end = (length - last.x_m) if east else last.x_m
+            assert 0 < to_end <= d_max + last.length_m / 2, (to_end, reason)
+            ended_at_end += 1
+    assert ended_at_end >= 4  # the test saw real road ends, not just blocked lines
 
 
 def test_dead_end_stops_before_the_end(catalog):
@@ -173,8 +204,14 @@ def test_min_center_distance_rule(catalog):
 
 def test_gap_is_kept(catalog):
     scene = layouts.straight()
-    _, p, _ = _run(scene, catalog, n_lines=6, overrides={"gap_m": 1.0})
+    _, p, rep = _run(scene, catalog, n_lines=6, overrides={"gap_m": 1.0})
     polys = _footprints(p)
     tree = shapely.STRtree(polys)
     a, b = tree.query(polys, predicate="dwithin", distance=0.999)
     assert not np.any(a != b)
+    assert rep.gap_violations == 0
+    # grown by gap/2 per side (corners_xy(gap_m)), no two footprints overlap
+    grown = shapely.polygons(np.array([v.corners_xy(1.0) for v in p.vehicles]))
+    a, b = shapely.STRtree(grown).query(grown, predicate="intersects")
+    pairs = a < b
+    assert np.all(shapely.area(shapely.intersection(grown[a[pairs]], grown[b[pairs]])) < 1e-9)

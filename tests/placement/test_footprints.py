@@ -1,0 +1,180 @@
+"""Footprints: one meaning of gap_m, and the whole footprint on drivable surface."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+import shapely
+from shapely.geometry import LineString, Polygon
+
+from aerial_synth.placement import PlacedVehicle, Placement, place, validate_placement
+from aerial_synth.placement import traffic as traffic_mod
+from aerial_synth.placement.footprints import FootprintIndex, footprint_samples
+from aerial_synth.placement.traffic import PlacementWarning
+from aerial_synth.scene.build import prism
+from aerial_synth.scene.model import LABEL_IDS, SceneObject
+from aerial_synth.scene.raycast import RayScene
+from aerial_synth.vehicles import load_catalog
+
+from . import layouts
+
+L, W = 4.5, 1.8
+
+
+# ----------------------------------------------------------------------------- gap_m
+
+
+@pytest.mark.parametrize("gap", [0.0, 0.5, 1.0, 2.25])
+@pytest.mark.parametrize("heading", [0.0, np.pi / 2, np.radians(37.0)])
+def test_footprints_exactly_gap_apart_are_accepted_closer_refused(gap, heading):
+    """gap_m is the clearance between two footprints: behind each other (along the heading)
+    and side by side, exactly gap_m apart is fine, 1 cm less is refused."""
+    fwd = np.array([np.cos(heading), np.sin(heading)])
+    left = np.array([-np.sin(heading), np.cos(heading)])
+    for direction, size in ((fwd, L), (left, W)):
+        for dist, ok in ((gap, True), (gap + 0.01, True), (gap - 0.01, False)):
+            if dist < 0:
+                continue
+            idx = FootprintIndex(gap)
+            idx.add(idx.polygon(0.0, 0.0, heading, L, W), (0.0, 0.0))
+            c = direction * (size + dist)
+            poly = idx.polygon(c[0], c[1], heading, L, W)
+            assert abs(shapely.distance(poly, idx._polys[0]) - dist) < 1e-9
+            assert idx.collides(poly, c) == (not ok), (gap, dist, heading)
+
+
+def test_gap_rule_is_the_same_in_the_tree_and_in_the_recent_list():
+    gap = 0.5
+    idx = FootprintIndex(gap, rebuild_every=4)
+    for i in range(8):  # 8 vehicles in a row, exactly gap apart: the tree holds them all
+        x = i * (L + gap)
+        p = idx.polygon(x, 0.0, 0.0, L, W)
+        assert not idx.collides(p, (x, 0.0))
+        idx.add(p, (x, 0.0))
+    assert idx._tree is not None and idx._tree_n == 8
+    x = 3 * (L + gap) + 0.2  # overlaps vehicles 3 and 4's clearances
+    assert idx.collides(idx.polygon(x, 0.0, 0.0, L, W), (x, 0.0))
+    assert idx.collides(idx.polygon(0.0, W + gap - 0.01, 0.0, L, W))
+    assert not idx.collides(idx.polygon(0.0, W + gap, 0.0, L, W))
+
+
+def test_corners_xy_grows_by_half_the_gap_per_side():
+    v = PlacedVehicle(id=1, model="m", color="c", cls="small-vehicle", length_m=L, width_m=W,
+                      height_m=1.5, x_m=0.0, y_m=0.0, z_m=0.0, heading_rad=0.0)
+    c = v.corners_xy(1.0)
+    assert np.allclose(c.max(axis=0), [L / 2 + 0.5, W / 2 + 0.5])
+    # two vehicles exactly gap apart: their grown rectangles touch and do not overlap
+    u = PlacedVehicle(**{**v.__dict__, "id": 2, "x_m": L + 1.0})
+    a, b = shapely.Polygon(v.corners_xy(1.0)), shapely.Polygon(u.corners_xy(1.0))
+    assert shapely.intersects(a, b) and shapely.area(shapely.intersection(a, b)) < 1e-12
+
+
+# ----------------------------------------------------- the whole footprint on drivable
+
+
+def _poke_scene(apexes, road_len=120.0, width=8.0):
+    """A straight road along x (y in [-4, 4]); square buildings turned 45 degrees stand south
+    of it, each with its top corner poking 1.4 m into the road at an apex (x, -2.6)."""
+    buildings, objs = [], []
+    for i, ax in enumerate(apexes):
+        apex_y = -width / 2 + 1.4
+        half = 6.0  # half-diagonal of the square
+        sq = Polygon([(ax, apex_y), (ax + half, apex_y - half), (ax, apex_y - 2 * half),
+                      (ax - half, apex_y - half)])
+        buildings.append(sq)
+        v, f = prism(sq, 0.0, 9.0)
+        objs.append(SceneObject(f"building_{i}", "building", v, f))
+    scene = layouts.make_scene("pokes", [(LineString([(-road_len / 2, 0), (road_len / 2, 0)]), width)],
+                               extra=objs)
+    # the truth's road area excludes the buildings (a map would not call them road)
+    blocked = shapely.union_all(buildings)
+    scene.truth = type(scene.truth)(road_area=scene.truth.road_area.difference(blocked),
+                                    roads=scene.truth.roads)
+    return scene, blocked
+
+
+def _vehicle(x, y, heading=0.0, vid=1):
+    return PlacedVehicle(id=vid, model="m", color="c", cls="small-vehicle", length_m=L, width_m=W,
+                         height_m=1.5, x_m=x, y_m=y, z_m=0.05, heading_rad=heading)
+
+
+def test_validator_refuses_a_body_crossed_by_a_building_corner_between_the_corners():
+    # apex at x = 1: the vehicle (x in [-2.25, 2.25], y in [-3.15, -1.35]) has its corners,
+    # centre and edge midpoints on road, but the building's corner is inside its body
+    scene, blocked = _poke_scene([1.0])
+    rs = RayScene(scene)
+    v = _vehicle(0.0, -4.0 + 1.75)
+    body = shapely.Polygon(v.corners_xy())
+    assert shapely.area(shapely.intersection(body, blocked)) > 0.2  # really crossed
+    # what the old check traced (4 corners + centre) and the edge midpoints: all road
+    first9 = footprint_samples(v.x_m, v.y_m, v.heading_rad, L, W)[0, :9]
+    assert set(rs.trace_down(first9).labels) <= {"road"}
+    clean = _vehicle(-20.0, -4.0 + 1.75, vid=2)
+    p = Placement("pokes", "jam", 0, vehicles=[v, clean])
+    for truth in (None, scene.truth):  # traced samples alone, and with the truth polygon
+        rep = validate_placement(rs, p, truth)
+        assert rep.corners_drivable == 1.0  # the old figure said all is well
+        assert rep.footprint_ok.tolist() == [False, True]
+        assert rep.footprint_drivable == 0.5
+        assert rep.summary()["footprint_drivable"] == 0.5
+        assert rep.summary()["footprint_off_drivable"] == 1
+    rep = validate_placement(rs, p, scene.truth)
+    assert rep.area_drivable[0] < 0.99 and rep.area_drivable[1] == pytest.approx(1.0)
+
+
+def test_placement_refuses_a_footprint_a_building_corner_pokes_into(monkeypatch):
+    """Jam traffic along a road with building corners poking into the lane every 9 m: no
+    placed body may touch a building. With only corners + centre traced (the old check) the
+    same run does place vehicles across building corners, so this test can fail."""
+    apexes = np.arange(-50.0, 51.0, 9.0) + 0.3
+    scene, blocked = _poke_scene(apexes)
+    rs = RayScene(scene)
+    cat = load_catalog()
+
+    def run():
+        hits, n = 0, 0
+        for seed in range(3):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", PlacementWarning)
+                p = place(rs, "jam", seed=seed, catalog=cat, n_lines=8,
+                          overrides={"double_lane_probability": 0.0})
+            bodies = shapely.polygons(np.array([v.corners_xy() for v in p.vehicles]))
+            inter = shapely.area(shapely.intersection(bodies, blocked))
+            hits += int((inter > 1e-6).sum())
+            n += len(p.vehicles)
+            if seed == 0:
+                rep = validate_placement(rs, p, scene.truth)
+        return hits, n, rep
+
+    hits, n, rep = run()
+    assert n >= 20  # the south lane is mostly unusable, the north lane is free
+    assert hits == 0
+    assert rep.footprint_drivable == 1.0
+
+    def corners_only(x, y, h, length, width, **kw):
+        return footprint_samples(x, y, h, length, width, **kw)[:, :5]
+
+    monkeypatch.setattr(traffic_mod, "footprint_samples", corners_only)
+    hits_old, _, rep_old = run()
+    assert hits_old > 0  # the old check accepted bodies crossed by a building corner
+    assert rep_old.footprint_drivable < 1.0
+
+
+def test_footprint_samples_cover_edges_densely():
+    pts = footprint_samples([0.0], [0.0], [0.3], [12.0], [2.5])[0]
+    c, s = np.cos(-0.3), np.sin(-0.3)
+    local = pts @ np.array([[c, s], [-s, c]])  # rotate back into the vehicle frame
+    assert np.allclose(local[:4], [[6, 1.25], [6, -1.25], [-6, -1.25], [-6, 1.25]])
+    assert np.allclose(local[4], [0, 0])
+    on_edge = np.isclose(np.abs(local[:, 1]), 1.25)
+    xs = np.sort(local[on_edge & (local[:, 1] > 0), 0])
+    assert xs[0] == pytest.approx(-6) and xs[-1] == pytest.approx(6)
+    assert np.diff(xs).max() <= 0.25 + 1e-9
+    assert (np.abs(local) <= [6 + 1e-9, 1.25 + 1e-9]).all()
+
+
+def test_drivable_ids_include_parking():
+    rs = RayScene(layouts.straight())
+    assert LABEL_IDS["parking"] in traffic_mod.Prober(rs, traffic_mod.load_scenario("jam").probe).drivable_ids
