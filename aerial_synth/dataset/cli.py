@@ -8,19 +8,29 @@ import sys
 __all__ = ["register"]
 
 
-def _positive_int(name):
-    def conv(text):
-        try:
-            return int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name}: expected an integer, got {text!r}") from None
+MAX_IMAGE_PX = 16384  # as aerial_synth.camera.MAX_IMAGE_PX (not imported: --help stays instant)
 
-    return conv
+
+def _format_list(text: str):
+    """argparse ``type=`` for ``--format``: a comma list of registered formats."""
+    from ..errors import AerialSynthError
+    from ..formats.registry import parse_names
+
+    try:
+        return ",".join(parse_names(text))
+    except AerialSynthError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def register(sub) -> None:
+    from ..annotate.boxes import BOX_FITS, BOX_MODES
+    from ..formats.registry import names as format_names
+    from ..placement.config import SCENARIOS
     from ..scene.cli import add_scene_args
+    from ..validators import arg_choice, arg_float, arg_int
+    from .config import IMAGE_EXTS
 
+    fmts = ", ".join(format_names())
     p = sub.add_parser(
         "export",
         help="export a labelled dataset (DOTA, EAGLE-style, YOLO-OBB, COCO)",
@@ -30,49 +40,55 @@ def register(sub) -> None:
     )
     add_scene_args(p)
     p.add_argument("--scenario", default="jam", metavar="NAME|FILE",
-                   help="traffic scenario: jam, normal, sparse, random or a YAML file (jam)")
-    p.add_argument("--images", type=_positive_int("--images"), default=10, metavar="N",
+                   help=f"traffic scenario: {', '.join(SCENARIOS)} or a YAML file (jam)")
+    p.add_argument("--images", type=arg_int("--images", 1), default=10, metavar="N",
                    help="number of images (10)")
-    p.add_argument("--format", default="dota", metavar="LIST",
-                   help="comma list of dota, eagle, yolo-obb, coco (dota)")
-    p.add_argument("--split", type=float, default=0.8, metavar="F",
-                   help="fraction of images in train, in (0, 1] (0.8)")
-    p.add_argument("--seed", type=_positive_int("--seed"), default=0, metavar="S", help="dataset seed (0)")
-    p.add_argument("--workers", type=_positive_int("--workers"), default=1, metavar="K",
+    p.add_argument("--format", type=_format_list, default="dota", metavar="LIST",
+                   help=f"comma list of {fmts} (dota)")
+    p.add_argument("--split", type=arg_float("--split", 0.0, 1.0, lo_open=True), default=0.8,
+                   metavar="F", help="fraction of images in train, in (0, 1] (0.8)")
+    p.add_argument("--seed", type=arg_int("--seed", 0), default=0, metavar="S",
+                   help="dataset seed, a non-negative integer (0)")
+    p.add_argument("--workers", type=arg_int("--workers", 1, 1024), default=1, metavar="K",
                    help="worker processes; output is identical for any K (1)")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
     p.add_argument("--resume", action="store_true", help="finish an interrupted export in DIR")
     p.add_argument("--force", action="store_true",
-                   help="overwrite an existing dataset, or write into a non-dataset folder")
-    p.add_argument("--images-per-placement", type=_positive_int("--images-per-placement"),
+                   help="replace an existing dataset (once the new one is complete), or write "
+                   "into a folder that is not a dataset")
+    p.add_argument("--images-per-placement", type=arg_int("--images-per-placement", 1),
                    default=10, metavar="K", help="a fresh vehicle placement every K images (10)")
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--vehicles", type=int, default=None, metavar="N",
-                   help="vehicles per placement (default: the scenario's)")
-    g.add_argument("--lines", type=int, default=None, metavar="N",
+    g.add_argument("--vehicles", type=arg_int("--vehicles", 1, 10_000_000), default=None,
+                   metavar="N", help="vehicles per placement (default: the scenario's)")
+    g.add_argument("--lines", type=arg_int("--lines", 1, 1_000_000), default=None, metavar="N",
                    help="traffic lines per placement (default: the scenario's)")
     c = p.add_argument_group("camera")
-    c.add_argument("--size", type=_positive_int("--size"), default=None, metavar="PX",
+    c.add_argument("--size", type=arg_int("--size", 1, MAX_IMAGE_PX), default=None, metavar="PX",
                    help="square image size in pixels (1024)")
-    c.add_argument("--width", type=_positive_int("--width"), default=None, metavar="PX")
-    c.add_argument("--height", type=_positive_int("--height"), default=None, metavar="PX")
-    c.add_argument("--altitude", type=float, default=60.0, metavar="M", help="metres (60)")
-    c.add_argument("--gsd", type=float, default=None, metavar="M",
+    c.add_argument("--width", type=arg_int("--width", 1, MAX_IMAGE_PX), default=None, metavar="PX")
+    c.add_argument("--height", type=arg_int("--height", 1, MAX_IMAGE_PX), default=None, metavar="PX")
+    c.add_argument("--altitude", type=arg_float("--altitude", 0.0, lo_open=True), default=60.0,
+                   metavar="M", help="metres (60)")
+    c.add_argument("--gsd", type=arg_float("--gsd", 0.0, lo_open=True), default=None, metavar="M",
                    help="metres per pixel at nadir (0.12)")
-    c.add_argument("--max-tilt", type=float, default=15.0, metavar="DEG",
-                   help="tilt drawn in [-DEG, DEG] (15)")
+    c.add_argument("--max-tilt", type=arg_float("--max-tilt", 0.0, 89.0, hi_open=True),
+                   default=15.0, metavar="DEG", help="tilt drawn in [-DEG, DEG], 0 <= DEG < 89 (15)")
     b = p.add_argument_group("boxes and flags (docs/formats.md)")
-    b.add_argument("--box", default="visible", metavar="visible|amodal",
+    b.add_argument("--box", type=arg_choice("--box", BOX_MODES), default="visible",
+                   metavar="|".join(BOX_MODES),
                    help="visible: rectangle of the visible mask (thesis); amodal: whole vehicle")
-    b.add_argument("--difficult-fraction", type=float, default=0.5, metavar="F",
-                   help="difficult when the visible fraction is below F (0.5)")
-    b.add_argument("--min-visible-fraction", type=float, default=0.1, metavar="F",
-                   help="dropped when the visible fraction is below F (0.1)")
-    b.add_argument("--min-visible-px", type=int, default=20, metavar="N",
+    b.add_argument("--difficult-fraction", type=arg_float("--difficult-fraction", 0.0, 1.0),
+                   default=0.5, metavar="F", help="difficult when the visible fraction is below F (0.5)")
+    b.add_argument("--min-visible-fraction", type=arg_float("--min-visible-fraction", 0.0, 1.0),
+                   default=0.1, metavar="F", help="dropped when the visible fraction is below F (0.1)")
+    b.add_argument("--min-visible-px", type=arg_int("--min-visible-px", 0), default=20, metavar="N",
                    help="dropped when fewer visible pixels than N (20)")
-    b.add_argument("--box-fit", default="pixels", metavar="pixels|dilated",
+    b.add_argument("--box-fit", type=arg_choice("--box-fit", BOX_FITS), default="pixels",
+                   metavar="|".join(BOX_FITS),
                    help="rectangle of the region's pixels (default) or of the dilated contour")
-    p.add_argument("--image-ext", default="png", metavar="png|jpg", help="image files (png)")
+    p.add_argument("--image-ext", type=arg_choice("--image-ext", IMAGE_EXTS), default="png",
+                   metavar="|".join(IMAGE_EXTS), help="image files (png)")
     p.add_argument("--simple-vehicles", action="store_true",
                    help="box-shaped vehicles instead of catalog meshes (quick tests)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -85,10 +101,11 @@ def register(sub) -> None:
         "images of an aerial-synth dataset or a DOTA folder, and a contact sheet.",
     )
     s.add_argument("dir", metavar="DIR", help="dataset folder (or a DOTA folder)")
-    s.add_argument("--out", required=True, metavar="DIR", help="where previews go")
-    s.add_argument("--limit", type=_positive_int("--limit"), default=None, metavar="N",
+    s.add_argument("--out", required=True, metavar="DIR",
+                   help="where previews go (not inside DIR)")
+    s.add_argument("--limit", type=arg_int("--limit", 1), default=None, metavar="N",
                    help="at most N images")
-    s.add_argument("--thumb", type=_positive_int("--thumb"), default=256, metavar="PX",
+    s.add_argument("--thumb", type=arg_int("--thumb", 8, 4096), default=256, metavar="PX",
                    help="contact sheet thumbnail size (256)")
     s.set_defaults(func=_cmd_show)
 
@@ -97,7 +114,7 @@ def config_from_args(args):
     from ..annotate.boxes import BoxConfig
     from .export import ExportConfig
 
-    size = args.size or 1024
+    size = args.size if args.size is not None else 1024
     box = BoxConfig(
         box=args.box,
         fit=args.box_fit,
@@ -117,8 +134,8 @@ def config_from_args(args):
         images_per_placement=args.images_per_placement,
         n_vehicles=args.vehicles,
         n_lines=args.lines,
-        width_px=args.width or size,
-        height_px=args.height or size,
+        width_px=args.width if args.width is not None else size,
+        height_px=args.height if args.height is not None else size,
         altitude_m=args.altitude,
         gsd_m=args.gsd,
         max_tilt_deg=args.max_tilt,
@@ -129,11 +146,8 @@ def config_from_args(args):
 
 
 def _cmd_export(args) -> int:
-    from ..errors import ExportError
     from .export import export_dataset
 
-    if args.workers < 1:
-        raise ExportError(f"--workers: expected an integer >= 1, got {args.workers}")
     cfg = config_from_args(args)
     res = export_dataset(cfg, args.out, workers=args.workers, resume=args.resume,
                          force=args.force, progress=False if args.no_progress else None)

@@ -1,7 +1,10 @@
 """``aerial-synth show``: draw labels over images, and a contact sheet.
 
 Reads an aerial-synth dataset (``meta/*.json`` plus any format's images) or a plain DOTA
-folder (``images/`` + ``labelTxt/``). Draws each box's polygon, a heading arrow from the box
+folder (``images/`` + ``labelTxt/``). Previews are drawn into a temporary folder inside
+``--out`` and moved into place only when every image has been read and drawn, so a bad input
+(a truncated image, a broken label file) leaves ``--out`` as it was; ``--out`` inside the
+dataset is refused. Draws each box's polygon, a heading arrow from the box
 centre to the middle of its front edge (corner 1 -> corner 2), the class, kept boxes in green
 (small vehicles) / cyan (large vehicles) and difficult ones in orange.
 """
@@ -9,13 +12,18 @@ centre to the middle of its front edge (corner 1 -> corner 2), the class, kept b
 from __future__ import annotations
 
 import math
+import os
+import shutil
+import tempfile
+from contextlib import contextmanager
 from dataclasses import dataclass
+from itertools import islice
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import ExportError
-from ..io_utils import atomic_write_bytes
+from ..errors import ExportError, OutputError
+from ..io_utils import atomic_write_bytes, check_output_dir, is_inside
 
 __all__ = ["Drawn", "draw_labels", "contact_sheet", "show_dataset"]
 
@@ -78,13 +86,19 @@ def contact_sheet(images: list[np.ndarray], thumb_px: int = 256, cols: int | Non
 
 
 def _items_from_dataset(root: Path):
-    from ..formats import meta
+    import json
 
+    from ..formats import meta
+    from ..formats.registry import get, names
+
+    fmts = [get(n) for n in names()]
     for mp in sorted((root / "meta").glob("*.json")):
-        rec = meta.read(mp)
+        try:
+            rec = meta.read(mp)
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise ExportError(f"show {mp}: cannot read the metadata ({type(exc).__name__})") from None
         sp, fn = rec.split, rec.file_name
-        cands = [root / "dota" / sp / "images" / fn, root / "eagle" / sp / "images" / fn,
-                 root / "yolo-obb" / "images" / sp / fn, root / "coco" / "images" / sp / fn]
+        cands = [root / f.image_path(sp, fn) for f in fmts]
         img = next((c for c in cands if c.is_file()), None)
         boxes = [
             Drawn(a.box.corners_xy_px, a.cls, a.difficult)
@@ -108,14 +122,74 @@ def _items_from_dota(root: Path):
         yield lp.stem, img, [Drawn(o.polygon_xy_px, o.category, bool(o.difficult)) for o in lab.objects]
 
 
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+_PNG_END = b"IEND\xaeB`\x82"
+
+
+def _decode(path: Path) -> np.ndarray:
+    """Read and decode one image (BGR); a truncated or unreadable file raises ExportError."""
+    import cv2
+
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise ExportError(f"show {path}: cannot read the image ({exc.strerror})") from None
+    ext = path.suffix.lower()
+    # Check the container's end first: libpng/libjpeg would print their own messages, and a
+    # truncated JPEG decodes "successfully" with grey rows.
+    if ext == ".png" and (not data.startswith(_PNG_SIGNATURE) or not data.endswith(_PNG_END)):
+        raise ExportError(f"show {path}: truncated or damaged PNG (no IEND chunk at its end)")
+    if ext in (".jpg", ".jpeg") and (not data.startswith(b"\xff\xd8")
+                                     or not data.rstrip(b"\x00").endswith(b"\xff\xd9")):
+        raise ExportError(f"show {path}: truncated or damaged JPEG (no end-of-image marker)")
+    bgr = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    if bgr is None:
+        raise ExportError(f"show {path}: cannot decode the image")
+    return bgr
+
+
+@contextmanager
+def _staged(out: Path):
+    """A temporary folder inside ``out`` whose files are moved into ``out`` on success; on
+    failure it is removed, with every folder this created (``out`` is left as it was)."""
+    missing = []
+    p = out
+    while not p.exists():
+        missing.append(p)
+        p = p.parent
+    for d in reversed(missing):
+        d.mkdir()
+    tmp = Path(tempfile.mkdtemp(prefix=".show-", dir=out))
+    try:
+        yield tmp
+        for f in sorted(tmp.iterdir()):
+            dst = out / f.name
+            if dst.exists() and not dst.is_file():
+                raise OutputError(f"--out {out}: {dst} exists and is not a file")
+        for f in sorted(tmp.iterdir()):
+            os.replace(f, out / f.name)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        for d in missing:  # innermost first
+            try:
+                d.rmdir()
+            except OSError:
+                break
+        raise
+    tmp.rmdir()
+
+
 def show_dataset(root, out_dir, limit: int | None = None, thumb_px: int = 256) -> list[Path]:
     """Draw every labelled image of ``root`` into ``out_dir`` plus ``contact_sheet.jpg``.
-    Returns the written paths (sheet last)."""
+    Returns the written paths (sheet last). Writes nothing unless every image was read."""
     import cv2
 
     root, out = Path(root), Path(out_dir)
     if not root.is_dir():
         raise ExportError(f"show {root}: no such folder")
+    check_output_dir(out, "--out")
+    if is_inside(out, root):
+        raise OutputError(f"--out {out}: is inside the dataset {root}; write the previews elsewhere")
     if (root / "meta").is_dir():
         items = _items_from_dataset(root)
     elif (root / "labelTxt").is_dir():
@@ -124,24 +198,24 @@ def show_dataset(root, out_dir, limit: int | None = None, thumb_px: int = 256) -
         raise ExportError(
             f"show {root}: expected an aerial-synth dataset (meta/) or a DOTA folder (labelTxt/)"
         )
-    written, thumbs = [], []
-    for k, (name, img_path, boxes) in enumerate(items):
-        if limit is not None and k >= limit:
-            break
+    items = list(islice(items, limit))  # parses every label / metadata file first
+    if not items:
+        raise ExportError(f"show {root}: no labelled images found")
+    for name, img_path, _ in items:
         if img_path is None:
             raise ExportError(f"show {root}: no image found for {name}")
-        bgr = cv2.imread(str(img_path), cv2.IMREAD_COLOR)
-        if bgr is None:
-            raise ExportError(f"show {img_path}: cannot read the image")
-        drawn = draw_labels(bgr, boxes)
-        ok, buf = cv2.imencode(".jpg", drawn, [cv2.IMWRITE_JPEG_QUALITY, 90])
-        written.append(atomic_write_bytes(out / f"{name}.jpg", buf.tobytes()))
-        h, w = drawn.shape[:2]
-        f = thumb_px / max(h, w)
-        thumbs.append(cv2.resize(drawn, (max(1, round(w * f)), max(1, round(h * f))),
-                                 interpolation=cv2.INTER_AREA))
-    if not thumbs:
-        raise ExportError(f"show {root}: no labelled images found")
-    ok, buf = cv2.imencode(".jpg", contact_sheet(thumbs, thumb_px), [cv2.IMWRITE_JPEG_QUALITY, 90])
-    written.append(atomic_write_bytes(out / "contact_sheet.jpg", buf.tobytes()))
-    return written
+    names, thumbs = [], []
+    with _staged(out) as tmp:
+        for name, img_path, boxes in items:
+            drawn = draw_labels(_decode(img_path), boxes)
+            ok, buf = cv2.imencode(".jpg", drawn, [cv2.IMWRITE_JPEG_QUALITY, 90])
+            atomic_write_bytes(tmp / f"{name}.jpg", buf.tobytes())
+            names.append(f"{name}.jpg")
+            h, w = drawn.shape[:2]
+            f = thumb_px / max(h, w)
+            thumbs.append(cv2.resize(drawn, (max(1, round(w * f)), max(1, round(h * f))),
+                                     interpolation=cv2.INTER_AREA))
+        ok, buf = cv2.imencode(".jpg", contact_sheet(thumbs, thumb_px), [cv2.IMWRITE_JPEG_QUALITY, 90])
+        atomic_write_bytes(tmp / "contact_sheet.jpg", buf.tobytes())
+        names.append("contact_sheet.jpg")
+    return [out / n for n in names]

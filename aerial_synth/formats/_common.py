@@ -5,11 +5,13 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ExportError
+from ..vehicles import CLASSES
 
 __all__ = ["CATEGORIES", "LabelFormatError", "fmt_num", "parse_float", "polygon4"]
 
-#: Detection classes, in class-index order (YOLO index 0.., COCO id 1..), as DOTA/EAGLE name them.
-CATEGORIES: tuple[str, ...] = ("small-vehicle", "large-vehicle")
+#: Detection classes, in class-index order (YOLO index 0.., COCO id 1..), as DOTA/EAGLE name
+#: them. The one list is the vehicle catalog's (``aerial_synth.vehicles.CLASSES``).
+CATEGORIES: tuple[str, ...] = CLASSES
 
 
 class LabelFormatError(ExportError):

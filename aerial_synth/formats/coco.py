@@ -19,8 +19,11 @@ import numpy as np
 
 from ..io_utils import atomic_write_text, dumps_json
 from ._common import CATEGORIES, LabelFormatError
+from .registry import DatasetInfo, LabelFormat
 
 __all__ = [
+    "FORMAT",
+    "CocoFormat",
     "CocoImage",
     "CocoObject",
     "rle_from_crop",
@@ -186,3 +189,36 @@ def write(path, d: dict) -> Path:
 
 def read(path) -> tuple[list[CocoImage], list[CocoObject]]:
     return from_dict(json.loads(Path(path).read_text(encoding="utf-8")), where=str(path))
+
+
+class CocoFormat(LabelFormat):
+    """``coco/images/<split>/<name>.png`` + ``coco/annotations/instances_<split>.json`` (one
+    file per split that has images; no per-image label files)."""
+
+    name = "coco"
+    description = "COCO instances JSON per split (visible-mask RLE, bbox, oriented box extras)"
+
+    def image_path(self, split: str, file_name: str) -> str:
+        return f"{self.folder}/images/{split}/{file_name}"
+
+    def aggregate_files(self, records, info: DatasetInfo) -> dict[str, str]:
+        out = {}
+        for sp in info.splits:
+            recs = [r for r in records if r.split == sp]
+            if not recs:
+                continue
+            images = [CocoImage(r.index + 1, r.file_name, r.width_px, r.height_px) for r in recs]
+            objs = [
+                object_from_annotation(a, r.index + 1, r.segmentations[a.vehicle_id])
+                for r in recs
+                for a in r.annotations
+                if a.kept and a.box is not None
+            ]
+            meta = {"description": f"aerial-synth {info.scene} {info.scenario} ({sp})",
+                    "version": info.tool_version, "seed": info.seed}
+            d = to_dict(images, objs, info.categories, meta)
+            out[f"{self.folder}/annotations/instances_{sp}.json"] = dumps_json(d)
+        return out
+
+
+FORMAT = CocoFormat()

@@ -15,8 +15,10 @@ from pathlib import Path
 
 from ..io_utils import atomic_write_text
 from ._common import CATEGORIES, LabelFormatError, fmt_num, parse_float, polygon4
+from .registry import LabelFormat
 
-__all__ = ["DotaObject", "DotaLabel", "to_lines", "from_lines", "from_annotations", "write", "read"]
+__all__ = ["FORMAT", "DotaFormat", "DotaObject", "DotaLabel", "to_lines", "from_lines",
+           "from_annotations", "text", "write", "read"]
 
 IMAGE_SOURCE = "aerial-synth"
 DECIMALS = 2
@@ -88,10 +90,31 @@ def from_lines(lines, where: str = "<labelTxt>", categories=CATEGORIES) -> DotaL
     return DotaLabel(lines[0][len("imagesource:"):], gsd, tuple(objects))
 
 
+def text(objects, gsd_m, image_source: str = IMAGE_SOURCE) -> str:
+    """The file's text: the lines, each ended by a newline."""
+    return "\n".join(to_lines(objects, gsd_m, image_source)) + "\n"
+
+
 def write(path, objects, gsd_m, image_source: str = IMAGE_SOURCE) -> Path:
-    return atomic_write_text(path, "\n".join(to_lines(objects, gsd_m, image_source)) + "\n")
+    return atomic_write_text(path, text(objects, gsd_m, image_source))
 
 
 def read(path, categories=CATEGORIES) -> DotaLabel:
-    text = Path(path).read_text(encoding="utf-8")
-    return from_lines(text.splitlines(), where=str(path), categories=categories)
+    content = Path(path).read_text(encoding="utf-8")
+    return from_lines(content.splitlines(), where=str(path), categories=categories)
+
+
+class DotaFormat(LabelFormat):
+    """``dota/<split>/images/<name>.png`` + ``dota/<split>/labelTxt/<name>.txt``."""
+
+    name = "dota"
+    description = "DOTA v1 labelTxt (8 corner px, class, difficult)"
+
+    def label_path(self, split: str, name: str) -> str:
+        return f"{self.folder}/{split}/labelTxt/{name}.txt"
+
+    def label_text(self, record) -> str:
+        return text(from_annotations(record.annotations), record.gsd_m)
+
+
+FORMAT = DotaFormat()

@@ -19,8 +19,10 @@ from pathlib import Path
 
 from ..io_utils import atomic_write_text
 from ._common import CATEGORIES, LabelFormatError, fmt_num, parse_float, polygon4
+from .registry import LabelFormat
 
-__all__ = ["HEADER", "EagleObject", "to_lines", "from_lines", "from_annotations", "write", "read"]
+__all__ = ["FORMAT", "EagleFormat", "HEADER", "EagleObject", "to_lines", "from_lines",
+           "from_annotations", "text", "write", "read"]
 
 HEADER = (
     "# aerial-synth EAGLE-style v1: x1 y1 x2 y2 x3 y3 x4 y4 orientation_deg class "
@@ -91,10 +93,31 @@ def from_lines(lines, where: str = "<eagle>", categories=CATEGORIES) -> list[Eag
     return out
 
 
+def text(objects) -> str:
+    """The file's text: the header and object lines, each ended by a newline."""
+    return "\n".join(to_lines(objects)) + "\n"
+
+
 def write(path, objects) -> Path:
-    return atomic_write_text(path, "\n".join(to_lines(objects)) + "\n")
+    return atomic_write_text(path, text(objects))
 
 
 def read(path, categories=CATEGORIES) -> list[EagleObject]:
-    text = Path(path).read_text(encoding="utf-8")
-    return from_lines(text.splitlines(), where=str(path), categories=categories)
+    content = Path(path).read_text(encoding="utf-8")
+    return from_lines(content.splitlines(), where=str(path), categories=categories)
+
+
+class EagleFormat(LabelFormat):
+    """``eagle/<split>/images/<name>.png`` + ``eagle/<split>/labels/<name>.txt``."""
+
+    name = "eagle"
+    description = "EAGLE-style text (8 corner px, orientation, class, two flags)"
+
+    def label_path(self, split: str, name: str) -> str:
+        return f"{self.folder}/{split}/labels/{name}.txt"
+
+    def label_text(self, record) -> str:
+        return text(from_annotations(record.annotations))
+
+
+FORMAT = EagleFormat()

@@ -5,7 +5,9 @@ Top-level keys: ``format`` ("aerial-synth-image-meta"), ``version``, ``image`` (
 file_name, split, width_px, height_px), ``gsd_m``, ``seed`` (dataset seed, image index,
 placement group, the SeedSequence entropy of both), ``camera`` (K, pose, tilt, yaw, ...
 from ``Camera.to_dict``), ``render`` (sun and influence factors from ``Frame.to_meta``),
-``placement`` (scene, scenario, parameters), ``box_config``, ``counts`` (kept / difficult /
+``placement`` (scene, scenario, parameters), ``georeference`` (the scene's float64 origin
+[x, y, z] in metres and its CRS, or null: original coordinates = local + origin),
+``box_config``, ``counts`` (kept / difficult /
 dropped) and ``vehicles``: one entry per vehicle in view with its id, model, colour, class,
 world pose, visible fraction, truncation, status (kept / difficult / dropped), reasons, the
 oriented box, image heading and (kept only) the visible-mask RLE.
@@ -34,6 +36,8 @@ class ImageRecord:
     annotations   : one per vehicle in view, sorted by vehicle id
     world         : vehicle id -> ``PlacedVehicle.to_dict()`` (world pose, model, colour)
     segmentations : vehicle id -> compressed RLE {"size": [H, W], "counts": str}, kept only
+    georeference  : ``Scene.georeference()``: {"origin": [x, y, z] float64 m, "crs": str|None};
+                    world poses are local: original = local + origin
     """
 
     index: int
@@ -51,6 +55,7 @@ class ImageRecord:
     annotations: tuple[VehicleAnnotation, ...] = ()
     world: dict = field(default_factory=dict)
     segmentations: dict = field(default_factory=dict)
+    georeference: dict = field(default_factory=dict)
 
     def counts(self) -> dict:
         c = {"kept": 0, "difficult": 0, "dropped": 0}
@@ -87,6 +92,7 @@ def to_dict(r: ImageRecord) -> dict:
         "camera": r.camera,
         "render": r.render,
         "placement": r.placement,
+        "georeference": r.georeference,
         "box_config": r.box_config,
         "counts": r.counts(),
         "vehicles": vehicles,
@@ -125,6 +131,7 @@ def from_dict(d: dict, where: str = "<meta>") -> ImageRecord:
             annotations=tuple(anns),
             world=world,
             segmentations=segs,
+            georeference=d.get("georeference", {}) or {},
         )
     except (KeyError, TypeError, ValueError) as exc:
         raise LabelFormatError(f"{where}: bad image metadata ({type(exc).__name__}: {exc})") from None

@@ -3,9 +3,15 @@
 
     class_index x1 y1 x2 y2 x3 y3 x4 y4
 
-Coordinates are the pixel corners divided by image width/height, clipped to [0, 1]
-(6 decimals); corners front-left first, clockwise on screen. Class indices from 0 in
-:data:`CATEGORIES` order.
+Coordinates are the pixel corners divided by image width (x) and height (y), 6 decimals;
+corners front-left first, clockwise on screen. Class indices from 0 in :data:`CATEGORIES`
+order.
+
+Corners are **not clipped** to [0, 1]: the written box is the true rectangle, so a vehicle cut
+by the image border may have a corner a little outside the image (Ultralytics' own DOTA
+converter writes such corners too, and its loader accepts them). Clipping each corner on its
+own would turn the rectangle into an irregular quadrilateral that Ultralytics refits up to
+44 % larger.
 """
 
 from __future__ import annotations
@@ -17,8 +23,11 @@ import numpy as np
 
 from ..io_utils import atomic_write_text
 from ._common import CATEGORIES, LabelFormatError, fmt_num, parse_float, polygon4
+from .registry import DatasetInfo, LabelFormat
 
 __all__ = [
+    "FORMAT",
+    "YoloObbFormat",
     "YoloObbObject",
     "to_lines",
     "from_lines",
@@ -26,6 +35,7 @@ __all__ = [
     "normalize_xy",
     "denormalize_xy",
     "data_yaml_text",
+    "text",
     "write",
     "read",
 ]
@@ -35,20 +45,21 @@ DECIMALS = 6
 
 @dataclass(frozen=True)
 class YoloObbObject:
-    """class_index (0-based); polygon_xy_norm: 4 (x, y) corners in [0, 1] of width/height."""
+    """class_index (0-based); polygon_xy_norm: 4 (x, y) corners as fractions of the image
+    width / height (the true rectangle: may reach past [0, 1] where the border cuts it)."""
 
     class_index: int
     polygon_xy_norm: tuple[tuple[float, float], ...]
 
 
 def normalize_xy(polygon_xy_px, width_px: int, height_px: int) -> np.ndarray:
-    """(4, 2) px -> (4, 2) in [0, 1] (clipped)."""
-    p = np.asarray(polygon_xy_px, dtype=float).reshape(4, 2) / np.array([width_px, height_px])
-    return np.clip(p, 0.0, 1.0)
+    """(4, 2) px -> (4, 2) fractions of width / height. Not clipped, so a rectangle in
+    pixels stays a rectangle once multiplied back."""
+    return np.asarray(polygon_xy_px, dtype=float).reshape(4, 2) / np.array([width_px, height_px])
 
 
 def denormalize_xy(polygon_xy_norm, width_px: int, height_px: int) -> np.ndarray:
-    """(4, 2) in [0, 1] -> (4, 2) px."""
+    """(4, 2) fractions of width / height -> (4, 2) px."""
     return np.asarray(polygon_xy_norm, dtype=float).reshape(4, 2) * np.array([width_px, height_px])
 
 
@@ -68,13 +79,14 @@ def from_annotations(annotations, width_px: int, height_px: int, categories=CATE
 def to_lines(objects) -> list[str]:
     lines = []
     for o in objects:
-        p = np.clip(np.asarray(o.polygon_xy_norm, dtype=float).reshape(8), 0.0, 1.0)
+        p = np.asarray(o.polygon_xy_norm, dtype=float).reshape(8)
         lines.append(f"{int(o.class_index)} " + " ".join(fmt_num(v, DECIMALS) for v in p))
     return lines
 
 
 def from_lines(lines, where: str = "<yolo-obb>", n_classes: int | None = len(CATEGORIES)):
-    """Strict parser: 9 fields per line, integer class, coordinates in [0, 1]."""
+    """Strict parser: 9 fields per line, integer class, finite coordinates (a border-cut
+    vehicle's rectangle may reach past [0, 1])."""
     out = []
     for n, ln in enumerate(lines, start=1):
         ln = ln.rstrip("\r\n")
@@ -86,8 +98,6 @@ def from_lines(lines, where: str = "<yolo-obb>", n_classes: int | None = len(CAT
         if not f[0].isdigit() or (n_classes is not None and int(f[0]) >= n_classes):
             raise LabelFormatError(f"{where}:{n}: expected a class index 0..{(n_classes or 1) - 1}, got {f[0]!r}")
         xy = [parse_float(t, f"{where}:{n} coordinate {i + 1}") for i, t in enumerate(f[1:])]
-        if min(xy) < 0.0 or max(xy) > 1.0:
-            raise LabelFormatError(f"{where}:{n}: expected coordinates in [0, 1], got {ln!r}")
         out.append(YoloObbObject(int(f[0]), polygon4(xy)))
     return out
 
@@ -107,11 +117,39 @@ def data_yaml_text(names=CATEGORIES, has_val: bool = True) -> str:
     return "\n".join(lines) + "\n"
 
 
+def text(objects) -> str:
+    """The label file's text: one line per object, each ended by a newline (no objects: "")."""
+    return "".join(ln + "\n" for ln in to_lines(objects))
+
+
 def write(path, objects) -> Path:
-    lines = to_lines(objects)
-    return atomic_write_text(path, "".join(ln + "\n" for ln in lines))
+    return atomic_write_text(path, text(objects))
 
 
 def read(path, n_classes: int | None = len(CATEGORIES)):
-    text = Path(path).read_text(encoding="utf-8")
-    return from_lines(text.splitlines(), where=str(path), n_classes=n_classes)
+    content = Path(path).read_text(encoding="utf-8")
+    return from_lines(content.splitlines(), where=str(path), n_classes=n_classes)
+
+
+class YoloObbFormat(LabelFormat):
+    """``yolo-obb/images/<split>/<name>.png``, ``yolo-obb/labels/<split>/<name>.txt`` and
+    ``yolo-obb/data.yaml``."""
+
+    name = "yolo-obb"
+    description = "Ultralytics YOLO-OBB (class index, 8 normalised corners) + data.yaml"
+
+    def image_path(self, split: str, file_name: str) -> str:
+        return f"{self.folder}/images/{split}/{file_name}"
+
+    def label_path(self, split: str, name: str) -> str:
+        return f"{self.folder}/labels/{split}/{name}.txt"
+
+    def label_text(self, record) -> str:
+        return text(from_annotations(record.annotations, record.width_px, record.height_px))
+
+    def aggregate_files(self, records, info: DatasetInfo) -> dict[str, str]:
+        has_val = info.splits.get("val", 0) > 0
+        return {f"{self.folder}/data.yaml": data_yaml_text(info.categories, has_val)}
+
+
+FORMAT = YoloObbFormat()

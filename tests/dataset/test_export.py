@@ -1,5 +1,6 @@
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -39,6 +40,11 @@ def test_end_to_end_layout_and_formats(exported):
     assert man["format"] == "aerial-synth-dataset" and man["status"] == "complete"
     assert man["tool_version"] and man["parameters"]["seed"] == 3
     assert "workers" not in man["parameters"]
+    from aerial_synth.scene import load_scene
+
+    geo = load_scene(man["parameters"]["scene"]).georeference()
+    assert man["georeference"] == geo == res.summary["georeference"]
+    assert len(geo["origin"]) == 3 and all(isinstance(c, float) for c in geo["origin"])
     kept_total = 0
     for i in range(4):
         sp = "train" if i < 2 else "val"
@@ -52,13 +58,19 @@ def test_end_to_end_layout_and_formats(exported):
         lab = dota.read(out / "dota" / sp / "labelTxt" / f"{i:06d}.txt")
         assert lab.gsd_m == pytest.approx(rec.gsd_m, rel=1e-4)
         assert len(lab.objects) == len(kept)
-        for a, o in zip(kept, lab.objects):
+        for a, o in zip(kept, lab.objects, strict=True):
             assert np.abs(np.array(o.polygon_xy_px) - a.box.corners).max() <= 0.5
             assert shoelace_area(o.polygon_xy_px) > 0
         assert len(eagle.read(out / "eagle" / sp / "labels" / f"{i:06d}.txt")) == len(kept)
         yl = yolo_obb.read(out / "yolo-obb" / "labels" / sp / f"{i:06d}.txt")
         assert len(yl) == len(kept)
-        assert all(0 <= v <= 1 for o in yl for p in o.polygon_xy_norm for v in p)
+        for a, o in zip(kept, yl, strict=True):  # the true rectangle, never clipped corner-wise
+            px = yolo_obb.denormalize_xy(o.polygon_xy_norm, 256, 256)
+            np.testing.assert_allclose(px, a.box.corners, atol=2e-3)
+            e = np.roll(px, -1, axis=0) - px
+            assert abs(float(e[0] @ e[1])) <= 2e-3 * np.linalg.norm(e[1]) + 1e-3
+            assert abs(np.linalg.norm(e[0]) - np.linalg.norm(e[2])) <= 2e-3
+        assert rec.georeference == geo
         for d in ("dota/%s/images", "eagle/%s/images", "yolo-obb/images/%s", "coco/images/%s"):
             assert (out / (d % sp) / f"{i:06d}.png").is_file()
         # every vehicle in view is accounted for, with reasons for the dropped ones
@@ -110,36 +122,118 @@ def test_one_and_two_workers_byte_identical(exported, tiny_scene, tmp_path):
     assert [k for k in a if a[k] != b[k]] == []
 
 
-def test_kill_and_resume_identical(exported, tiny_scene, tmp_path):
-    out1, _ = exported
-    out = tmp_path / "killed"
-    args = ["export", "--scene", tiny_scene, "--images", 4, "--format", ALL, "--split", 0.5,
-            "--seed", 3, "--images-per-placement", 2, "--vehicles", 10, "--size", 256,
-            "--simple-vehicles", "--no-progress", "--out", out]
+def _partial(out):
+    return out.parent / f".{out.name}.aerial-synth-partial"
+
+
+EXPORT_ARGS = ["--images", 4, "--format", ALL, "--split", 0.5, "--seed", 3, "--images-per-placement", 2,
+               "--vehicles", 10, "--size", 256, "--simple-vehicles", "--no-progress"]
+
+
+def _descendants(pid: int) -> set[int]:
+    """Every live process below ``pid`` (from /proc)."""
+    kids: dict[int, list[int]] = {}
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                with open(f"/proc/{d}/stat") as fh:
+                    ppid = int(fh.read().rsplit(")", 1)[1].split()[1])
+            except (OSError, IndexError, ValueError):
+                continue
+            kids.setdefault(ppid, []).append(int(d))
+    out, todo = set(), [pid]
+    while todo:
+        for c in kids.get(todo.pop(), []):
+            out.add(c)
+            todo.append(c)
+    return out
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().rsplit(")", 1)[1].split()[0] not in ("Z", "X")
+    except OSError:
+        return False
+
+
+def _snapshot(root):
+    return {str(p.relative_to(root)): (p.stat().st_size, p.stat().st_mtime_ns)
+            for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def _start_and_kill(args, watch, min_meta=1, timeout=120):
+    """Start ``aerial-synth export ARGS``, SIGKILL it once ``watch/meta`` holds ``min_meta``
+    images; returns the pids of its (former) child processes."""
     env = dict(os.environ, PYTHONPATH=str(REPO))
     proc = subprocess.Popen([sys.executable, "-m", "aerial_synth.cli", *map(str, args)], env=env,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    t0 = time.time()
-    while time.time() - t0 < 60:
-        if len(list((out / "meta").glob("*.json"))) >= 1 or proc.poll() is not None:
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    t0, kids = time.time(), set()
+    while time.time() - t0 < timeout:
+        kids |= _descendants(proc.pid)
+        if len(list((watch / "meta").glob("*.json"))) >= min_meta or proc.poll() is not None:
             break
         time.sleep(0.02)
+    kids |= _descendants(proc.pid)
     proc.send_signal(signal.SIGKILL)
     proc.wait()
-    done = len(list((out / "meta").glob("*.json")))
+    return proc, kids
+
+
+def test_kill_and_resume_identical(exported, tiny_scene, tmp_path):
+    """kill -9 of a fresh export: --out does not appear, the partial build stays for
+    --resume, a rerun without --resume is refused, and --resume ends byte-identical."""
+    out1, _ = exported
+    out = tmp_path / "killed"
+    args = ["export", "--scene", tiny_scene, *EXPORT_ARGS, "--out", out]
+    proc, _ = _start_and_kill(args, _partial(out))
+    part = _partial(out)
+    done = len(list((part / "meta").glob("*.json")))
     assert done < 4, "export finished before it could be killed"
-    assert json.loads((out / "manifest.json").read_text())["status"] == "incomplete"
-    stray = out / "dota" / "val" / "images" / ".000003.png.x1y2.tmp"  # a write cut short
+    assert not out.exists()
+    assert json.loads((part / "manifest.json").read_text())["status"] == "incomplete"
+    stray = part / "dota" / "val" / "images" / ".000003.png.x1y2.tmp"  # a write cut short
     stray.parent.mkdir(parents=True, exist_ok=True)
     stray.write_bytes(b"partial")
     r = run_cli(*args)  # without --resume: refused
-    assert r.returncode == 2 and "--resume" in r.stderr
+    assert r.returncode == 2 and "--resume" in r.stderr and len(r.stderr.splitlines()) == 1
     r = run_cli(*args, "--resume")
     assert r.returncode == 0, r.stderr
     assert "resumed" in r.stdout
+    assert not part.exists()
     a, b = tree_bytes(out1), tree_bytes(out)
     assert a.keys() == b.keys()
     assert [k for k in a if a[k] != b[k]] == []
+
+
+def test_kill_two_workers_force_keeps_old_and_workers_die(exported, tiny_scene, tmp_path):
+    """kill -9 of an export --force --workers 2 over an existing dataset: the old dataset
+    stays byte-identical, the orphaned workers stop at once (no file changes afterwards, no
+    process left, no traceback), and --resume finishes byte-identical to one clean run."""
+    out1, _ = exported
+    out = tmp_path / "ds"
+    export_dataset(_cfg(tiny_scene, images=1, formats="dota", seed=9), out, progress=False)
+    (out / "my_notes.txt").write_text("keep me")
+    old = tree_bytes(out)
+    args = ["export", "--scene", tiny_scene, *EXPORT_ARGS, "--workers", 2, "--force", "--out", out]
+    proc, kids = _start_and_kill(args, _partial(out))
+    part = _partial(out)
+    assert len(list((part / "meta").glob("*.json"))) < 4, "export finished before it could be killed"
+    assert kids, "the export started no worker processes"
+    before = _snapshot(part)
+    time.sleep(2.0)
+    assert _snapshot(part) == before, "files changed after the parent was killed"
+    assert [k for k in kids if _alive(k)] == []
+    assert "Traceback" not in proc.stderr.read().decode()
+    assert tree_bytes(out) == old
+    r = run_cli(*[a for a in args if a != "--force"], "--resume")
+    assert r.returncode == 0, r.stderr
+    new = tree_bytes(out)
+    assert new.pop("my_notes.txt") == b"keep me"
+    a = tree_bytes(out1)
+    assert a.keys() == new.keys()
+    assert [k for k in a if a[k] != new[k]] == []
+    assert not part.exists()
 
 
 def test_resume_with_other_parameters_refused(exported, tiny_scene):
@@ -148,27 +242,126 @@ def test_resume_with_other_parameters_refused(exported, tiny_scene):
         export_dataset(_cfg(tiny_scene, seed=4), out, resume=True, progress=False)
 
 
-@pytest.mark.parametrize(
-    "extra, msg",
-    [
-        (["--format", "dota,kitti"], "unknown format"),
-        (["--split", "0"], "split"),
-        (["--split", "1.01"], "split"),
-        (["--images", "0"], "images"),
-        (["--box", "tight"], "box"),
-        (["--scenario", "no_such_scenario"], ""),
-        (["--min-visible-fraction", "2"], "min_visible_fraction"),
-        (["--workers", "0"], "workers"),
-        (["--scene", "no_such_scene"], "scene"),
-    ],
-)
+BAD_INPUTS = [
+    (["--format", "dota,kitti"], "unknown format"),
+    (["--format", ","], "--format"),
+    (["--split", "0"], "--split"),
+    (["--split", "1.01"], "--split"),
+    (["--split", "nan"], "--split"),
+    (["--images", "0"], "--images"),
+    (["--images", "abc"], "--images: expected a positive integer, got 'abc'"),
+    (["--images", "1.5"], "--images"),
+    (["--seed", "-1"], "--seed"),
+    (["--seed", "1.5"], "--seed"),
+    (["--workers", "0"], "--workers"),
+    (["--images-per-placement", "0"], "--images-per-placement"),
+    (["--vehicles", "0"], "--vehicles"),
+    (["--lines", "0"], "--lines"),
+    (["--size", "0"], "--size"),
+    (["--width", "0"], "--width"),
+    (["--height", "-5"], "--height"),
+    (["--size", "100000"], "--size"),
+    (["--altitude", "0"], "--altitude"),
+    (["--altitude", "inf"], "--altitude"),
+    (["--gsd", "-0.1"], "--gsd"),
+    (["--max-tilt", "90"], "--max-tilt"),
+    (["--box", "tight"], "--box: expected one of visible, amodal"),
+    (["--box-fit", "loose"], "--box-fit: expected one of pixels, dilated"),
+    (["--image-ext", "gif"], "--image-ext: expected one of png, jpg"),
+    (["--difficult-fraction", "2"], "--difficult-fraction"),
+    (["--min-visible-fraction", "2"], "--min-visible-fraction"),
+    (["--min-visible-px", "-1"], "--min-visible-px"),
+    (["--scenario", "no_such_scenario"], "scenario"),
+    (["--scene", "no_such_scene"], "scene"),
+]
+
+
+@pytest.mark.parametrize("extra, msg", BAD_INPUTS)
 def test_bad_input_one_line_exit_2_nothing_written(tiny_scene, tmp_path, extra, msg):
     out = tmp_path / "never"
     r = run_cli("export", "--scene", tiny_scene, "--size", 64, "--images", 1, "--out", out, *extra)
     assert r.returncode == 2, r.stderr
-    assert len(r.stderr.strip().splitlines()) == 1 and r.stderr.startswith("aerial-synth: error:")
+    assert len(r.stderr.strip().splitlines()) == 1 and r.stderr.startswith("aerial-synth")
     assert msg in r.stderr
-    assert not out.exists()
+    assert list(tmp_path.iterdir()) == []  # neither --out nor a partial build
+
+
+def test_bad_scene_file_writes_nothing(tmp_path):
+    bad = tmp_path / "bad.glb"
+    bad.write_bytes(b"glTF\x02\x00\x00\x00garbage")
+    before = sorted(p.name for p in tmp_path.iterdir())
+    r = run_cli("export", "--scene", bad, "--size", 64, "--images", 1, "--out", tmp_path / "never")
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_force_with_bad_scene_leaves_dataset_byte_identical(exported, tmp_path):
+    src, _ = exported
+    out = tmp_path / "existing"
+    shutil.copytree(src, out)
+    before = tree_bytes(out)
+    bad = tmp_path / "BAD.glb"
+    bad.write_bytes(b"not a glb at all")
+    r = run_cli("export", "--force", "--scene", bad, "--size", 64, "--images", 1, "--out", out)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert tree_bytes(out) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["BAD.glb", "existing"]
+
+
+def test_failure_during_run_leaves_nothing(tiny_scene, tmp_path, monkeypatch):
+    """An error while rendering (before any image finished) removes the partial build, so a
+    corrected rerun is not refused."""
+    from aerial_synth.dataset import worker
+
+    def boom(self, index):
+        raise ExportError("placement group 0: placed no vehicles")
+
+    monkeypatch.setattr(worker.ImageWorker, "render", boom)
+    out = tmp_path / "ds"
+    with pytest.raises(ExportError, match="no vehicles"):
+        export_dataset(_cfg(tiny_scene, images=1, formats="dota"), out, progress=False)
+    assert list(tmp_path.iterdir()) == []
+
+
+def _chmod_effective() -> bool:
+    return hasattr(os, "geteuid") and os.geteuid() != 0
+
+
+@pytest.mark.parametrize("case", ["file", "below_file", "parent_is_file", "read_only"])
+def test_impossible_out_one_line(tiny_scene, tmp_path, case):
+    f = tmp_path / "afile"
+    f.write_text("x")
+    out = {"file": f, "below_file": f / "sub", "parent_is_file": f / "a" / "b"}.get(case)
+    if case == "read_only":
+        if not _chmod_effective():
+            pytest.skip("running as root: root ignores folder permissions, so chmod 555 proves nothing")
+        ro = tmp_path / "ro"
+        ro.mkdir()
+        ro.chmod(0o555)
+        out = ro / "ds"
+    try:
+        r = run_cli("export", "--scene", tiny_scene, "--size", 64, "--images", 1, "--out", out)
+    finally:
+        if case == "read_only":
+            (tmp_path / "ro").chmod(0o755)
+    assert r.returncode == 2, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and "--out" in r.stderr, r.stderr
+    assert f.read_text() == "x"
+    assert sorted(p.name for p in tmp_path.iterdir()) == (["afile", "ro"] if case == "read_only" else ["afile"])
+
+
+def test_read_only_existing_out_refused(tiny_scene, tmp_path):
+    if not _chmod_effective():
+        pytest.skip("running as root: root ignores folder permissions, so chmod 555 proves nothing")
+    out = tmp_path / "ro"
+    out.mkdir()
+    out.chmod(0o555)
+    try:
+        r = run_cli("export", "--scene", tiny_scene, "--size", 64, "--images", 1, "--out", out)
+    finally:
+        out.chmod(0o755)
+    assert r.returncode == 2 and "not writable" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert list(out.iterdir()) == []
 
 
 def test_non_dataset_folder_refused_unless_force(tiny_scene, tmp_path):
@@ -209,3 +402,38 @@ def test_show_draws_previews_and_sheet(exported, tmp_path):
     assert r.returncode == 0, r.stderr
     r = run_cli("show", tmp_path / "nothing", "--out", tmp_path / "prev3")
     assert r.returncode == 2 and not (tmp_path / "prev3").exists()
+
+
+def test_show_truncated_png_writes_nothing(exported, tmp_path):
+    src, _ = exported
+    ds = tmp_path / "ds"
+    shutil.copytree(src, ds)
+    img = ds / "dota" / "train" / "images" / "000001.png"
+    data = img.read_bytes()
+    img.unlink()  # the formats' copies are hard links: cut this one only
+    img.write_bytes(data[: len(data) // 2])
+    for name in ("eagle/train/images", "yolo-obb/images/train", "coco/images/train"):
+        (ds / name / "000001.png").unlink()
+    prev = tmp_path / "prev"
+    r = run_cli("show", ds, "--out", prev)
+    assert r.returncode == 2, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and "000001.png" in r.stderr and "truncated" in r.stderr
+    assert not prev.exists()
+    # an existing preview folder is left exactly as it was
+    prev.mkdir()
+    (prev / "000000.jpg").write_bytes(b"old")
+    r = run_cli("show", ds, "--out", prev)
+    assert r.returncode == 2
+    assert tree_bytes(prev) == {"000000.jpg": b"old"}
+
+
+@pytest.mark.parametrize("where", [".", "meta", "previews"])
+def test_show_out_inside_dataset_refused(exported, tmp_path, where):
+    src, _ = exported
+    ds = tmp_path / "ds"
+    shutil.copytree(src, ds)
+    before = tree_bytes(ds)
+    r = run_cli("show", ds, "--out", ds / where)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "inside" in r.stderr, r.stderr
+    assert tree_bytes(ds) == before
+    assert sorted(p.name for p in ds.iterdir()) == sorted({k.split("/")[0] for k in before})

@@ -50,7 +50,8 @@ def test_dota_round_trip_and_strict(scene, tmp_path):
     assert all(len(ln.split(" ")) == 10 for ln in lines[2:])
     back = dota.read(p)
     assert back.gsd_m == pytest.approx(0.12) and back.image_source == "aerial-synth"
-    for a, o in zip(kept, back.objects):
+    assert len(back.objects) == len(kept) == len(lines) - 2
+    for a, o in zip(kept, back.objects, strict=True):
         _assert_same_polys(a.box.corners, o.polygon_xy_px)
         assert o.category == a.cls and o.difficult == int(a.difficult)
     assert any(o.difficult for o in back.objects)  # the truncated one
@@ -89,7 +90,8 @@ def test_eagle_round_trip(scene, tmp_path):
     assert lines[0] == eagle.HEADER
     assert all(len(ln.split(" ")) == 12 for ln in lines[1:])
     back = eagle.read(p)
-    for a, o in zip(kept, back):
+    assert len(back) == len(kept) == len(lines) - 1
+    for a, o in zip(kept, back, strict=True):
         _assert_same_polys(a.box.corners, o.polygon_xy_px)
         assert abs((o.orientation_deg - a.heading_img_deg + 180) % 360 - 180) < 0.01
         assert o.category == a.cls
@@ -104,21 +106,47 @@ def test_eagle_rejects(line):
         eagle.from_lines([line])
 
 
-def test_yolo_obb_round_trip_and_range(scene, tmp_path):
+def _assert_rectangle(px, tol_px):
+    """(4, 2) corners: opposite sides equal and every angle right, within tol_px."""
+    e = np.roll(px, -1, axis=0) - px  # the four edges
+    lens = np.linalg.norm(e, axis=1)
+    assert abs(lens[0] - lens[2]) <= tol_px and abs(lens[1] - lens[3]) <= tol_px
+    for k in range(4):  # |cos| of each corner angle, as a length: |e_k . e_k+1| / |e_k+1|
+        assert abs(float(e[k] @ e[(k + 1) % 4])) / lens[(k + 1) % 4] <= tol_px
+    assert np.linalg.norm(px[0] - px[2]) == pytest.approx(np.linalg.norm(px[1] - px[3]), abs=tol_px)
+
+
+def test_yolo_obb_round_trip_true_rectangles(scene, tmp_path):
+    """Every written box is the annotation's rectangle, unclipped: corners may lie past
+    [0, 1] for a border-cut vehicle, and the box is still a rectangle in pixels."""
     _, _, anns, kept, _, _ = scene
     objs = yolo_obb.from_annotations(anns, W, H)
     p = yolo_obb.write(tmp_path / "y.txt", objs)
+    lines = p.read_text().splitlines()
     back = yolo_obb.read(p)
-    for ln in p.read_text().splitlines():
-        v = [float(t) for t in ln.split(" ")[1:]]
-        assert len(v) == 8 and min(v) >= 0.0 and max(v) <= 1.0
-    for a, o in zip(kept, back):
+    assert len(back) == len(kept) == len(lines)
+    tol = 2 * 0.5e-6 * max(W, H) * 2  # two 6-decimal roundings per coordinate
+    outside = 0
+    for a, o, ln in zip(kept, back, lines, strict=True):
+        assert len(ln.split(" ")) == 9
         assert o.class_index == ("small-vehicle", "large-vehicle").index(a.cls)
         px = yolo_obb.denormalize_xy(o.polygon_xy_norm, W, H)
-        clipped = np.clip(a.box.corners, 0, [W, H])
-        _assert_same_polys(clipped, px)
-        if not a.truncated:
-            _assert_same_polys(a.box.corners, px)
+        _assert_same_polys(a.box.corners, px, tol=1e-3)
+        _assert_rectangle(px, tol + 1e-3 * max(1.0, np.abs(a.box.corners).max() / 1000))
+        outside += int(np.any((np.asarray(o.polygon_xy_norm) < 0) | (np.asarray(o.polygon_xy_norm) > 1)))
+    assert outside >= 1, "the border-cut vehicle should reach past the image edge"
+
+
+def test_yolo_obb_border_rectangle_not_clipped():
+    """A rectangle hanging over the right border keeps its shape (clipping each corner would
+    make an irregular quadrilateral)."""
+    corners = np.array([(300.0, 100.0), (340.0, 130.0), (328.0, 146.0), (288.0, 116.0)])  # 50 x 20
+    norm = yolo_obb.normalize_xy(corners, 320, 240)
+    assert norm[:, 0].max() == pytest.approx(340 / 320)
+    line = yolo_obb.to_lines([yolo_obb.YoloObbObject(0, yolo_obb.polygon4(norm))])[0]
+    assert line == "0 0.937500 0.416667 1.062500 0.541667 1.025000 0.608333 0.900000 0.483333"
+    back = yolo_obb.denormalize_xy(yolo_obb.from_lines([line])[0].polygon_xy_norm, 320, 240)
+    _assert_rectangle(back, 1e-3)
 
 
 def test_yolo_data_yaml():
@@ -131,7 +159,9 @@ def test_yolo_data_yaml():
     assert yaml.safe_load(yolo_obb.data_yaml_text(has_val=False))["val"] == "images/train"
 
 
-@pytest.mark.parametrize("line", ["0 0.1 0.2 0.3", "2 0 0 0 0 0 0 0 0", "0 0 0 0 0 0 0 0 1.5", "a 0 0 0 0 0 0 0 0"])
+@pytest.mark.parametrize("line", ["0 0.1 0.2 0.3", "2 0 0 0 0 0 0 0 0", "0 0 0 0 0 0 0 0 nan",
+                                  "0 0 0 0 0 0 0 0 inf", "a 0 0 0 0 0 0 0 0", "-1 0 0 0 0 0 0 0 0",
+                                  "0 0 0 0 0 0 0 0 0 0", "0 0 0 0 0 0 0 0 x"])
 def test_yolo_rejects(line):
     with pytest.raises(LabelFormatError):
         yolo_obb.from_lines([line])
@@ -149,7 +179,7 @@ def test_coco_loads_with_pycocotools_and_masks_match(scene, tmp_path):
     assert [c.cats[i]["name"] for i in (1, 2)] == ["small-vehicle", "large-vehicle"]
     ann_ids = c.getAnnIds(imgIds=[1])
     assert len(ann_ids) == len(kept)
-    for aid, a in zip(ann_ids, kept):
+    for aid, a in zip(ann_ids, kept, strict=True):
         ann = c.anns[aid]
         m = c.annToMask(ann).astype(bool)
         np.testing.assert_array_equal(m, inst == a.vehicle_id)
@@ -158,7 +188,8 @@ def test_coco_loads_with_pycocotools_and_masks_match(scene, tmp_path):
         assert ann["area"] == m.sum() and ann["iscrowd"] == 0
     images, back = coco.read(p)
     assert images[0].file_name == "000000.png"
-    for a, o in zip(kept, back):
+    assert len(back) == len(kept)
+    for a, o in zip(kept, back, strict=True):
         _assert_same_polys(a.box.corners, np.reshape(o.obb_xyxyxyxy, (4, 2)))
         assert o.category == a.cls and o.vehicle_id == a.vehicle_id
 
@@ -188,7 +219,8 @@ def test_meta_round_trip(scene, tmp_path):
     assert d["counts"] == r.counts() and d["vehicles"][0]["world"]["x_m"] is not None
     back = meta.read(p)
     assert back.counts() == r.counts() and back.split == "val"
-    for a, b in zip(anns, back.annotations):
+    assert len(back.annotations) == len(anns)
+    for a, b in zip(anns, back.annotations, strict=True):
         assert a.status == b.status and a.reasons == b.reasons
         if a.box is not None:
             _assert_same_polys(a.box.corners, b.box.corners, 0.01)

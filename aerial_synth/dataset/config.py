@@ -1,0 +1,149 @@
+"""Export parameters (:class:`ExportConfig`) and the export's result (:class:`ExportResult`).
+
+Every field of :class:`ExportConfig` changes the exported bytes, so all go into the manifest;
+run options that do not (workers, resume, force, progress) are arguments of
+:func:`~aerial_synth.dataset.export.export_dataset` instead.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+from .. import validators as v
+from ..annotate.boxes import BoxConfig
+from ..errors import ConfigError, ExportError
+
+__all__ = ["IMAGE_EXTS", "PLACEMENT_STREAM", "SPLITS", "ExportConfig", "ExportResult"]
+
+SPLITS = ("train", "val")
+#: third SeedSequence word of a placement group's entropy: [seed, group, PLACEMENT_STREAM]
+PLACEMENT_STREAM = 1
+IMAGE_EXTS = ("png", "jpg")
+
+
+@dataclass(frozen=True)
+class ExportConfig:
+    """Every parameter that affects the exported bytes (all go into the manifest).
+
+    scene / labels / scene_seed : as ``load_scene`` takes them
+    scenario            : traffic scenario name or YAML path
+    images              : number of images (>= 1)
+    formats             : registered format names (``formats.registry``), any order; stored
+                          in registry order
+    split               : fraction of images in train, in (0, 1]; the first
+                          round(split * images) indices (at least one) are train
+    seed                : dataset seed (0 is a seed like any other)
+    images_per_placement: a fresh placement every K images (K >= 1)
+    n_vehicles / n_lines: how much to place per placement (default: the scenario's)
+    width_px, height_px, altitude_m, gsd_m, max_tilt_deg : camera (see CameraConfig)
+    box                 : box extraction and flag thresholds (BoxConfig)
+    image_ext           : "png" (lossless) or "jpg" (quality 95)
+    simple_vehicles     : box meshes instead of catalog meshes (fast tests)
+    """
+
+    scene: str = "city_park"
+    labels: str | None = None
+    scene_seed: int | None = None
+    scenario: str = "jam"
+    images: int = 10
+    formats: tuple[str, ...] = ("dota",)
+    split: float = 0.8
+    seed: int = 0
+    images_per_placement: int = 10
+    n_vehicles: int | None = None
+    n_lines: int | None = None
+    width_px: int = 1024
+    height_px: int = 1024
+    altitude_m: float = 60.0
+    gsd_m: float | None = None
+    max_tilt_deg: float = 15.0
+    box: BoxConfig = field(default_factory=BoxConfig)
+    image_ext: str = "png"
+    simple_vehicles: bool = False
+
+    def __post_init__(self):
+        from ..formats.registry import parse_names
+
+        E = ExportError
+        s = object.__setattr__
+        s(self, "formats", parse_names(self.formats))
+        s(self, "images", v.integer("--images", self.images, 1, error=E))
+        s(self, "split", v.in_range("--split", self.split, 0.0, 1.0, lo_open=True, error=E))
+        s(self, "seed", v.integer("--seed", self.seed, 0, error=E))
+        s(self, "images_per_placement",
+          v.integer("--images-per-placement", self.images_per_placement, 1, error=E))
+        if self.scene_seed is not None:
+            s(self, "scene_seed", v.integer("--scene-seed", self.scene_seed, 0, error=E))
+        if self.n_vehicles is not None:
+            s(self, "n_vehicles", v.integer("--vehicles", self.n_vehicles, 1, error=E))
+        if self.n_lines is not None:
+            s(self, "n_lines", v.integer("--lines", self.n_lines, 1, error=E))
+        s(self, "width_px", v.integer("--width", self.width_px, 1, error=E))
+        s(self, "height_px", v.integer("--height", self.height_px, 1, error=E))
+        v.one_of("--image-ext", self.image_ext, IMAGE_EXTS, error=E)
+        if not isinstance(self.scene, str) or not self.scene:
+            raise E(f"--scene: expected a scene name or file, got {v.show(self.scene)}")
+        if not isinstance(self.scenario, str) or not self.scenario:
+            raise E(f"--scenario: expected a scenario name or file, got {v.show(self.scenario)}")
+        if not isinstance(self.box, BoxConfig):
+            raise ConfigError(f"box: expected a BoxConfig, got {type(self.box).__name__}")
+
+    # --------------------------------------------------------------- derived
+    @property
+    def n_train(self) -> int:
+        return max(1, min(self.images, int(round(self.split * self.images))))
+
+    @property
+    def splits(self) -> dict[str, int]:
+        """Split name -> number of images."""
+        return {"train": self.n_train, "val": self.images - self.n_train}
+
+    def camera_config(self):
+        from ..camera import CameraConfig
+
+        return CameraConfig(
+            altitude_m=self.altitude_m,
+            width_px=self.width_px,
+            height_px=self.height_px,
+            gsd_m=self.gsd_m,
+            max_tilt_deg=self.max_tilt_deg,
+        )
+
+    def to_dict(self) -> dict:
+        d = {}
+        for f in fields(self):
+            val = getattr(self, f.name)
+            if f.name == "box":
+                val = val.to_dict()
+            elif f.name == "formats":
+                val = list(val)
+            d[f.name] = val
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "ExportConfig":
+        kw = dict(d)
+        kw["box"] = BoxConfig(**kw.get("box", {}))
+        kw["formats"] = tuple(kw.get("formats", ()))
+        return cls(**kw)
+
+
+@dataclass(frozen=True)
+class ExportResult:
+    out_dir: Path
+    summary: dict
+    elapsed_s: float
+    rendered: int
+    skipped: int
+
+    def text(self) -> str:
+        s = self.summary
+        cls = ", ".join(f"{k} {n}" for k, n in s["vehicles_per_class"].items())
+        drop = ", ".join(f"{k} {n}" for k, n in s["dropped_reasons"].items()) or "none"
+        return (
+            f"exported {s['images']} images (train {s['splits']['train']}, val {s['splits']['val']}) "
+            f"to {self.out_dir} in {self.elapsed_s:.1f} s ({self.rendered} rendered, "
+            f"{self.skipped} resumed): vehicles {cls}; difficult {s['difficult']}; "
+            f"dropped {s['dropped']} ({drop})"
+        )

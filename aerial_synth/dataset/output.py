@@ -1,0 +1,234 @@
+"""The export's output folder: what to do with ``--out``, where to build, and the final swap.
+
+A new export, or one that replaces a dataset (``--force``), is built in a hidden sibling
+folder ``.<name>.aerial-synth-partial`` next to ``--out`` and moved into place only when it
+is complete, so
+
+- an existing dataset stays intact, byte for byte, until the new one has been written in
+  full; if the new run fails or is killed, the old one is still there;
+- ``--out`` appears only once complete; a killed export leaves its partial folder, which
+  ``--resume`` finishes (and a rerun without ``--resume`` refuses to silently discard);
+- an export that fails before finishing any image removes its partial folder again.
+
+The swap: ``--out`` missing or empty -> one rename. ``--out`` holding a dataset -> the two
+folders are exchanged (``renameat2(RENAME_EXCHANGE)`` on Linux, else two renames), the
+user's own files in the old dataset (anything that is not a dataset file or a format folder)
+are moved across, and the old dataset is deleted. ``--force`` into a folder that is not a
+dataset moves the new dataset's entries in beside the files already there (and refuses up
+front if one of its names is taken).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import ExportError, OutputError
+from ..io_utils import check_output_dir
+from .config import ExportConfig
+from .layout import owned_names
+from .manifest import read_manifest
+
+__all__ = ["PARTIAL_SUFFIX", "OutputPlan", "partial_dir", "plan_output", "finish_output",
+           "remove_stray_temps"]
+
+PARTIAL_SUFFIX = ".aerial-synth-partial"
+OLD_SUFFIX = ".aerial-synth-old"
+
+
+def partial_dir(out: Path) -> Path:
+    out = Path(os.path.abspath(out))
+    return out.parent / f".{out.name}{PARTIAL_SUFFIX}"
+
+
+@dataclass(frozen=True)
+class OutputPlan:
+    """out   : the final dataset folder (absolute)
+    build    : where this run writes (the partial sibling, or ``out`` for an in-place resume)
+    mode     : "new" (fresh build), "resume" (finish ``build``) or "overwrite"
+    into     : what ``out`` is now: "missing", "empty", "dataset" or "foreign"
+    fresh    : ``build`` must be (re)created empty before writing
+    """
+
+    out: Path
+    build: Path
+    mode: str
+    into: str
+    fresh: bool
+
+    @property
+    def in_place(self) -> bool:
+        return self.build == self.out
+
+
+def _dir_state(p: Path) -> str:
+    if not p.exists():
+        return "missing"
+    if not any(p.iterdir()):
+        return "empty"
+    return "dataset" if read_manifest(p) is not None else "foreign"
+
+
+def _param_diff(old: dict | None, new: dict) -> list[str]:
+    old = old or {}
+    return sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
+
+
+def plan_output(cfg: ExportConfig, out_dir, resume: bool, force: bool) -> OutputPlan:
+    """Decide what this export does with ``--out`` (writes nothing). Raises OutputError /
+    ExportError with one line for a folder it must not or cannot use."""
+    shown = str(out_dir)
+    check_output_dir(out_dir, "--out")
+    out = Path(os.path.abspath(out_dir))
+    if out.parent == out or not out.name:
+        raise OutputError(f"--out {shown}: expected a dataset folder, not the file-system root")
+    if out.name.endswith((PARTIAL_SUFFIX, OLD_SUFFIX)):
+        raise OutputError(f"--out {shown}: that name is reserved for aerial-synth's temporary folders")
+    part = partial_dir(out)
+    if part.exists() and not part.is_dir():
+        raise OutputError(f"--out {shown}: {part} exists and is not a folder; remove it")
+    if not os.access(out.parent if out.parent.exists() else _existing_ancestor(out), os.W_OK | os.X_OK):
+        raise OutputError(
+            f"--out {shown}: the folder {out.parent} is not writable (the export is built "
+            "beside --out and moved into place at the end)"
+        )
+    into = _dir_state(out)
+    part_state = _dir_state(part)
+    if part_state == "foreign":
+        raise OutputError(f"--out {shown}: {part} exists and is not an aerial-synth partial export; "
+                          "remove it")
+    new = cfg.to_dict()
+
+    if resume and part_state == "dataset":
+        diff = _param_diff(read_manifest(part).get("parameters"), new)
+        if not diff:
+            return OutputPlan(out, part, "resume", into, fresh=False)
+        if not force:
+            raise ExportError(
+                f"--resume {shown}: the interrupted export was started with other parameters "
+                f"({', '.join(diff)}); give the same parameters or pass --force to start over"
+            )
+        return _fresh(out, part, into, shown)
+    if part_state == "dataset" and not force:
+        raise ExportError(
+            f"--out {shown}: an interrupted export of this folder is in {part}; pass --resume "
+            "to finish it or --force to start over"
+        )
+    if into in ("missing", "empty"):
+        return OutputPlan(out, part, "new", into, fresh=True)
+    if into == "foreign":
+        if not force:
+            raise ExportError(
+                f"--out {shown}: folder exists, is not empty and is not an aerial-synth dataset "
+                "(no manifest.json); choose another folder or pass --force"
+            )
+        taken = sorted(n for n in owned_names() if (out / n).exists() or (out / n).is_symlink())
+        if taken:
+            raise ExportError(
+                f"--out {shown}: --force would write beside files that are not an aerial-synth "
+                f"dataset, but {taken[0]!r} is already there; move it away or choose another folder"
+            )
+        return OutputPlan(out, part, "new", into, fresh=True)
+    # ``out`` holds a dataset
+    if resume:
+        diff = _param_diff(read_manifest(out).get("parameters"), new)
+        if not diff:
+            return OutputPlan(out, out, "resume", into, fresh=False)
+        if not force:
+            raise ExportError(
+                f"--resume {shown}: the dataset was made with other parameters ({', '.join(diff)}); "
+                "give the same parameters or pass --force to overwrite"
+            )
+        return _fresh(out, part, into, shown)
+    if not force:
+        raise ExportError(
+            f"--out {shown}: an aerial-synth dataset already exists there; pass --resume to finish "
+            "it or --force to overwrite it"
+        )
+    return _fresh(out, part, into, shown)
+
+
+def _fresh(out: Path, part: Path, into: str, shown: str) -> OutputPlan:
+    return OutputPlan(out, part, "overwrite" if into == "dataset" else "new", into, fresh=True)
+
+
+def _existing_ancestor(p: Path) -> Path:
+    p = Path(p)
+    while not p.exists() and p.parent != p:
+        p = p.parent
+    return p
+
+
+def prepare_build(plan: OutputPlan) -> None:
+    """Create the build folder (emptying an old partial one first when ``plan.fresh``)."""
+    if plan.fresh and plan.build.exists():
+        shutil.rmtree(plan.build)
+    plan.build.mkdir(parents=True, exist_ok=True)
+
+
+def discard_build(plan: OutputPlan) -> None:
+    """Remove a fresh build that failed before it finished any image."""
+    if plan.fresh and not plan.in_place and plan.build.exists():
+        shutil.rmtree(plan.build, ignore_errors=True)
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Atomically swap two paths (Linux renameat2 RENAME_EXCHANGE); False if unsupported."""
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        fn = libc.renameat2
+    except (OSError, AttributeError):
+        return False
+    AT_FDCWD, RENAME_EXCHANGE = -100, 2
+    fn.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+    rc = fn(AT_FDCWD, os.fsencode(a), AT_FDCWD, os.fsencode(b), RENAME_EXCHANGE)
+    return rc == 0
+
+
+def finish_output(plan: OutputPlan) -> None:
+    """Move a finished build into ``plan.out`` (see the module docstring)."""
+    if plan.in_place:
+        return
+    out, build = plan.out, plan.build
+    state = _dir_state(out)
+    if state in ("missing", "empty"):
+        if state == "empty":
+            out.rmdir()
+        os.rename(build, out)
+        return
+    if state == "foreign":
+        for entry in sorted(os.listdir(build)):
+            os.rename(build / entry, out / entry)
+        build.rmdir()
+        return
+    # replace a dataset: swap, keep the user's own files, delete the old dataset
+    old = out.parent / f".{out.name}{OLD_SUFFIX}"
+    if old.exists():
+        shutil.rmtree(old)
+    if _exchange(build, out):
+        os.rename(build, old)  # ``build`` now names the old dataset
+    else:
+        os.rename(out, old)
+        os.rename(build, out)
+    owned = set(owned_names())
+    for entry in sorted(os.listdir(old)):
+        if entry not in owned and not (out / entry).exists():
+            os.rename(old / entry, out / entry)
+    shutil.rmtree(old)
+
+
+def remove_stray_temps(build: Path) -> None:
+    """Delete temporary files a killed export left behind (``.<name>.*.tmp`` / ``.lnk``)."""
+    build = Path(build)
+    for name in owned_names():
+        p = build / name
+        if p.is_dir():
+            for f in p.rglob(".*"):
+                if f.is_file() and f.name.endswith((".tmp", ".lnk")):
+                    f.unlink()
+    for f in build.glob(".*.tmp"):
+        f.unlink()
