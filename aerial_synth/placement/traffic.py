@@ -254,17 +254,20 @@ class _Engine:
             c.reason[bad] = "wrong_way"
         return d
 
-    def apply_hints(self, c: _Cand, offs: np.ndarray) -> None:
+    def apply_hints(self, c: _Cand, offs: np.ndarray) -> np.ndarray:
         """Direction hints at a line's first vehicle. Geometry gives the road's axis but not
         which way a one-way road runs: where the hint is one-way and the heading found points
         against it, take the other along-road heading (re-probe towards the other edge, as
         the median rule does). Lanes: an offset beyond the lanes the road has in that
-        direction (``lanes:forward``/``lanes:backward``) is refused ("lane_count")."""
+        direction (``lanes:forward``/``lanes:backward``; all of a one-way road) is refused
+        ("lane_count"). Returns (n,) bool: the offset lies within those lanes, so an inner
+        lane needs no median to be on the right side of the road."""
+        lanes_ok = np.zeros(len(c.x), bool)
         if self.hints is None:
-            return
+            return lanes_ok
         sel = np.flatnonzero(c.ok)
         if not len(sel):
-            return
+            return lanes_ok
         pos = np.stack([c.x[sel], c.y[sel]], 1)
         d = self.hints.direction_at(pos)
         back = sel[(d * unit(c.heading[sel])).sum(axis=1) < 0]
@@ -277,10 +280,12 @@ class _Engine:
         self.wrong_way(c)
         sel = np.flatnonzero(c.ok)
         if len(sel) and self.cfg.lane_offsets_m:
-            n_dir, lane_w = self.hints.lanes_along(np.stack([c.x[sel], c.y[sel]], 1), c.heading[sel])
-            over = (n_dir > 0) & np.isfinite(lane_w) & (offs[sel] > n_dir * lane_w)
+            room = self.hints.lane_room(np.stack([c.x[sel], c.y[sel]], 1), c.heading[sel])
+            over = np.isfinite(room) & (offs[sel] > room)
             c.ok[sel[over]] = False
             c.reason[sel[over]] = "lane_count"
+            lanes_ok[sel] = np.isfinite(room) & ~over
+        return lanes_ok
 
     def full(self) -> bool:
         return self.limit is not None and len(self.vehicles) >= self.limit
@@ -322,7 +327,7 @@ class _Engine:
                 c.x[flip], c.y[flip], c.heading[flip] = cf.x, cf.y, cf.heading
                 c.ok[flip] &= cf.ok
                 c.edge_dist[flip] = cf.edge_dist
-        self.apply_hints(c, offs)  # direction hints
+        lanes_ok = self.apply_hints(c, offs)  # direction hints
         variants = self.sample_variants(P)
         L = np.array([v.model.length_m for v in variants])
         W = np.array([v.model.width_m for v in variants])
@@ -351,7 +356,7 @@ class _Engine:
                 far, crossed, _ = self.prober.road_runs(
                     np.stack([c.x[ii], c.y[ii]], 1), c.heading[ii] - self.side * np.pi / 2,
                     float(offs.max()) + cfg.probe.median_max_m + 2.0, cfg.probe.median_max_m)
-                wrong = ii[~crossed]
+                wrong = ii[~crossed & ~lanes_ok[ii]]  # direction hints: tagged lanes say it is ours
                 c.ok[wrong] = False
                 c.reason[wrong] = "opposite_half"
         started = []

@@ -188,6 +188,21 @@ class RoadHints:
         lane_w[hit] = np.where(total > 0, wid / np.maximum(total, 1), np.nan)
         return n_dir, lane_w
 
+    def lane_room(self, xy, heading_rad, tol_m: float = 0.5) -> np.ndarray:
+        """(n,) metres of carriageway for traffic heading ``heading_rad`` at each point,
+        measured from its traffic-side edge: the lanes in that direction x the lane width
+        when the lanes are tagged, the whole width on a one-way road, else NaN (unknown:
+        geometry decides)."""
+        road, seg = self.nearest(xy, tol_m)
+        n_dir, lane_w = self.lanes_along(xy, heading_rad, tol_m)
+        room = np.where((n_dir >= 0) & np.isfinite(lane_w), n_dir * lane_w, np.nan)
+        hit = seg >= 0
+        one = np.zeros(len(road), bool)
+        one[hit] = self._oneway[road[hit]]
+        wid = np.array([r.width_m for r in self.roads])[road[one]] if one.any() else 0.0
+        room[one] = np.where(np.isfinite(room[one]), room[one], wid)
+        return room
+
     # ------------------------------------------------------------------ frames, files
     def shifted(self, dxy) -> "RoadHints":
         """The same hints in a frame whose coordinates are ``old + dxy`` (metres)."""
