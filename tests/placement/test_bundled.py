@@ -61,8 +61,9 @@ def test_city_park_jam_one_placement_is_clean(worlds, catalog):
     p = _place(rs, "jam", 0, catalog, n_vehicles=1000)
     rep = validate_placement(rs, p, scene.truth)
     assert len(p.vehicles) >= 900
-    assert rep.overlaps == 0
+    assert rep.overlaps == 0 and rep.gap_violations == 0
     assert rep.corners_drivable == 1.0
+    assert rep.footprint_drivable == 1.0  # the whole footprint, not only its corners
     assert np.nanmedian(rep.heading_error_deg) < 2.0
     assert np.nanpercentile(rep.heading_error_deg, 99) < 8.0
 
@@ -77,8 +78,8 @@ def test_2000_vehicles_per_scenario_on_every_bundled_scene(worlds, catalog, scen
         p = _place(rs, scenario, seed, catalog, n_vehicles=2000 - total)
         assert len(p.vehicles) > 0
         rep = validate_placement(rs, p, scene.truth)
-        assert rep.overlaps == 0
-        assert rep.corners_drivable == 1.0
+        assert rep.overlaps == 0 and rep.gap_violations == 0
+        assert rep.footprint_drivable == 1.0
         herr.append(rep.heading_error_deg)
         total += len(p.vehicles)
         seed += 1
