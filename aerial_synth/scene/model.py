@@ -41,6 +41,7 @@ LABELS: tuple[str, ...] = (
     "trunk",
     "pole",
     "vehicle",
+    "parking_marking",  # painted bay lines on parking (last: earlier ids keep their values)
 )
 LABEL_IDS: dict[str, int] = {name: i for i, name in enumerate(LABELS)}
 
@@ -82,6 +83,7 @@ DEFAULT_MATERIAL_FOR_LABEL: dict[str, str] = {
     "trunk": "bark",
     "pole": "metal",
     "vehicle": "paint",
+    "parking_marking": "marking",
 }
 
 #: Base albedo (linear-ish RGB in [0, 1]) per material, used when an object names no colour.
@@ -143,7 +145,7 @@ class LabelConfig:
     """
 
     road: frozenset[str] = frozenset({"road", "lane_marking"})
-    drivable: frozenset[str] = frozenset({"road", "lane_marking", "parking"})
+    drivable: frozenset[str] = frozenset({"road", "lane_marking", "parking", "parking_marking"})
     obstacles: frozenset[str] = frozenset(
         {"building", "trunk", "pole", "water", "vehicle", "sidewalk", "ground"}
     )

@@ -42,7 +42,7 @@ def test_bundled_list():
 #: change of the geometry (e.g. the triangulation) updates them here.
 BUNDLED_HASHES = {
     "city_park": "17f2d34ad1dfffd1296bae94af488a71b9065d2c377189d94b4c5313a678ce53",
-    "suburb": "ee80243ab526064459cda42690e6717e7926277cdfc4889f56db706bc51fe253",
+    "suburb": "8e1ed50f8a96eda3c5603e6d241eb442482c62dbf35c9ed2023a7e40a583d993",
     "highway": "03ea2bb35f22446307ba2733c45fab5d430bd03f941ca2c1fff0cd3aa93c533f",
 }
 

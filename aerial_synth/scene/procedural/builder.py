@@ -244,6 +244,13 @@ class Builder:
             objs.append(polygon_object(f"road_{i:03d}", "road", part, Z_ROAD))
         if not parking.is_empty:
             objs.append(polygon_object("parking", "parking", parking, Z_ROAD))
+        lot_marks = getattr(self, "lot_markings", None)  # painted bays (procedural/parking.py)
+        if lot_marks and not parking.is_empty:
+            pm = polygonal(shapely.union_all(lot_marks).intersection(parking))
+            if not pm.is_empty:
+                objs.append(polygon_object("parking_marking", "parking_marking", pm, Z_MARKING))
+        if getattr(self, "parking_hints", None):
+            meta = {**meta, "parking_lots": self.parking_hints}
         if not water.is_empty:
             objs.append(polygon_object("water_lake", "water", water, Z_GROUND))
         if not sidewalk.is_empty:

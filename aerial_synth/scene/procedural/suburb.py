@@ -8,6 +8,7 @@ from typing import Mapping
 import numpy as np
 
 from .builder import Builder
+from .parking import add_lots
 from .roads import Road, offset_line
 
 
@@ -47,11 +48,8 @@ def generate_suburb(b: Builder, spec: Mapping):
                              dead_end=True, centre="none", sidewalk_m=0.0))
     ra = b.road_area()
     # parking lots
-    lots = spec.get("parking_lots", []) or []
-    for lot in lots:
-        cx, cy = (float(v) for v in lot["center"])
-        lw, lh = (float(v) for v in lot["size_m"])
-        b.parking.append(shapely.box(cx - lw / 2, cy - lh / 2, cx + lw / 2, cy + lh / 2))
+    # lots with painted bays and an entrance from the nearest street (procedural/parking.py)
+    add_lots(b, spec.get("parking_lots", []) or [], "parking_lots", ra)
     # houses with driveways, along every street side, inside blocks
     hs = spec.get("houses", {}) or {}
     spacing = float(hs.get("spacing_m", 22.0))
