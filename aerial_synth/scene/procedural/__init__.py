@@ -24,9 +24,11 @@ import numpy as np
 from ...errors import SceneError
 from ..model import Scene
 from .builder import Z_GROUND, Z_MARKING, Z_ROAD, Z_SIDEWALK, Builder
+from .city import generate_city, with_size_m
 from .city_park import generate_city_park
 from .highway import generate_highway
 from .parking import generate_depot
+from .spec import check_spec
 from .suburb import generate_suburb
 
 __all__ = ["generate", "GENERATORS", "Z_GROUND", "Z_ROAD", "Z_MARKING", "Z_SIDEWALK"]
@@ -34,7 +36,7 @@ __all__ = ["generate", "GENERATORS", "Z_GROUND", "Z_ROAD", "Z_MARKING", "Z_SIDEW
 #: generator name -> function(builder, spec) that fills the builder. Adding a generator is
 #: one module plus one line here.
 GENERATORS = {"city_park": generate_city_park, "suburb": generate_suburb, "highway": generate_highway,
-              "depot": generate_depot}
+              "city": generate_city, "depot": generate_depot}
 
 
 def generate(spec: Mapping, seed: int | None = None, source: str = "") -> Scene:
@@ -49,25 +51,27 @@ def generate(spec: Mapping, seed: int | None = None, source: str = "") -> Scene:
     if not isinstance(spec, Mapping):
         raise SceneError(f"{where}: expected a mapping, got {type(spec).__name__}")
     kind = spec.get("generator")
-    if kind not in GENERATORS:
-        raise SceneError(
-            f"{where}: field 'generator' must be one of {', '.join(GENERATORS)}, got {kind!r}"
-        )
-    size = spec.get("size_m")
-    if not (isinstance(size, (list, tuple)) and len(size) == 2 and all(float(v) > 0 for v in size)):
-        raise SceneError(f"{where}: field 'size_m' must be [width, height] in metres, got {size!r}")
-    s = spec.get("seed", 0) if seed is None else seed
-    try:
-        s = int(s)
-    except (TypeError, ValueError):
-        raise SceneError(f"{where}: field 'seed' must be an integer, got {s!r}") from None
+    spec = with_size_m(spec, where)  # size_km (the city generator) -> size_m
+    spec, s = check_spec(spec, where, seed)
+    size = spec["size_m"]
+    from shapely.errors import ShapelyError
+
     rng = np.random.default_rng(s)
     name = str(spec.get("name", kind))
     b = Builder(name, spec, rng)
     try:
         GENERATORS[kind](b, spec)
-    except (KeyError, TypeError, ValueError) as exc:
-        raise SceneError(f"{where}: bad generator parameter ({type(exc).__name__}: {exc})") from None
+    except SceneError as exc:
+        if where in str(exc):
+            raise
+        raise SceneError(f"{where}: {exc}") from None
+    except (KeyError, TypeError, ValueError, IndexError, ZeroDivisionError, AttributeError,
+            NotImplementedError, ShapelyError) as exc:
+        # the fields are valid one by one, but together they give impossible geometry
+        msg = " ".join(str(exc).split())[:200]
+        raise SceneError(
+            f"{where}: the {kind} generator cannot build this spec ({type(exc).__name__}: {msg})"
+        ) from None
     if not b.roads:
         raise SceneError(f"{where}: the spec produced no road")
     meta = {"generator": kind, "seed": s, "size_m": [float(v) for v in size]}
