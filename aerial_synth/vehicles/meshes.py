@@ -19,8 +19,8 @@ import numpy as np
 
 from ..errors import AssetError
 from ..scene.model import DEFAULT_COLOR_FOR_MATERIAL, MATERIAL_IDS
-from .model import VehicleColor, VehicleModel
 from .large import LARGE_BUILDERS
+from .model import VehicleColor, VehicleModel
 from .user_mesh import load_user_mesh_parts
 
 __all__ = ["VehicleMesh", "build_mesh"]
