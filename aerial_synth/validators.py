@@ -208,7 +208,8 @@ def known_keys(field: str, data: Mapping, allowed: Iterable[str], *,
                error: type[Exception] = ConfigError) -> None:
     """Refuse keys of ``data`` not in ``allowed``, listing the valid ones."""
     allowed = tuple(allowed)
-    unknown = sorted(str(k) for k in data if k not in allowed)
+    unknown = sorted(str(k) if isinstance(k, str) and k.isprintable() and k.strip() == k and k
+                     else show(k) for k in data if k not in allowed)
     if unknown:
         raise error(
             f"{field}: unknown key(s) {', '.join(unknown)}; expected one of {', '.join(allowed)}"

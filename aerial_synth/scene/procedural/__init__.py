@@ -59,8 +59,12 @@ def generate(spec: Mapping, seed: int | None = None, source: str = "") -> Scene:
     rng = np.random.default_rng(s)
     name = str(spec.get("name", kind))
     b = Builder(name, spec, rng)
+    meta = {"generator": kind, "seed": s, "size_m": [float(v) for v in size]}
     try:
         GENERATORS[kind](b, spec)
+        if not b.roads:
+            raise SceneError(f"{where}: the spec produced no road")
+        return b.scene(source or f"procedural:{name}", meta)
     except SceneError as exc:
         if where in str(exc):
             raise
@@ -72,7 +76,3 @@ def generate(spec: Mapping, seed: int | None = None, source: str = "") -> Scene:
         raise SceneError(
             f"{where}: the {kind} generator cannot build this spec ({type(exc).__name__}: {msg})"
         ) from None
-    if not b.roads:
-        raise SceneError(f"{where}: the spec produced no road")
-    meta = {"generator": kind, "seed": s, "size_m": [float(v) for v in size]}
-    return b.scene(source or f"procedural:{name}", meta)
