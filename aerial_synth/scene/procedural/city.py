@@ -20,10 +20,10 @@ world's edge, so lane-marking dashes and poles stand at the same places in every
 Spec keys (all optional but ``size_km``; see docs/scale.md)::
 
     size_km: 2.0                   # world edge length, km
-    block_m: [110, 170]            # block pitch range (street centre to street centre)
+    block_m: [90, 140]             # block pitch range (street centre to street centre)
     street_width_m: 8.0            # two-way street, one lane per direction
     avenue_width_m: 14.0           # avenue, two lanes per direction
-    avenue_every: 4                # every k-th street is an avenue (0 = none)
+    avenue_every: 3                # every k-th street is an avenue (0 = none)
     sidewalk_m: 2.5
     park_fraction: 0.2             # share of blocks that are parks
     parking_fraction: 0.25         # share of built blocks with a parking lot on a street
@@ -56,10 +56,10 @@ _PHASE_M = 36.0
 _PAD_M = 72.0
 
 CITY_DEFAULTS: dict = {
-    "block_m": [110.0, 170.0],
+    "block_m": [90.0, 140.0],
     "street_width_m": 8.0,
     "avenue_width_m": 14.0,
-    "avenue_every": 4,
+    "avenue_every": 3,
     "sidewalk_m": 2.5,
     "park_fraction": 0.2,
     "parking_fraction": 0.25,
@@ -362,9 +362,13 @@ def _built(rng, box, heights, lot_f, b: Builder, buildings: list, trees: list, e
 def _city_scene(b: Builder, source: str, meta: dict):
     """Builder.scene for the roads, ground, water and poles, then the city's buildings and
     trees with the colours their blocks drew (so every window colours them alike)."""
+    poles, b.poles = b.poles, []  # poles too: 8-sided prisms without a trimesh call each
     b.buildings, b.trees = [], []
     scene = Builder.scene(b, source, meta)
     objs = scene.objects
+    if poles:
+        v, f = merge_meshes([_trunk(x, y, 0.12, h) for x, y, h in poles])
+        objs.append(SceneObject("poles", "pole", v, f))
     for poly, hgt, ci in b._city_buildings:
         v, f = prism(poly, Z_GROUND, hgt)
         c = poly.centroid
