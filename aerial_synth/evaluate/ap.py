@@ -217,9 +217,31 @@ class EvalResult:
         return out
 
 
-def _best_overlaps(det_xy, det_img, det_cls, gt_xy, gt_img, gt_cls):
+def _projection_bound(a_xy: np.ndarray, b_xy: np.ndarray, axes_from: np.ndarray) -> np.ndarray:
+    """Upper bound of area(A & B) per pair: the product of the overlaps of A's and B's
+    projections on two orthogonal axes (along the first edge of ``axes_from`` and across
+    it). Holds for any shapes: A & B lies in that rectangle."""
+    u = axes_from[:, 1] - axes_from[:, 0]
+    norm = np.linalg.norm(u, axis=1, keepdims=True)
+    u = np.where(norm > 0, u / np.where(norm > 0, norm, 1.0), (1.0, 0.0))
+    v = np.stack([-u[:, 1], u[:, 0]], axis=1)
+    out = np.ones(len(a_xy))
+    for ax in (u, v):
+        pa = np.einsum("nkd,nd->nk", a_xy, ax)
+        pb = np.einsum("nkd,nd->nk", b_xy, ax)
+        out *= np.maximum(np.minimum(pa.max(1), pb.max(1)) - np.maximum(pa.min(1), pb.min(1)), 0.0)
+    return out
+
+
+def _best_overlaps(det_xy, det_img, det_cls, gt_xy, gt_img, gt_cls, min_threshold: float = 0.0):
     """Per detection: the largest IoU with a same-image same-class box (-inf if none) and
-    that box's index (first on ties, in ground-truth order)."""
+    that box's index (first on ties, in ground-truth order).
+
+    Pairs whose IoU cannot exceed ``min_threshold`` (an upper bound from projections on the
+    two boxes' axes) are not intersected: they can never be a match, and a detection left
+    without pairs is a false positive at every threshold >= ``min_threshold`` either way."""
+    import shapely
+
     nd = len(det_xy)
     ovmax = np.full(nd, -np.inf)
     jmax = np.full(nd, -1, dtype=np.int64)
@@ -229,9 +251,18 @@ def _best_overlaps(det_xy, det_img, det_cls, gt_xy, gt_img, gt_cls):
         return ovmax, jmax
     dp = to_polygons(det_xy)
     gp = to_polygons(gt_xy)
-    import shapely
-
-    iou = pair_iou(dp[di], gp[gj], shapely.area(dp)[di], shapely.area(gp)[gj])
+    da, ga = shapely.area(dp), shapely.area(gp)
+    if min_threshold > 0:
+        a, b = det_xy[di], gt_xy[gj]
+        m = np.minimum(np.minimum(da[di], ga[gj]),
+                       np.minimum(_projection_bound(a, b, a), _projection_bound(a, b, b)))
+        denom = da[di] + ga[gj] - m
+        ub = np.where(denom > 0, m / np.where(denom > 0, denom, 1.0), 1.0)
+        keep = ub >= min_threshold - 1e-9
+        di, gj = di[keep], gj[keep]
+        if len(di) == 0:
+            return ovmax, jmax
+    iou = pair_iou(dp[di], gp[gj], da[di], ga[gj])
     order = np.lexsort((gj, -iou, di))  # by detection, then IoU descending, then box index
     di, gj, iou = di[order], gj[order], iou[order]
     first = np.ones(len(di), dtype=bool)
@@ -265,7 +296,7 @@ def evaluate(gt, detections: Detections, *, iou_threshold: float = 0.5, metric: 
     scores = np.asarray(detections.scores, dtype=np.float64)
     det_xy = np.asarray(detections.polygons_xy_px, dtype=np.float64).reshape(-1, 4, 2)
 
-    ovmax, jmax = _best_overlaps(det_xy, det_img, det_cls, gt_xy, gt_img, gt_cls)
+    ovmax, jmax = _best_overlaps(det_xy, det_img, det_cls, gt_xy, gt_img, gt_cls, min(thresholds))
 
     per_t: dict[float, dict[str, ClassResult]] = {}
     for t in thresholds:

@@ -58,7 +58,15 @@ def read_task1_folder(pred_dir: Path, image_index: dict[str, int]) -> Detections
         name = f.stem[len("Task1_"):]
         if not name:
             raise EvaluationError(f"{f}: expected Task1_<class>.txt, got an empty class name")
-        for n, raw in enumerate(_read_lines(f), start=1):
+        lines = _read_lines(f)
+        fast = _task1_fast(lines, image_index)
+        if fast is not None:
+            img += fast[0]
+            cls += [name] * len(fast[0])
+            score.append(fast[1])
+            xy.append(fast[2])
+            continue
+        for n, raw in enumerate(lines, start=1):
             ln = raw.strip()
             if not ln:
                 continue
@@ -82,10 +90,27 @@ def read_task1_folder(pred_dir: Path, image_index: dict[str, int]) -> Detections
                 vals.append(v)
             img.append(i)
             cls.append(name)
-            score.append(vals[0])
-            xy.append(vals[1:])
-    return Detections(np.asarray(img, np.int64), cls, np.asarray(score, np.float64),
-                      np.asarray(xy, np.float64).reshape(-1, 4, 2))
+            score.append(np.array([vals[0]]))
+            xy.append(np.asarray(vals[1:], np.float64).reshape(1, 4, 2))
+    return Detections(np.asarray(img, np.int64), cls,
+                      np.concatenate(score) if score else np.zeros(0),
+                      np.concatenate(xy) if xy else np.zeros((0, 4, 2)))
+
+
+def _task1_fast(lines, image_index):
+    """Well-formed task-1 lines in one numpy conversion; None sends the file to the strict
+    line-by-line reader, which names the bad line."""
+    rows = [ln.split() for ln in lines if ln.strip()]
+    if any(len(r) != 10 for r in rows):
+        return None
+    try:
+        idx = [image_index[r[0]] for r in rows]
+        vals = np.array([r[1:] for r in rows], dtype=np.float64).reshape(-1, 9)
+    except (KeyError, ValueError):
+        return None
+    if not np.isfinite(vals).all():
+        return None
+    return idx, vals[:, 0], vals[:, 1:].reshape(-1, 4, 2)
 
 
 def _read_lines(path: Path) -> list[str]:

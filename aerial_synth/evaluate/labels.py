@@ -84,6 +84,9 @@ def parse_dota_lines(lines, where: str = "<labelTxt>"):
     devkit skips them); blank lines are skipped. Object lines: ``x1 y1 .. x4 y4 category``
     with an optional ``difficult`` (an integer; anything but 0 is difficult, as the devkit's
     splitter writes 2 for small cut-off parts)."""
+    fast = _parse_dota_fast(lines)
+    if fast is not None:
+        return fast
     polys, classes, diff = [], [], []
     gsd = None
     source = None
@@ -119,6 +122,39 @@ def parse_dota_lines(lines, where: str = "<labelTxt>"):
         diff.append(d != 0)
     arr = np.asarray(polys, dtype=np.float64).reshape(-1, 4, 2)
     return arr, classes, np.asarray(diff, dtype=bool), gsd, source
+
+
+def _parse_dota_fast(lines):
+    """The common case in one numpy conversion; None when anything is unusual (the strict
+    line-by-line parser then finds and names the line)."""
+    body = []
+    gsd = source = None
+    for raw in lines:
+        ln = raw.strip()
+        if not ln:
+            continue
+        if ln.startswith("imagesource:"):
+            source = ln[len("imagesource:"):]
+        elif ln.startswith("gsd:"):
+            g = ln[4:].strip()
+            if g not in ("", "null", "None", "none"):
+                try:
+                    gsd = float(g)
+                except ValueError:
+                    return None
+                if not (np.isfinite(gsd) and gsd > 0):
+                    return None
+        else:
+            body.append(ln.split())
+    if any(len(f) != 10 for f in body) or any(f[9] not in ("0", "1", "2") for f in body):
+        return None
+    try:
+        xy = np.array([f[:8] for f in body], dtype=np.float64).reshape(-1, 4, 2)
+    except ValueError:
+        return None
+    if not np.isfinite(xy).all():
+        return None
+    return xy, [f[8] for f in body], np.array([f[9] != "0" for f in body], bool), gsd, source
 
 
 def _fmt(x: float) -> str:
