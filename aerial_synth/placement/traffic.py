@@ -239,26 +239,37 @@ class _Engine:
         return {"x_orig_m": float(o[0]), "y_orig_m": float(o[1]), "z_orig_m": float(o[2])}
 
     # ------------------------------------------------------------------ direction hints
-    def wrong_way(self, c: _Cand) -> np.ndarray:
-        """Direction hints: mark candidates heading against a one-way road's direction
-        (reason "wrong_way"). Returns the hint vectors (n, 2), NaN on two-way roads."""
-        d = np.full((len(c.x), 2), np.nan)
+    def wrong_way(self, c: _Cand, mark: bool = True) -> np.ndarray:
+        """Direction hints: candidates heading against a one-way road's direction, or driving
+        on the wrong half of a two-way road (centre more than 0.5 m across its centre line,
+        heading within 45 degrees of the road's axis; e.g. a road the map's edge cut
+        lengthwise). Marks them (reasons "wrong_way", "wrong_side") unless ``mark`` is False.
+        Returns (n,) bool."""
+        bad = np.zeros(len(c.x), bool)
         if self.hints is None:
-            return d
+            return bad
         sel = np.flatnonzero(c.ok)
-        if len(sel):
-            d[sel] = self.hints.direction_at(np.stack([c.x[sel], c.y[sel]], 1))
-            u = unit(c.heading[sel])
-            bad = sel[(d[sel] * u).sum(axis=1) < 0]  # NaN compares False: two-way stays
-            c.ok[bad] = False
-            c.reason[bad] = "wrong_way"
-        return d
+        if not len(sel):
+            return bad
+        d, left, one = self.hints.frame_at(np.stack([c.x[sel], c.y[sel]], 1))
+        along = (d * unit(c.heading[sel])).sum(axis=1)  # NaN off every hinted road
+        against = one & (along < 0)
+        # right-hand traffic (side -1) keeps right of the line it follows: left * sign < 0
+        side = ~one & (np.abs(along) > 0.7) & (left * np.sign(along) * self.side < -0.5)
+        bad[sel] = against | side
+        if mark:
+            c.ok[sel[against]] = False
+            c.reason[sel[against]] = "wrong_way"
+            c.ok[sel[side]] = False
+            c.reason[sel[side]] = "wrong_side"
+        return bad
 
     def apply_hints(self, c: _Cand, offs: np.ndarray) -> np.ndarray:
         """Direction hints at a line's first vehicle. Geometry gives the road's axis but not
         which way a one-way road runs: where the hint is one-way and the heading found points
-        against it, take the other along-road heading (re-probe towards the other edge, as
-        the median rule does). Lanes: an offset beyond the lanes the road has in that
+        against it (or, on a two-way road, the vehicle stands on the wrong half), take the
+        other along-road heading (re-probe towards the other edge, as the median rule
+        does). Lanes: an offset beyond the lanes the road has in that
         direction (``lanes:forward``/``lanes:backward``; all of a one-way road) is refused
         ("lane_count"). Returns (n,) bool: the offset lies within those lanes, so an inner
         lane needs no median to be on the right side of the road."""
@@ -268,9 +279,7 @@ class _Engine:
         sel = np.flatnonzero(c.ok)
         if not len(sel):
             return lanes_ok
-        pos = np.stack([c.x[sel], c.y[sel]], 1)
-        d = self.hints.direction_at(pos)
-        back = sel[(d * unit(c.heading[sel])).sum(axis=1) < 0]
+        back = np.flatnonzero(self.wrong_way(c, mark=False))
         if len(back):
             cf = self.locate(np.stack([c.x[back], c.y[back]], 1), c.heading[back] + np.pi, offs[back])
             c.x[back], c.y[back], c.heading[back] = cf.x, cf.y, cf.heading

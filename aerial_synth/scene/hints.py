@@ -155,6 +155,24 @@ class RoadHints:
         out[one] = self._dir[seg[one]]
         return out
 
+    def frame_at(self, xy, tol_m: float = 0.5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The nearest road's local frame at each point: unit direction of its line (n, 2),
+        signed distance of the point left of the line (n,) metres, and whether the road is
+        one-way (n,) bool. NaN / False where the point is on no hinted road."""
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        road, seg = self.nearest(xy, tol_m)
+        d = np.full((len(road), 2), np.nan)
+        left = np.full(len(road), np.nan)
+        one = np.zeros(len(road), bool)
+        hit = seg >= 0
+        if hit.any():
+            s = seg[hit]
+            d[hit] = self._dir[s]
+            r = xy[hit] - self._a[s]
+            left[hit] = self._dir[s, 0] * r[:, 1] - self._dir[s, 1] * r[:, 0]
+            one[hit] = self._oneway[road[hit]]
+        return d, left, one
+
     def lanes_at(self, xy, tol_m: float = 0.5) -> np.ndarray:
         """(n, 2) int lanes (forward = along the road's line, backward = against it) of the
         road at each point; -1 where unknown or off every hinted road."""

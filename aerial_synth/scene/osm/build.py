@@ -16,7 +16,7 @@ import time
 import numpy as np
 
 from ...errors import SceneError
-from ..build import flat_polygon, merge_meshes, prism
+from ..build import flat_polygon
 from ..hints import META_KEY, HintRoad, RoadHints
 from ..model import RoadTruth, Scene, SceneObject, SceneTruth
 from .read import OsmData
@@ -251,6 +251,36 @@ def _trunks(xy, top_z, radius=0.15, sections=6):
     return v.reshape(-1, 3), f.reshape(-1, 3)
 
 
+def _roofs_and_walls(polys, heights):
+    """Flat roofs at each building's height and vertical walls down to 0, for all buildings
+    at once. polys: (n,) shapely Polygons (holes allowed); heights: (n,) metres.
+    Returns ((v, f) roofs, (v, f) walls); faces counter-clockwise seen from outside."""
+    import shapely
+
+    polys = shapely.orient_polygons(np.asarray(polys, dtype=object))  # exterior CCW, holes CW
+    tris = shapely.constrained_delaunay_triangles(polys)
+    parts, idx = shapely.get_parts(tris, return_index=True)
+    t = shapely.get_coordinates(shapely.get_exterior_ring(parts)).reshape(-1, 4, 2)[:, :3]
+    a, b, c = t[:, 0], t[:, 1], t[:, 2]
+    cross = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    keep = np.abs(cross) > 1e-12
+    t, idx, cw = t[keep], idx[keep], cross[keep] < 0
+    t[cw] = t[cw][:, ::-1]
+    rv = np.concatenate([t.reshape(-1, 2), np.repeat(heights[idx], 3)[:, None]], axis=1)
+    rf = np.arange(len(rv), dtype=np.int64).reshape(-1, 3)
+    rings, ridx = shapely.get_rings(polys, return_index=True)
+    xy, k = shapely.get_coordinates(rings, return_index=True)
+    seg = np.flatnonzero(k[:-1] == k[1:])  # consecutive points of the same (closed) ring
+    p, q = xy[seg], xy[seg + 1]
+    h = heights[ridx[k[seg]]]
+    z0 = np.zeros(len(seg))
+    wv = np.stack([np.column_stack([p, z0]), np.column_stack([q, z0]),
+                   np.column_stack([q, h]), np.column_stack([p, h])], axis=1).reshape(-1, 3)
+    o = (np.arange(len(seg)) * 4)[:, None]
+    wf = np.concatenate([o + [0, 1, 2], o + [0, 2, 3]]).astype(np.int64)
+    return (rv, rf), (wv, wf)
+
+
 def _union(geoms):
     import shapely
 
@@ -384,23 +414,17 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
     n_buildings = 0
     if len(bsel):
         bg = shapely.intersection(ageoms[bsel], clip)
-        roofs, walls = [], []
-        for i, g in zip(bsel, bg):
-            parts = [p for p in shapely.get_parts(g) if shapely.get_type_id(p) == 3
-                     and p.area >= 1.0]
-            if not parts:
-                continue
-            h = building_height_m(data.areas[i][2])
-            poly = shapely.MultiPolygon(parts) if len(parts) > 1 else parts[0]
-            roofs.append(flat_polygon(poly, h))
-            walls.append(prism(poly, 0.0, h, top=False))
-            n_buildings += 1
-        v, f = merge_meshes(roofs)
-        if len(f):
-            objects.append(SceneObject("building_roofs", "building", v, f, "roof"))
-        v, f = merge_meshes(walls)
-        if len(f):
-            objects.append(SceneObject("building_walls", "building", v, f, "wall"))
+        parts, pidx = shapely.get_parts(bg, return_index=True)
+        ok = (shapely.get_type_id(parts) == 3) & (shapely.area(parts) >= 1.0)
+        parts, pidx = parts[ok], pidx[ok]
+        n_buildings = int(len(np.unique(pidx)))
+        if len(parts):
+            h = np.array([building_height_m(data.areas[i][2]) for i in bsel])[pidx]
+            (v, f), (wv, wf) = _roofs_and_walls(parts, h)
+            if len(f):
+                objects.append(SceneObject("building_roofs", "building", v, f, "roof"))
+            if len(wf):
+                objects.append(SceneObject("building_walls", "building", wv, wf, "wall"))
 
     # -------------------------------------------------------------- trees
     txy, tr, th = [], [], []

@@ -25,6 +25,8 @@ __all__ = ["OsmData", "read_osm", "OSM_SUFFIXES", "is_osm_path"]
 #: File name endings read as OSM data.
 OSM_SUFFIXES = (".osm", ".osm.bz2", ".osm.gz", ".osm.pbf", ".pbf")
 
+#: without a bbox or file bounds, the scene covers the data's extent plus this, metres
+EXTENT_MARGIN_M = 25.0
 _KEYS = ("highway", "building", "natural", "landuse", "amenity", "leisure", "water", "waterway")
 _FLUSH = 20000
 
@@ -205,5 +207,9 @@ def read_osm(path: str | Path, bbox: tuple | None = None) -> OsmData:
                 lo.append(pts.min(0))
                 hi.append(pts.max(0))
             lo, hi = np.min(lo, axis=0), np.max(hi, axis=0)
-            data.bbox = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
+            # a margin, so roads on the edge of the data stay whole (not cut lengthwise)
+            dy = EXTENT_MARGIN_M / 111320.0
+            dx = dy / max(0.05, float(np.cos(np.radians((lo[1] + hi[1]) / 2))))
+            data.bbox = (float(lo[0] - dx), float(max(-85.0, lo[1] - dy)), float(hi[0] + dx),
+                         float(min(85.0, hi[1] + dy)))
     return data
