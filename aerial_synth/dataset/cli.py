@@ -49,8 +49,11 @@ def register(sub) -> None:
                    metavar="F", help="fraction of images in train, in (0, 1] (0.8)")
     p.add_argument("--seed", type=arg_int("--seed", 0), default=0, metavar="S",
                    help="dataset seed, a non-negative integer (0)")
-    p.add_argument("--workers", type=arg_int("--workers", 1, 1024), default=1, metavar="K",
+    p.add_argument("--workers", type=arg_int("--workers", 1, 1024), default=None, metavar="K",
                    help="worker processes; output is identical for any K (1)")
+    p.add_argument("--dask", default=None, metavar="tcp://HOST:PORT|local:K",
+                   help="run on a Dask cluster (a running scheduler) or a LocalCluster of K "
+                        "processes instead of --workers; same output (docs/scale.md)")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
     p.add_argument("--resume", action="store_true", help="finish an interrupted export in DIR")
     p.add_argument("--force", action="store_true",
@@ -149,8 +152,13 @@ def _cmd_export(args) -> int:
     from .export import export_dataset
 
     cfg = config_from_args(args)
-    res = export_dataset(cfg, args.out, workers=args.workers, resume=args.resume,
-                         force=args.force, progress=False if args.no_progress else None)
+    if args.dask is not None and args.workers is not None:
+        from ..errors import ExportError
+
+        raise ExportError(f"--dask and --workers: choose one engine (the cluster's workers do the work), "
+                          f"got --dask {args.dask} --workers {args.workers}")
+    res = export_dataset(cfg, args.out, workers=args.workers or 1, resume=args.resume,
+                         force=args.force, progress=False if args.no_progress else None, dask=args.dask)
     print(res.text())
     return 0
 

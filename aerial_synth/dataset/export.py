@@ -101,6 +101,7 @@ def export_dataset(
     resume: bool = False,
     force: bool = False,
     progress: bool | None = None,
+    dask: str | None = None,
 ) -> ExportResult:
     """Export ``cfg.images`` images to ``out_dir``. Validates everything (parameters, output
     folder, scene, catalog, scenario, camera) before writing anything; builds a new dataset
@@ -111,12 +112,14 @@ def export_dataset(
     force    : replace an existing dataset (only once the new one is complete), or write
                into a folder that is not a dataset (keeping its files)
     progress : tqdm bar (None = only on a terminal)
+    dask     : run on Dask instead: "tcp://HOST:PORT" or "local:K" (see .engine_dask)
     """
     t0 = time.perf_counter()
     workers = v.integer("--workers", workers, 1, error=ExportError)
     plan = plan_output(cfg, out_dir, resume, force)
     scene, catalog = validate_inputs(cfg)
     geo = _georeference(scene)
+    engine = _dask_engine(dask, workers)  # before any write: an unreachable scheduler writes nothing
 
     # --- from here on, files are written (only into plan.build until the final swap)
     prepare_build(plan)
@@ -138,7 +141,9 @@ def export_dataset(
                disable=(None if progress is None else not progress), dynamic_ncols=True)
     done = 0
     try:
-        if workers == 1 or len(tasks) <= 1:
+        if engine is not None:
+            done += engine.run(cfg, build, todo, bar)
+        elif workers == 1 or len(tasks) <= 1:
             w = ImageWorker(cfg, build, nthreads=0, scene=scene, catalog=catalog)
             for task in tasks:
                 for i in task:
@@ -155,8 +160,20 @@ def export_dataset(
         raise
     finally:
         bar.close()
+        if engine is not None:
+            engine.close()
     finish_output(plan)
     return ExportResult(Path(out_dir), summary, time.perf_counter() - t0, len(todo), skipped)
+
+
+def _dask_engine(dask, workers):
+    if dask is None:
+        return None
+    if workers != 1:
+        raise ExportError(f"--dask and --workers: choose one engine (Dask workers are the cluster's), got --workers {workers}")
+    from .engine_dask import DaskEngine
+
+    return DaskEngine.connect(dask)
 
 
 def _run_pool(cfg: ExportConfig, build: Path, tasks, workers: int, bar) -> int:

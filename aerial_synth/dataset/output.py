@@ -10,10 +10,12 @@ is complete, so
   ``--resume`` finishes (and a rerun without ``--resume`` refuses to silently discard);
 - an export that fails before finishing any image removes its partial folder again.
 
-The swap: ``--out`` missing or empty -> one rename. ``--out`` holding a dataset -> the two
-folders are exchanged (``renameat2(RENAME_EXCHANGE)`` on Linux, else two renames), the
-user's own files in the old dataset (anything that is not a dataset file or a format folder)
-are moved across, and the old dataset is deleted. ``--force`` into a folder that is not a
+The swap: ``--out`` missing or empty -> one rename. ``--out`` holding a dataset -> it is
+renamed to ``.<name>.aerial-synth-old``, the build is renamed to ``--out``, the user's own
+files in the old dataset (anything that is not a dataset file or a format folder) are moved
+across, and the old dataset is deleted. A kill between the two renames leaves the complete
+new dataset in the partial folder and the old one in the ``-old`` folder: ``--resume``
+finishes the move (and retires the old folder the same way). ``--force`` into a folder that is not a
 dataset moves the new dataset's entries in beside the files already there (and refuses up
 front if one of its names is taken).
 """
@@ -174,19 +176,16 @@ def discard_build(plan: OutputPlan) -> None:
         shutil.rmtree(plan.build, ignore_errors=True)
 
 
-def _exchange(a: Path, b: Path) -> bool:
-    """Atomically swap two paths (Linux renameat2 RENAME_EXCHANGE); False if unsupported."""
-    try:
-        import ctypes
-
-        libc = ctypes.CDLL(None, use_errno=True)
-        fn = libc.renameat2
-    except (OSError, AttributeError):
-        return False
-    AT_FDCWD, RENAME_EXCHANGE = -100, 2
-    fn.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
-    rc = fn(AT_FDCWD, os.fsencode(a), AT_FDCWD, os.fsencode(b), RENAME_EXCHANGE)
-    return rc == 0
+def _retire_old(old: Path, out: Path) -> None:
+    """Delete a replaced dataset ``old`` after moving the user's own entries (anything that
+    is not a dataset file or a format folder) into ``out``."""
+    if not old.exists():
+        return
+    owned = set(owned_names())
+    for entry in sorted(os.listdir(old)):
+        if entry not in owned and not (out / entry).exists() and not (out / entry).is_symlink():
+            os.rename(old / entry, out / entry)
+    shutil.rmtree(old)
 
 
 def finish_output(plan: OutputPlan) -> None:
@@ -194,31 +193,21 @@ def finish_output(plan: OutputPlan) -> None:
     if plan.in_place:
         return
     out, build = plan.out, plan.build
+    old = out.parent / f".{out.name}{OLD_SUFFIX}"
     state = _dir_state(out)
-    if state in ("missing", "empty"):
-        if state == "empty":
-            out.rmdir()
-        os.rename(build, out)
-        return
     if state == "foreign":
         for entry in sorted(os.listdir(build)):
             os.rename(build / entry, out / entry)
         build.rmdir()
         return
-    # replace a dataset: swap, keep the user's own files, delete the old dataset
-    old = out.parent / f".{out.name}{OLD_SUFFIX}"
-    if old.exists():
-        shutil.rmtree(old)
-    if _exchange(build, out):
-        os.rename(build, old)  # ``build`` now names the old dataset
-    else:
-        os.rename(out, old)
-        os.rename(build, out)
-    owned = set(owned_names())
-    for entry in sorted(os.listdir(old)):
-        if entry not in owned and not (out / entry).exists():
-            os.rename(old / entry, out / entry)
-    shutil.rmtree(old)
+    if state == "dataset":
+        if old.exists():  # left by a replacement interrupted after its first rename
+            _retire_old(old, out)
+        os.rename(out, old)  # from here until the next rename, --out is missing (< 1 ms)
+    elif state == "empty":
+        out.rmdir()
+    os.rename(build, out)
+    _retire_old(old, out)
 
 
 def remove_stray_temps(build: Path) -> None:

@@ -236,6 +236,22 @@ def test_kill_two_workers_force_keeps_old_and_workers_die(exported, tiny_scene, 
     assert not part.exists()
 
 
+def test_render_image_is_engine_agnostic(exported, tiny_scene, tmp_path):
+    """The task a pool (or Dask) runs: render_image(cfg, out, i) in any order, from a fresh
+    process state, writes the same bytes as the export did."""
+    from aerial_synth.dataset import worker
+
+    out1, _ = exported
+    out = tmp_path / "tasks"
+    worker._CACHE.clear()
+    for i in (3, 0):  # out of order, a different placement group first
+        worker.render_image(_cfg(tiny_scene), out, i)
+    ref = tree_bytes(out1)
+    got = tree_bytes(out)
+    assert got and all(got[k] == ref[k] for k in got)
+    assert {k.split("/")[-1] for k in got} >= {"000000.json", "000003.json", "000000.txt", "000003.png"}
+
+
 def test_resume_with_other_parameters_refused(exported, tiny_scene):
     out, _ = exported
     with pytest.raises(ExportError, match="other parameters"):
@@ -253,6 +269,7 @@ BAD_INPUTS = [
     (["--images", "1.5"], "--images"),
     (["--seed", "-1"], "--seed"),
     (["--seed", "1.5"], "--seed"),
+    (["--scene-seed", "-1"], "--scene-seed"),
     (["--workers", "0"], "--workers"),
     (["--images-per-placement", "0"], "--images-per-placement"),
     (["--vehicles", "0"], "--vehicles"),
@@ -382,9 +399,34 @@ def test_existing_dataset_force_overwrites(tiny_scene, tmp_path):
     export_dataset(_cfg(tiny_scene, images=2, formats="dota,coco"), out, progress=False)
     with pytest.raises(ExportError, match="already exists"):
         export_dataset(_cfg(tiny_scene, images=1, formats="yolo-obb"), out, progress=False)
+    (out / "notes.txt").write_text("mine")
     export_dataset(_cfg(tiny_scene, images=1, formats="yolo-obb"), out, force=True, progress=False)
-    assert sorted(p.name for p in out.iterdir()) == ["manifest.json", "meta", "summary.json", "yolo-obb"]
+    assert sorted(p.name for p in out.iterdir()) == ["manifest.json", "meta", "notes.txt", "summary.json",
+                                                      "yolo-obb"]
     assert len(list((out / "meta").glob("*.json"))) == 1
+    assert (out / "notes.txt").read_text() == "mine"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ds"]  # no partial or old folder left
+
+
+def test_swap_interrupted_between_renames_is_finished_by_resume(tiny_scene, tmp_path):
+    """A kill between the swap's two renames: --out missing, the old dataset in -old, the
+    complete new one in the partial folder. --resume moves it in and retires the old one."""
+    out = tmp_path / "ds"
+    new_cfg = _cfg(tiny_scene, images=1, formats="dota", seed=5)
+    export_dataset(new_cfg, tmp_path / "ref", progress=False)
+    ref = tree_bytes(tmp_path / "ref")
+    export_dataset(_cfg(tiny_scene, images=1, formats="eagle", seed=6), out, progress=False)
+    (out / "notes.txt").write_text("mine")
+    shutil.copytree(tmp_path / "ref", _partial(out))
+    out.rename(tmp_path / ".ds.aerial-synth-old")
+    with pytest.raises(ExportError, match="--resume"):
+        export_dataset(new_cfg, out, progress=False)
+    res = export_dataset(new_cfg, out, resume=True, progress=False)
+    assert res.rendered == 0 and res.skipped == 1
+    got = tree_bytes(out)
+    assert got.pop("notes.txt") == b"mine"
+    assert got == ref
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ds", "ref"]
 
 
 def test_show_draws_previews_and_sheet(exported, tmp_path):

@@ -45,7 +45,7 @@ def test_register_refuses_bad_names_and_duplicates(count_format):
         registry.register("dota")
 
 
-@pytest.mark.parametrize("workers", [1, 2])
+@pytest.mark.parametrize("workers", [1, pytest.param(2, marks=pytest.mark.slow)])
 def test_export_with_a_registered_test_format(count_format, tiny_scene, tmp_path, workers):
     cfg = ExportConfig(scene=tiny_scene, images=3, formats="count,dota", split=0.7, seed=2,
                        images_per_placement=2, n_vehicles=8, width_px=160, height_px=120,
