@@ -61,8 +61,8 @@ def register(sub) -> None:
     m.add_argument("--synthetic-images", type=arg_int("--synthetic-images", 0), default=None,
                    metavar="N", help="use N synthetic training images (default: all)")
     m.add_argument("--out", required=True, metavar="DIR", help="new folder for the mix")
-    m.add_argument("--format", type=arg_choice("--format", ("dota", "yolo-obb")), default="dota",
-                   metavar="dota|yolo-obb", help="(dota)")
+    m.add_argument("--format", type=arg_choice("--format", ("dota", "yolo-obb", "dota,yolo-obb")),
+                   default="dota", metavar="dota|yolo-obb|dota,yolo-obb", help="(dota)")
     m.add_argument("--seed", type=arg_int("--seed", 0), default=0, metavar="S", help="(0)")
     m.add_argument("--val", type=arg_choice("--val", ("real", "synthetic", "both")), default="real",
                    metavar="real|synthetic|both", help="what the validation split holds (real)")

@@ -19,6 +19,8 @@
   shortest edge of a pentagon as the devkit does, else the minimum rotated rectangle clamped
   to the tile; corner order rotated to fit the original box) and marked difficult; otherwise
   dropped (the devkit writes those as difficult ``2``; we leave them out).
+- **Formats.** ``dota``, ``yolo-obb`` or both (``dota,yolo-obb``: the second folder links
+  to the first's image files), laid out as ``aerial-synth export`` lays them out.
 - **Files.** Untouched images are hard-linked (copied when linking fails, e.g. across
   devices; each copy is recorded in the manifest); tiles and rescaled images are written as
   PNG. Labels are rewritten (class filter, DOTA v1 or YOLO-OBB). The mix is built in a
@@ -65,6 +67,7 @@ class MixConfig:
     gsd_missing: str = "error"
     classes: list[str] | None = ("small-vehicle", "large-vehicle")  # type: ignore[assignment]
     force: bool = False
+    formats: tuple[str, ...] = ()  # derived from ``format`` (a comma list)
 
     def __post_init__(self):
         if (self.real_fraction is None) == (self.real_images is None):
@@ -73,8 +76,10 @@ class MixConfig:
             raise EvaluationError(f"--real-fraction: expected a number in [0, 1], got {self.real_fraction!r}")
         if self.real_images is not None and self.real_images < 0:
             raise EvaluationError(f"--real-images: expected a non-negative integer, got {self.real_images!r}")
-        if self.format not in ("dota", "yolo-obb"):
-            raise EvaluationError(f"--format: expected dota or yolo-obb, got {self.format!r}")
+        fmts = tuple(f.strip() for f in str(self.format).split(","))
+        if not fmts or any(f not in ("dota", "yolo-obb") for f in fmts) or len(set(fmts)) != len(fmts):
+            raise EvaluationError(f"--format: expected dota, yolo-obb or dota,yolo-obb, got {self.format!r}")
+        object.__setattr__(self, "formats", fmts)
         if self.val not in ("real", "synthetic", "both"):
             raise EvaluationError(f"--val: expected real, synthetic or both, got {self.val!r}")
         if not (0.0 <= self.val_fraction < 1.0):
@@ -308,13 +313,13 @@ def _load(path: Path):
 
 
 class _Writer:
-    def __init__(self, root: Path, fmt: str, classes: list[str], keep_threshold: float):
-        self.root, self.fmt, self.classes = root, fmt, classes
+    def __init__(self, root: Path, fmts: tuple[str, ...], classes: list[str], keep_threshold: float):
+        self.root, self.fmts, self.classes = root, fmts, classes
         self._keep_threshold = keep_threshold
         self._cache: tuple[Path, tuple, np.ndarray] | None = None
 
-    def dirs(self, split: str) -> tuple[Path, Path]:
-        if self.fmt == "dota":
+    def dirs(self, fmt: str, split: str) -> tuple[Path, Path]:
+        if fmt == "dota":
             return self.root / "dota" / split / "images", self.root / "dota" / split / "labelTxt"
         return self.root / "yolo-obb" / "images" / split, self.root / "yolo-obb" / "labels" / split
 
@@ -334,9 +339,6 @@ class _Writer:
     def write(self, item: _Item, split: str) -> dict:
         import cv2
 
-        img_dir, lab_dir = self.dirs(split)
-        img_dir.mkdir(parents=True, exist_ok=True)
-        lab_dir.mkdir(parents=True, exist_ok=True)
         src = item.src
         keep_cls = np.array([self.classes is None or c in self.classes for c in src.classes], bool)
         P = rescale_polygons(src.polygons_xy_px, *item.scale)[keep_cls]
@@ -349,33 +351,45 @@ class _Writer:
             w, h = item.tile[2], item.tile[3]
         else:
             w, h = item.size_wh if item.size_wh != (0, 0) else image_size(src.image_path)
-        if item.tile is None and item.scale == (1.0, 1.0):
-            dst = img_dir / (item.out_stem + src.image_path.suffix.lower())
-            how = _link(src.image_path, dst)
-        else:
-            arr = self.image(item)
-            if item.tile is not None:
-                x, y, tw, th = item.tile
-                arr = arr[y:y + th, x:x + tw]
-            dst = img_dir / (item.out_stem + ".png")
-            ok, buf = cv2.imencode(".png", arr)
-            if not ok:  # pragma: no cover
-                raise EvaluationError(f"{src.image_path}: cannot encode a tile as PNG")
-            dst.write_bytes(buf.tobytes())
-            how = "written"
         gsd = src.extra.get("gsd_out", src.gsd_m)
-        if self.fmt == "dota":
-            text = "\n".join(dota_lines(P, C, D, gsd, src.image_source or item.origin)) + "\n"
-        else:
-            lines = []
-            for p, c in zip(P, C):
-                k = self.classes.index(c) if self.classes else 0
-                q = np.clip(p / (w, h), 0.0, 1.0).reshape(-1)
-                lines.append(f"{k} " + " ".join(f"{v:.6f}" for v in q))
-            text = "".join(ln + "\n" for ln in lines)
-        (lab_dir / (item.out_stem + ".txt")).write_text(text, encoding="utf-8")
+        first: Path | None = None
+        how = ""
+        images = []
+        for fmt in self.fmts:
+            img_dir, lab_dir = self.dirs(fmt, split)
+            img_dir.mkdir(parents=True, exist_ok=True)
+            lab_dir.mkdir(parents=True, exist_ok=True)
+            untouched = item.tile is None and item.scale == (1.0, 1.0)
+            dst = img_dir / (item.out_stem + (src.image_path.suffix.lower() if untouched else ".png"))
+            if first is not None:  # the other format's folder: a link to the file just made
+                how_here = _link(first, dst)
+                how = "copy" if "copy" in (how, how_here) else how
+            elif untouched:
+                how = _link(src.image_path, dst)
+            else:
+                arr = self.image(item)
+                if item.tile is not None:
+                    x, y, tw, th = item.tile
+                    arr = arr[y:y + th, x:x + tw]
+                ok, buf = cv2.imencode(".png", arr)
+                if not ok:  # pragma: no cover
+                    raise EvaluationError(f"{src.image_path}: cannot encode a tile as PNG")
+                dst.write_bytes(buf.tobytes())
+                how = "written"
+            first = first or dst
+            images.append(str(dst.relative_to(self.root)))
+            if fmt == "dota":
+                text = "\n".join(dota_lines(P, C, D, gsd, src.image_source or item.origin)) + "\n"
+            else:
+                lines = []
+                for p, c in zip(P, C):
+                    k = self.classes.index(c) if self.classes else 0
+                    q = np.clip(p / (w, h), 0.0, 1.0).reshape(-1)
+                    lines.append(f"{k} " + " ".join(f"{v:.6f}" for v in q))
+                text = "".join(ln + "\n" for ln in lines)
+            (lab_dir / (item.out_stem + ".txt")).write_text(text, encoding="utf-8")
         return {
-            "split": split, "origin": item.origin, "image": str(dst.relative_to(self.root)),
+            "split": split, "origin": item.origin, "image": images[0], "images": images,
             "file": how, "objects": len(C), "clipped": int(clipped.sum()),
             "dropped_by_class": int((~keep_cls).sum()),
             "tile_xywh": list(item.tile) if item.tile else None,
@@ -442,7 +456,7 @@ def make_mix(cfg: MixConfig) -> dict:
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
     try:
-        w = _Writer(tmp, cfg.format, classes, cfg.keep_threshold)
+        w = _Writer(tmp, cfg.formats, classes, cfg.keep_threshold)
         entries = []
         for split, items in (("train", chosen), ("val", val_items)):
             for it in items:
@@ -450,7 +464,7 @@ def make_mix(cfg: MixConfig) -> dict:
                 e["source_image"] = str(it.src.image_path)
                 e["source_label"] = str(it.src.label_path)
                 entries.append(e)
-        if cfg.format == "yolo-obb":
+        if "yolo-obb" in cfg.formats:
             import yaml
 
             val_dir = "images/val" if val_items else "images/train"

@@ -142,12 +142,19 @@ def test_gsd_rescale_keeps_boxes_on_their_objects(tmp_path):
     write_dota_image(real / "train", "r0", boxes, size=(200, 160), gsd=0.3, background=20)
     make_dota(tmp_path / "syn/dota/train", 2, "s")
     man = make_mix(MixConfig(real=real, synthetic=tmp_path / "syn", out=tmp_path / "mix",
-                             real_images=1, gsd=0.12, val_fraction=0.0, format="yolo-obb"))
+                             real_images=1, gsd=0.12, val_fraction=0.0, format="dota,yolo-obb"))
     e = [e for e in man["images"] if e["origin"] == "real"][0]
     assert e["scale"] == [2.5, 2.5] and e["file"] == "written"
-    img = cv2.imread(str(tmp_path / "mix" / e["image"]), cv2.IMREAD_GRAYSCALE)
+    dota_img, yolo_img = (tmp_path / "mix" / p for p in e["images"])
+    assert os.stat(dota_img).st_ino == os.stat(yolo_img).st_ino  # one file, linked
+    assert yolo_img.parent == tmp_path / "mix/yolo-obb/images/train"
+    dpolys, _, _, dgsd, _ = parse_dota_lines(
+        (tmp_path / "mix/dota/train/labelTxt" / (dota_img.stem + ".txt")).read_text().splitlines(), "x")
+    assert dgsd == 0.12  # the rescaled image's header says the new GSD
+    np.testing.assert_allclose(dpolys, np.array(boxes) * 2.5, atol=0.013)
+    img = cv2.imread(str(yolo_img), cv2.IMREAD_GRAYSCALE)
     assert img.shape == (400, 500)
-    lab = (tmp_path / "mix" / e["image"]).as_posix().replace("/images/", "/labels/").replace(".png", ".txt")
+    lab = yolo_img.as_posix().replace("/images/", "/labels/").replace(".png", ".txt")
     polys, cls, _ = parse_yolo_obb_lines(open(lab).read().splitlines(), lab,
                                          ["small-vehicle", "large-vehicle"], (500, 400), with_conf=False)
     assert len(polys) == 2
