@@ -258,7 +258,8 @@ def _block(labels: _Labels, path: str, value: Any, keys: tuple[str, ...],
         raise ConfigError(f"{where}: keys must be names, got {V.show(bad[0])}")
     unknown = sorted(k for k in value if k not in keys and k not in tolerated)
     if unknown:
-        raise ConfigError(f"{labels(path + '.' + unknown[0]) if path else labels(unknown[0])}: "
+        key = unknown[0] if unknown[0].isidentifier() else V.show(unknown[0])  # one line, always
+        raise ConfigError(f"{labels(path + '.' + key) if path else labels(key)}: "
                           f"unknown key; expected one of {', '.join(keys)}")
     return {k: v for k, v in value.items() if k in keys}
 

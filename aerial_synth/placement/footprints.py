@@ -15,8 +15,13 @@ __all__ = ["FootprintIndex", "ValidationReport", "validate_placement", "footprin
 #: Distance tolerance of the gap rule (metres): footprints exactly gap_m apart are accepted.
 GAP_TOL_M = 1e-6
 #: Default spacing of the traced samples along a footprint's edges and inside it (metres).
-EDGE_STEP_M = 0.25
+#: 0.1 m along the edges: a right-angled (or blunter) kerb or building corner that reaches
+#: more than half of that (5 cm) into a footprint always meets a sample.
+EDGE_STEP_M = 0.1
 INNER_STEP_M = 1.0
+#: How far a footprint may reach outside the truth's drivable area in the validator (metres):
+#: the depth that EDGE_STEP_M guarantees to catch.
+AREA_TOL_M = EDGE_STEP_M / 2
 
 
 def footprint_samples(x, y, heading, length, width, edge_step_m: float = EDGE_STEP_M,
@@ -26,8 +31,9 @@ def footprint_samples(x, y, heading, length, width, edge_step_m: float = EDGE_ST
     Order: the 4 corners (front-left, front-right, rear-right, rear-left), the centre, the 4
     edge midpoints, then points along every edge no more than ``edge_step_m`` apart, then an
     inner grid no more than ``inner_step_m`` apart. A kerb or a building corner that cuts
-    into a footprint crosses its edge, so it meets an edge sample once it reaches more than
-    ``edge_step_m`` / 2 along the edge; the inner grid catches posts and trunks inside.
+    into a footprint crosses its edge; a right-angled corner reaching more than
+    ``edge_step_m`` / 2 into it always meets an edge sample. The inner grid catches posts
+    and trunks inside.
     The counts follow the longest/widest vehicle of the batch so the array is regular.
     """
     x, y, h, ln, w = (np.atleast_1d(np.asarray(a, dtype=np.float64)) for a in (x, y, heading, length, width))
@@ -135,8 +141,9 @@ class ValidationReport:
 
     footprint_ok     : (n,) bool, the whole footprint is on drivable surface: every traced
                        sample of :func:`footprint_samples` (corners, edge midpoints, centre,
-                       edges every 0.25 m, an inner grid) hits a drivable label, and, where the
+                       edges every 0.1 m, an inner grid) hits a drivable label, and, where the
                        scene has truth, the footprint polygon lies inside the drivable area
+                       (within 5 cm)
     footprint_drivable : fraction of vehicles with footprint_ok (the figure to watch: 1.0)
     on_road_fraction : (n,) fraction of each footprint's traced samples on drivable labels
     area_drivable    : (n,) fraction of each footprint's area inside the truth's drivable area
@@ -241,13 +248,13 @@ def _heading_errors(truth, x, y, h, traffic: str) -> np.ndarray:
 
 
 def validate_placement(rayscene, placement: Placement, truth=None, traffic: str = "right",
-                       edge_step_m: float = EDGE_STEP_M, area_tol_m: float = 0.01) -> ValidationReport:
+                       edge_step_m: float = EDGE_STEP_M, area_tol_m: float = AREA_TOL_M) -> ValidationReport:
     """Check a placement against the scene (traces) and, where known, the scene's truth.
 
     A vehicle's footprint is on drivable surface when every one of its traced samples
     (:func:`footprint_samples`) hits a drivable label and, with truth, its polygon lies
-    inside the truth's drivable area grown by ``area_tol_m`` (mesh and polygon agree to
-    far less than that).
+    inside the truth's drivable area grown by ``area_tol_m`` (5 cm: what 0.1 m edge samples
+    are sure to catch; ``area_drivable`` reports the exact area fraction).
 
     Heading error is measured against the true centre line's tangent, taking the driving
     side into account: on a two-way road a right-hand vehicle must drive along the tangent

@@ -175,7 +175,7 @@ class _Engine:
 
     def check_footprints(self, c: _Cand, L: np.ndarray, W: np.ndarray) -> np.ndarray:
         """The whole footprint must trace (through ignorable vegetation only) to drivable
-        labels: corners, centre, edge midpoints, the edges every 0.25 m and an inner grid
+        labels: corners, centre, edge midpoints, the edges every 0.1 m and an inner grid
         (:func:`.footprints.footprint_samples`), so a kerb or a building corner that cuts
         into the body between the corners refuses the vehicle. Returns z of the centre hit;
         marks failures in c.ok / c.reason."""

@@ -104,6 +104,15 @@ def test_set_errors_name_the_key(items, message):
     assert str(exc.value) == message
 
 
+def test_odd_keys_are_quoted_on_one_line(tmp_path):
+    p = tmp_path / "s.yaml"
+    p.write_text('"a\\nb": 1\n')
+    with pytest.raises(ConfigError) as exc:
+        load_scenario(str(p))
+    assert str(exc.value).startswith(f"{p}: 'a\\nb': unknown key; expected one of name, kind, ")
+    assert "\n" not in str(exc.value)
+
+
 def test_unknown_top_level_key_lists_the_valid_ones():
     with pytest.raises(ConfigError) as exc:
         _set("bogus=1")

@@ -171,7 +171,7 @@ def test_footprint_samples_cover_edges_densely():
     on_edge = np.isclose(np.abs(local[:, 1]), 1.25)
     xs = np.sort(local[on_edge & (local[:, 1] > 0), 0])
     assert xs[0] == pytest.approx(-6) and xs[-1] == pytest.approx(6)
-    assert np.diff(xs).max() <= 0.25 + 1e-9
+    assert np.diff(xs).max() <= 0.1 + 1e-9
     assert (np.abs(local) <= [6 + 1e-9, 1.25 + 1e-9]).all()
 
 
