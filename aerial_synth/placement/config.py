@@ -22,6 +22,7 @@ import numpy as np
 
 from .. import validators as V
 from ..errors import ConfigError, PlacementError
+from .parking_config import PARKING_KEYS, PARKING_KINDS, ParkingConfig, parse_parking
 from .spacing import SpacingSampler
 
 __all__ = [
@@ -165,16 +166,22 @@ class ScenarioConfig:
     probe: ProbeConfig = field(default_factory=ProbeConfig)
     seed_batch: int = 4096
     max_seed_attempts: int = 50000
+    #: parking, street-parking and mixed scenarios (placement/parking_config.py)
+    parking: ParkingConfig | None = None
 
     def __post_init__(self) -> None:
         s = object.__setattr__
         if not isinstance(self.name, str) or not self.name.strip():
             raise ConfigError(f"name: expected a non-empty string, got {V.show(self.name)}")
-        V.one_of("kind", self.kind, ("lines", "random"))
+        V.one_of("kind", self.kind, ("lines", "random") + tuple(PARKING_KINDS))
         if self.spacing is not None and not isinstance(self.spacing, SpacingSampler):
             raise ConfigError(f"spacing: expected a spacing block, got {V.show(self.spacing)}")
-        if self.kind == "lines" and self.spacing is None:
-            raise ConfigError("spacing: a 'lines' scenario needs a spacing block, got null")
+        if self.kind in ("lines", "mixed") and self.spacing is None:
+            raise ConfigError(f"spacing: a '{self.kind}' scenario needs a spacing block, got null")
+        if self.parking is not None and not isinstance(self.parking, ParkingConfig):
+            raise ConfigError(f"parking: expected a mapping, got {V.show(self.parking)}")
+        if self.kind in PARKING_KINDS and self.parking is None:
+            s(self, "parking", ParkingConfig())
         if not isinstance(self.vehicles_per_line, LinesConfig):
             raise ConfigError(f"vehicles_per_line: expected a mapping, got {V.show(self.vehicles_per_line)}")
         if not isinstance(self.probe, ProbeConfig):
@@ -201,6 +208,7 @@ class ScenarioConfig:
     def to_dict(self) -> dict:
         d = asdict(self)
         d["spacing"] = self.spacing.to_dict() if self.spacing is not None else None
+        d["parking"] = self.parking.to_dict() if self.parking is not None else None
         if d["lane_offsets_m"] is not None:
             d["lane_offsets_m"] = list(d["lane_offsets_m"])
         return d
@@ -334,6 +342,8 @@ def parse_scenario(data: Any, labels: _Labels) -> ScenarioConfig:
                 kw[k] = ProbeConfig(**pr)
             except ConfigError as exc:
                 raise labels.wrap(k, exc) from None
+        elif k == "parking":
+            kw[k] = None if v is None else parse_parking(v, labels)
         elif k == "name":
             if not isinstance(v, (str, int, float)) or isinstance(v, bool) or str(v).strip() == "":
                 raise ConfigError(f"{name}: expected a non-empty string, got {V.show(v)}")
@@ -474,6 +484,7 @@ def describe_keys() -> str:
     """Every key ``--set`` accepts, for help texts."""
     keys = []
     for k in _SCENARIO_KEYS:
-        sub = {"spacing": _SPACING_KEYS, "vehicles_per_line": _LINES_KEYS, "probe": _PROBE_KEYS}.get(k)
+        sub = {"spacing": _SPACING_KEYS, "vehicles_per_line": _LINES_KEYS, "probe": _PROBE_KEYS,
+               "parking": PARKING_KEYS}.get(k)
         keys += [f"{k}.{s}" for s in sub] if sub else [k]
     return ", ".join(keys)

@@ -27,6 +27,9 @@ class PlacedVehicle:
     lane        : 0 = the line's own lane, 1 = the opposite lane of a double lane
     direction   : "forward" (seeded line) or "opposite" (its double lane) or "random"
     spacing_m   : centre-to-centre distance to the predecessor in its line (nan for the first)
+    state       : "moving" (traffic) or "parked" (placement/parking.py)
+    lot, kerb   : id of the parking lot or of the kerb line a parked vehicle stands in (-1 none)
+    bay         : index of its bay in that lot or kerb line (-1 for moving vehicles)
     """
 
     id: int
@@ -49,6 +52,10 @@ class PlacedVehicle:
     z_orig_m: float = float("nan")
     lon_deg: float = float("nan")
     lat_deg: float = float("nan")
+    state: str = "moving"
+    lot: int = -1
+    kerb: int = -1
+    bay: int = -1
 
     def to_dict(self) -> dict:
         d = asdict(self)

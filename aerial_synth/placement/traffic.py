@@ -24,6 +24,7 @@ from .config import ScenarioConfig, load_scenario
 from .footprints import FootprintIndex, footprint_samples
 from .linetrace import Prober, unit
 from .model import PlacedVehicle, Placement, with_lonlat
+from .parking_config import PARKING_KINDS
 
 # Direction hints (OSM scenes, aerial_synth.scene.hints): the few hooks that read them are
 # marked "direction hints"; line traces still find every edge and heading.
@@ -591,6 +592,11 @@ def place(
         from ..vehicles import load_catalog
 
         catalog = load_catalog()
+    if cfg.kind in PARKING_KINDS:  # parking, street-parking, mixed: placement/parking.py
+        from .parking import place_parking
+
+        return place_parking(rayscene, cfg, rng, catalog, seed=seed, scene_name=scene_name,
+                             n_vehicles=n_vehicles, n_lines=n_lines)
     t0 = time.perf_counter()
     eng = _Engine(rayscene, cfg, rng, catalog)
     if cfg.kind == "random":

@@ -59,7 +59,7 @@ def test_overrides_from_the_cli(straight_glb, tmp_path):
 
 
 BAD_INPUTS = [
-    (["--scenario", "gridlock"], "unknown scenario 'gridlock': expected one of jam, multilane, normal"),
+    (["--scenario", "gridlock"], "unknown scenario 'gridlock': expected one of jam, mixed, multilane, normal"),
     (["--set", "spacing.min_m=30"], "--set spacing: d_min (30 m) must not exceed d_max (23.5 m)"),
     (["--set", "spacing.sd_m=-0.5"], "--set spacing.sd_m: expected a finite number > 0, got -0.5"),
     (["--set", "spacing"], "--set 'spacing': expected KEY=VALUE"),

@@ -1,0 +1,664 @@
+"""Parked vehicles: lots (``parking``), kerbs (``street-parking``) and both plus traffic
+(``mixed``), in the spirit of the thesis's line traces (docs/parking.md).
+
+Lots. Vertical traces on a grid over the scene find the ``parking`` surface (painted bay
+lines, ``parking_marking``, count as lot). An opening removes driveways and entrances
+narrower than ``min_lot_m``; each remaining piece is a lot candidate. Its minimum rotated
+rectangle gives the row direction (the long side); each of its four edges is then found
+exactly by marching traces outward in 0.05 m steps (the thesis's step) from seven points
+along the side, taking the median. The bay layout is the scene's lot hint when the scene
+carries one for that lot (``Scene.meta["parking_lots"]``: a procedural lot's painted
+layout), else the scenario's default (2.5 x 5.0 m bays, 6 m aisles, rows parallel to the
+rectangle), laid out by :func:`aerial_synth.scene.procedural.parking.layout_bays`, the
+function that painted the lines. A bay is kept only when traces over a 3 x 3 grid inside it
+all land on the lot.
+
+Kerbs. Random road traces seed kerb lines; from each seed the 36-direction probe finds the
+nearest edge (the thesis's fewest-road-hits rule) and the line then steps ``kerb_bay_m`` at
+a time along the edge, re-locating it with the two-direction probe and stopping where the
+edge jumps or turns (a junction, a road end). A kerb bay is dropped when, beside it or
+within ``kerb_clear_m`` before or after it, the trace just beyond the kerb hits road (a
+junction's crossing street) or parking (a driveway or lot entrance) or a lane marking
+crosses the bay.
+
+Filling. Per lot and per kerb line the occupancy is drawn from Beta(mean c, (1 - mean) c)
+(scipy.stats) and that share of the bays (rounded) is filled, bays chosen uniformly. The
+vehicle of a bay comes from the scenario's class mix restricted to vehicles that fit it
+(width <= bay width, length <= bay length + 0.2 m); bays at least ``depot_bay_min_m`` long
+use ``depot_mix`` (buses and semi-trailers). Perpendicular and parallel bays take a share
+of back-in parkers. Each vehicle gets a lateral / along-bay offset (normal, sigma
+``lateral_sigma_m``) and a heading jitter (normal, sigma ``angle_sigma_deg``, truncated at
+``angle_max_deg``), shrunk where needed so that no corner leaves its bay by more than
+0.2 m. Overlapping pairs (STRtree) put the later vehicle back to the bay's centre line
+without jitter, or leave the bay empty. Parked semi-trailers stand straight.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConfigError, PlacementError
+from ..scene.model import LABEL_IDS
+from .model import PlacedVehicle, Placement, footprint_corners_xy, with_lonlat
+from .parking_config import PARKING_KINDS, ParkingConfig
+
+__all__ = ["Lot", "Kerb", "find_lots", "find_kerbs", "fill_bays", "place_parking",
+           "parking_report", "STICK_OUT_M"]
+
+#: How far a parked footprint may leave its bay (metres).
+STICK_OUT_M = 0.2
+_LOT_LABELS = ("parking", "parking_marking")
+
+
+@dataclass(frozen=True)
+class Lot:
+    """A lot found by traces: id, rectangle (LotFrame), layout, bays (kept after the trace
+    check), ``layout_source`` ("scene" hint or "default") and how many bays failed."""
+
+    id: int
+    frame: object
+    layout: object
+    bays: object
+    layout_source: str
+    dropped_bays: int
+
+
+@dataclass(frozen=True)
+class Kerb:
+    """A kerb line: id, bays (parallel, axis along the traffic direction of that side)."""
+
+    id: int
+    bays: object
+    dropped_bays: int
+
+
+# ------------------------------------------------------------------------- traces
+def _trace_labels(rs, xy: np.ndarray, chunk: int = 1 << 20) -> np.ndarray:
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    out = np.empty(len(xy), np.int64)
+    for i in range(0, len(xy), chunk):
+        out[i:i + chunk] = rs.trace_labels(xy[i:i + chunk])
+    return out
+
+
+def _lot_ids() -> np.ndarray:
+    return np.array([LABEL_IDS[n] for n in _LOT_LABELS])
+
+
+def _march_edges(rs, origins, dirs, start_m, reach_m, step_m=0.05):
+    """Distance along each direction to the first non-lot trace, starting ``start_m`` from
+    the origin and marching ``reach_m`` in ``step_m`` steps. nan where no edge was met or
+    the start was not on the lot."""
+    ks = start_m[:, None] + np.arange(int(np.ceil(reach_m / step_m)) + 1)[None, :] * step_m
+    pts = origins[:, None, :] + dirs[:, None, :] * ks[..., None]
+    on = np.isin(_trace_labels(rs, pts.reshape(-1, 2)), _lot_ids()).reshape(ks.shape)
+    first_off = np.argmax(~on, axis=1)
+    ok = on[:, 0] & (~on).any(axis=1)
+    d = ks[np.arange(len(ks)), np.maximum(first_off - 1, 0)]
+    return np.where(ok, d, np.nan)
+
+
+def find_lots(rayscene, cfg: ParkingConfig | None = None) -> list[Lot]:
+    """Lots of a scene, found by vertical traces (see the module doc)."""
+    import cv2
+    import shapely
+
+    from ..scene.procedural.parking import LotFrame, LotLayout, layout_bays, lot_frame
+
+    cfg = cfg or ParkingConfig()
+    rs = rayscene
+    b = rs.scene.bounds()
+    lo, hi = b[0, :2], b[1, :2]
+    g = cfg.grid_m
+    xs = np.arange(lo[0] + g / 2, hi[0], g)
+    ys = np.arange(hi[1] - g / 2, lo[1], -g)  # row 0 = north
+    if not len(xs) or not len(ys):
+        return []
+    X, Y = np.meshgrid(xs, ys)
+    lab = _trace_labels(rs, np.stack([X.ravel(), Y.ravel()], 1)).reshape(X.shape)
+    mask = np.isin(lab, _lot_ids()).astype(np.uint8)
+    r = max(1, int(round(cfg.min_lot_m / 2 / g)))
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    opened = cv2.morphologyEx(mask, cv2.MORPH_OPEN, kernel)
+    n, comp, stats, _ = cv2.connectedComponentsWithStats(opened, connectivity=8)
+    default = cfg.lot_layout()
+    hints = rs.scene.meta.get("parking_lots") or []
+    lots: list[Lot] = []
+    for k in range(1, n):
+        x0, y0, w, h, area = stats[k]
+        if area * g * g < 60.0:
+            continue
+        sub = (comp[y0:y0 + h, x0:x0 + w] == k).astype(np.uint8)
+        cs, _ = cv2.findContours(sub, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+        c = max(cs, key=cv2.contourArea).reshape(-1, 2).astype(float)
+        wx = xs[0] + (c[:, 0] + x0) * g
+        wy = ys[0] - (c[:, 1] + y0) * g
+        if len(c) < 3:
+            continue
+        fr = lot_frame(shapely.Polygon(np.column_stack([wx, wy])).buffer(g / 2, join_style="mitre"))
+        fr = _refine(rs, fr)
+        if fr is None:
+            continue
+        lay, src = default, "default"
+        for hnt in hints:
+            hc = np.asarray(hnt.get("center_xy", (np.inf, np.inf)), float)
+            if np.hypot(hc[0] - fr.cx, hc[1] - fr.cy) < 1.5 and abs(hnt.get("long_m", 0) - fr.long_m) < 1.5:
+                lay, src = LotLayout(**hnt["layout"]), "scene"
+                fr = LotFrame(float(hc[0]), float(hc[1]), float(np.radians(hnt["row_deg"])),
+                              float(hnt["long_m"]), float(hnt["short_m"]))
+                break
+        bays = layout_bays(fr, lay)
+        keep = _bays_on_lot(rs, bays)
+        lots.append(Lot(len(lots), fr, lay, bays.take(keep), src, int((~keep).sum())))
+    return lots
+
+
+def _refine(rs, fr):
+    """Edges of the lot rectangle by 0.05 m marches outward (median of 7 per side)."""
+    from ..scene.procedural.parking import LotFrame
+
+    u = np.array([np.cos(fr.u_rad), np.sin(fr.u_rad)])
+    v = np.array([-u[1], u[0]])
+    c = np.array([fr.cx, fr.cy])
+    halves = [fr.long_m / 2, fr.long_m / 2, fr.short_m / 2, fr.short_m / 2]
+    dirs = [u, -u, v, -v]
+    across = [v, v, u, u]
+    spans = [fr.short_m, fr.short_m, fr.long_m, fr.long_m]
+    t = np.linspace(-0.35, 0.35, 7)
+    origins, ds, starts = [], [], []
+    for h, d, a, sp in zip(halves, dirs, across, spans):
+        for ti in t:
+            origins.append(c + a * ti * sp)
+            ds.append(d)
+            starts.append(max(h - 2.0, 0.0))
+    dist = _march_edges(rs, np.array(origins), np.array(ds), np.array(starts), 4.0)
+    med = []
+    for i in range(4):
+        di = dist[7 * i:7 * i + 7]
+        di = di[np.isfinite(di)]
+        if len(di) < 3:
+            return None
+        med.append(float(np.median(di)))
+    du = (med[0] - med[1]) / 2
+    dv = (med[2] - med[3]) / 2
+    cc = c + u * du + v * dv
+    L, S = med[0] + med[1], med[2] + med[3]
+    if S > L:  # rows follow the long side
+        return LotFrame(float(cc[0]), float(cc[1]), float(np.mod(fr.u_rad + np.pi / 2, np.pi)), S, L)
+    return LotFrame(float(cc[0]), float(cc[1]), fr.u_rad, L, S)
+
+
+def _bays_on_lot(rs, bays, inset_m: float = 0.15) -> np.ndarray:
+    """(n,) bool: a 3 x 3 grid of traces inside each bay all land on the lot."""
+    if not len(bays):
+        return np.zeros(0, bool)
+    f = np.array([-1.0, 0.0, 1.0])
+    gu, gv = np.meshgrid(f * (bays.length_m / 2 - inset_m), f * (bays.width_m / 2 - inset_m))
+    lx, ly = gu.ravel(), gv.ravel()
+    c, s = np.cos(bays.axis_rad)[:, None], np.sin(bays.axis_rad)[:, None]
+    px = bays.centre_xy[:, :1] + c * lx - s * ly
+    py = bays.centre_xy[:, 1:] + s * lx + c * ly
+    lab = _trace_labels(rs, np.stack([px.ravel(), py.ravel()], 1)).reshape(len(bays), -1)
+    return np.isin(lab, _lot_ids()).all(axis=1)
+
+
+# ------------------------------------------------------------------------- kerbs
+def find_kerbs(rayscene, cfg: ParkingConfig, rng: np.random.Generator, probe=None,
+               traffic: str = "right") -> list[Kerb]:
+    """Kerb lines with their parallel bays (see the module doc)."""
+    import shapely
+
+    from ..scene.procedural.parking import Bays
+    from .config import ProbeConfig
+    from .linetrace import Prober, unit
+
+    rs = rayscene
+    pr = Prober(rs, probe or ProbeConfig())
+    b = rs.scene.bounds()
+    lo, hi = b[0, :2], b[1, :2]
+    road_lut = np.zeros(len(LABEL_IDS) + 1, bool)
+    road_lut[[LABEL_IDS["road"], LABEL_IDS["lane_marking"]]] = True
+    bay_L = cfg.kerb_bay_m
+    kerbs: list[Kerb] = []
+    claimed = []  # shapely polygons of kerb stretches already used
+    tries = 0
+    want = cfg.kerb_lines
+    while len(kerbs) < want and tries < 40:
+        tries += 1
+        xy = rng.uniform(lo, hi, size=(4096, 2))
+        seeds = xy[pr.is_road(xy)][: max(8, 2 * (want - len(kerbs)))]
+        if not len(seeds):
+            continue
+        D = 36
+        ang = np.tile(np.arange(D) * (2 * np.pi / D), (len(seeds), 1))
+        m = pr.march(seeds, ang, first_only=True, chunk=24)
+        best = np.argmin(m.count, axis=1)
+        ok = m.found[np.arange(len(seeds)), best]
+        phi = ang[np.arange(len(seeds)), best]  # towards the nearest edge
+        for i in np.flatnonzero(ok):
+            if len(kerbs) >= want:
+                break
+            line = _kerb_line(pr, seeds[i], phi[i], cfg, unit)
+            if line is None:
+                continue
+            edge, t_dir, n_out, width = line
+            if not (cfg.kerb_road_width_m[0] <= width <= cfg.kerb_road_width_m[1]):
+                continue
+            zone = shapely.LineString(edge).buffer(3.0, cap_style="flat")
+            if claimed and any(zone.intersects(z) for z in claimed):
+                continue
+            centres = (edge[:-1] + edge[1:]) / 2 - n_out[:-1] * cfg.kerb_offset_m
+            seg = edge[1:] - edge[:-1]
+            axis = np.arctan2(seg[:, 1], seg[:, 0])
+            if traffic == "left":
+                axis = axis + np.pi
+            # right-hand traffic: the kerb is on the parked car's right
+            cross = np.cos(axis) * n_out[:-1, 1] - np.sin(axis) * n_out[:-1, 0]
+            axis = np.where(cross < 0, axis, axis + np.pi) if traffic == "right" else np.where(
+                cross > 0, axis, axis + np.pi)
+            bays = Bays(centres, np.mod(axis, 2 * np.pi), np.zeros(len(centres), int), float(t_dir),
+                        2.0 * cfg.kerb_offset_m, bay_L, 0.0)
+            keep = _kerb_free(rs, road_lut, bays, n_out[:-1], edge, cfg)
+            kerbs.append(Kerb(len(kerbs), bays.take(keep), int((~keep).sum())))
+            if cfg.kerb_sides == "one":
+                claimed.append(shapely.LineString(edge).buffer(width + 3.0, cap_style="flat"))
+            else:
+                claimed.append(zone)
+    return kerbs
+
+
+def _kerb_line(pr, seed, phi, cfg, unit, max_steps=400):
+    """Walk along the kerb nearest ``seed`` (edge direction ``phi``) both ways, one bay
+    length per step. Returns (edge points (k, 2), along direction, outward normals (k, 2),
+    road width) or None."""
+    step = cfg.kerb_bay_m
+    n_out = unit(phi)
+    # road width across this point: edge + opposite edge
+    m = pr.march(seed[None], np.array([[phi, phi + np.pi]]))
+    if not m.found.all():
+        return None
+    width = float(m.dist_m[0].sum())
+    e0 = m.edge_xy[0, 0]
+    t = np.array([-n_out[1], n_out[0]])
+    pts = {0: (e0, n_out)}
+    for sgn in (1.0, -1.0):
+        e, no = e0, n_out
+        for k in range(1, max_steps):
+            tt = np.array([-no[1], no[0]]) * sgn
+            q = e + tt * step - no * 2.0  # 2 m inside the road
+            a1 = np.arctan2(no[1], no[0])
+            mm = pr.march(q[None], np.array([[a1, a1 - sgn * np.radians(10.0)]]), max_distance_m=6.0)
+            if not mm.found.all() or abs(mm.dist_m[0, 0] - 2.0) > 0.5:
+                break  # junction, road end or the edge moved (a driveway / lay-by)
+            e1, e2 = mm.edge_xy[0, 0], mm.edge_xy[0, 1]
+            d = e2 - e1
+            if np.linalg.norm(d) < 1e-6:
+                break
+            d = d / np.linalg.norm(d)
+            new_no = np.array([d[1], -d[0]]) * sgn
+            if np.dot(new_no, no) < np.cos(np.radians(20.0)):
+                break
+            e, no = e1, new_no
+            pts[int(sgn) * k] = (e, no)
+    keys = sorted(pts)
+    if len(keys) < 3:
+        return None
+    edge = np.array([pts[k][0] for k in keys])
+    nrm = np.array([pts[k][1] for k in keys])
+    return edge, float(np.arctan2(t[1], t[0])), nrm, width
+
+
+def _kerb_free(rs, road_lut, bays, n_out, edge, cfg) -> np.ndarray:
+    """(n,) bool: nothing beyond the kerb beside the bay or within kerb_clear_m of it is
+    road (junction) or parking (driveway); no lane marking crosses the bay; the bay is road."""
+    n = len(bays)
+    if not n:
+        return np.zeros(0, bool)
+    L = bays.length_m
+    u = np.stack([np.cos(bays.axis_rad), np.sin(bays.axis_rad)], 1)
+    foot = bays.centre_xy + n_out * cfg.kerb_offset_m  # on the edge
+    s = np.linspace(-(L / 2 + cfg.kerb_clear_m), L / 2 + cfg.kerb_clear_m, 13)
+    outs = np.array([0.4, 1.5, 3.5])
+    pts = (foot[:, None, None, :] + u[:, None, None, :] * s[None, :, None, None]
+           + n_out[:, None, None, :] * outs[None, None, :, None])
+    lab = _trace_labels(rs, pts.reshape(-1, 2)).reshape(n, len(s), len(outs))
+    bad_out = road_lut[lab].any(axis=(1, 2)) | (lab == LABEL_IDS["parking"]).any(axis=(1, 2))
+    # the bay itself: road only (a crossing or marking across it keeps it free)
+    f = np.array([-0.45, -0.15, 0.15, 0.45])
+    gu, gv = np.meshgrid(f * L, np.array([-0.35, 0.0, 0.35]) * bays.width_m)
+    c, sn = np.cos(bays.axis_rad)[:, None], np.sin(bays.axis_rad)[:, None]
+    px = bays.centre_xy[:, :1] + c * gu.ravel() - sn * gv.ravel()
+    py = bays.centre_xy[:, 1:] + sn * gu.ravel() + c * gv.ravel()
+    lab_in = _trace_labels(rs, np.stack([px.ravel(), py.ravel()], 1)).reshape(n, -1)
+    bad_in = ~(lab_in == LABEL_IDS["road"]).all(axis=1)
+    # the edge must run straight along the bay (no bend)
+    return ~(bad_out | bad_in)
+
+
+# ------------------------------------------------------------------------- filling
+def _mix_table(catalog, mix: dict, field_name: str) -> tuple[list, np.ndarray]:
+    """(models, weights) of a class mix; an unknown class or model raises ConfigError."""
+    names = {m.name: m for m in catalog.models}
+    classes = sorted({m.cls for m in catalog.models})
+    models, weights = [], []
+    for key, w in mix.items():
+        if key in names:
+            group = [names[key]]
+        elif key in classes:
+            group = [m for m in catalog.models if m.cls == key]
+        else:
+            raise ConfigError(
+                f"{field_name}.{key}: unknown class or model; expected one of {', '.join(classes)} "
+                f"or a catalog model ({', '.join(sorted(names))})")
+        cw = np.array([m.weight for m in group], float)
+        cw = cw / cw.sum() if cw.sum() > 0 else np.full(len(group), 1.0 / len(group))
+        for m, x in zip(group, cw):
+            models.append(m)
+            weights.append(w * x)
+    return models, np.array(weights)
+
+
+def check_mix(catalog, cfg: ParkingConfig) -> None:
+    _mix_table(catalog, cfg.mix, "parking.mix")
+    _mix_table(catalog, cfg.depot_mix, "parking.depot_mix")
+
+
+@dataclass
+class _Site:
+    kind: str  # "lot" or "kerb"
+    id: int
+    bays: object
+
+
+def fill_bays(sites: list, cfg: ParkingConfig, catalog, rng: np.random.Generator,
+              obstacles=None, first_id: int = 1, z_of=None) -> tuple[list, dict]:
+    """Fill the bays of every site (lots and kerb lines). Returns (vehicles, stats)."""
+    import shapely
+    from scipy import stats as st
+
+    m_mean, conc = cfg.occupancy_mean, cfg.occupancy_concentration
+    targets, chosen = [], []
+    for site in sites:
+        n = len(site.bays)
+        if m_mean <= 0.0:
+            p = 0.0
+        elif m_mean >= 1.0:
+            p = 1.0
+        else:
+            p = float(st.beta(m_mean * conc, (1 - m_mean) * conc).rvs(random_state=rng))
+        k = int(round(p * n))
+        targets.append(p)
+        chosen.append(np.sort(rng.choice(n, size=k, replace=False)) if k else np.zeros(0, int))
+    # one row per chosen bay
+    rows = [(si, int(b)) for si, ch in enumerate(chosen) for b in ch]
+    N = len(rows)
+    if N == 0:
+        return [], {"targets": targets, "filled": [0] * len(sites), "bays": [len(s.bays) for s in sites],
+                    "no_fit": 0, "reset": 0, "dropped": 0}
+    si = np.array([r[0] for r in rows])
+    bi = np.array([r[1] for r in rows])
+    cx = np.empty(N)
+    cy = np.empty(N)
+    axis = np.empty(N)
+    bw = np.empty(N)
+    bl = np.empty(N)
+    angle = np.empty(N)
+    for k, site in enumerate(sites):
+        sel = si == k
+        if not sel.any():
+            continue
+        bb = site.bays
+        cx[sel] = bb.centre_xy[bi[sel], 0]
+        cy[sel] = bb.centre_xy[bi[sel], 1]
+        axis[sel] = bb.axis_rad[bi[sel]]
+        bw[sel], bl[sel], angle[sel] = bb.width_m, bb.length_m, bb.angle_deg
+    # vehicles: class mix among those that fit
+    tables = {False: _mix_table(catalog, cfg.mix, "parking.mix"),
+              True: _mix_table(catalog, cfg.depot_mix, "parking.depot_mix")}
+    model_idx = np.full(N, -1)
+    all_models = list(catalog.models)
+    pos = {m.name: i for i, m in enumerate(all_models)}
+    for key in sorted({(float(a), float(b)) for a, b in zip(bw, bl)}):
+        sel = np.flatnonzero((bw == key[0]) & (bl == key[1]))
+        models, w = tables[key[1] >= cfg.depot_bay_min_m]
+        fit = np.array([m.width_m <= key[0] and m.length_m <= key[1] + STICK_OUT_M for m in models])
+        if not fit.any() or w[fit].sum() <= 0:
+            continue
+        p = np.where(fit, w, 0.0)
+        pick = rng.choice(len(models), size=len(sel), p=p / p.sum())
+        model_idx[sel] = [pos[models[j].name] for j in pick]
+    ci = rng.choice(len(catalog.colors), size=N, p=catalog.color_probabilities)
+    L = np.array([all_models[j].length_m if j >= 0 else 0.0 for j in model_idx])
+    W = np.array([all_models[j].width_m if j >= 0 else 0.0 for j in model_idx])
+    # manoeuvre and jitter
+    back = (rng.random(N) < cfg.back_in_share) & ((angle == 90.0) | (angle == 0.0))
+    a_max = np.radians(cfg.angle_max_deg)
+    sig = np.radians(cfg.angle_sigma_deg)
+    if sig > 0:
+        dth = st.truncnorm(-a_max / sig, a_max / sig, scale=sig).rvs(size=N, random_state=rng)
+    else:
+        dth = np.zeros(N)
+    lat = np.clip(rng.normal(0.0, 1.0, N), -2.5, 2.5) * cfg.lateral_sigma_m
+    lon = np.clip(rng.normal(0.0, 1.0, N), -2.5, 2.5) * cfg.lateral_sigma_m
+    is_semi = np.array([all_models[j].body == "semi_trailer" if j >= 0 else False for j in model_idx])
+    dth[is_semi] = 0.0
+    lat[is_semi] = 0.0
+    # shrink jitter until every corner stays within the bay + STICK_OUT_M
+    for _ in range(8):
+        ext_l = L / 2 * np.cos(dth) + W / 2 * np.abs(np.sin(dth)) + np.abs(lon)
+        ext_w = L / 2 * np.abs(np.sin(dth)) + W / 2 * np.cos(dth) + np.abs(lat)
+        bad = (ext_l > bl / 2 + STICK_OUT_M - 1e-6) | (ext_w > bw / 2 + STICK_OUT_M - 1e-6)
+        if not bad.any():
+            break
+        dth[bad] *= 0.5
+        lat[bad] *= 0.5
+        lon[bad] *= 0.5
+    else:
+        dth[bad] = lat[bad] = lon[bad] = 0.0
+    head = np.mod(axis + np.where(back, np.pi, 0.0) + dth, 2 * np.pi)
+    ca, sa = np.cos(axis), np.sin(axis)
+
+    def poses(jit):
+        x = cx + (ca * lon - sa * lat) * jit
+        y = cy + (sa * lon + ca * lat) * jit
+        h = np.where(jit > 0, head, np.mod(axis + np.where(back, np.pi, 0.0), 2 * np.pi))
+        return x, y, h
+
+    valid = model_idx >= 0
+    jit = np.ones(N)
+    x, y, h = poses(jit)
+    obs = [] if obstacles is None else list(obstacles)
+    n_reset = 0
+    for rnd in range(2):  # 0: clashing vehicles lose their jitter; 1: still clashing, dropped
+        polys = shapely.polygons(footprint_corners_xy(x, y, h, L + 0.02, W + 0.02))
+        live = np.flatnonzero(valid)
+        clash = np.zeros(N, bool)
+        if len(live):
+            tree = shapely.STRtree(polys[live])
+            a, b = tree.query(polys[live], predicate="intersects")
+            pair = a != b
+            clash[live[np.maximum(a, b)[pair]]] = True
+            if rnd == 0:  # both of a pair lose their jitter
+                clash[live[np.minimum(a, b)[pair]]] = True
+            if obs:
+                q_in, _ = shapely.STRtree(obs).query(polys[live], predicate="intersects")
+                clash[live[q_in]] = True
+        if not clash.any():
+            break
+        if rnd == 0:
+            n_reset = int(clash.sum())
+            jit[clash] = 0.0
+            x, y, h = poses(jit)
+        else:
+            valid &= ~clash
+    dropped = int(((model_idx >= 0) & ~valid).sum())
+    z = np.zeros(N) if z_of is None else z_of(np.stack([x, y], 1))
+    vehicles = []
+    filled = [0] * len(sites)
+    nid = first_id
+    for i in np.flatnonzero(valid):
+        m = all_models[model_idx[i]]
+        site = sites[si[i]]
+        filled[si[i]] += 1
+        vehicles.append(PlacedVehicle(
+            id=nid, model=m.name, color=catalog.colors[ci[i]].name, cls=m.cls,
+            length_m=float(m.length_m), width_m=float(m.width_m), height_m=float(m.height_m),
+            x_m=float(x[i]), y_m=float(y[i]), z_m=float(z[i]), heading_rad=float(h[i]),
+            direction="back-in" if back[i] else "nose-in", state="parked",
+            lot=site.id if site.kind == "lot" else -1, kerb=site.id if site.kind == "kerb" else -1,
+            bay=int(bi[i]),
+        ))
+        nid += 1
+    stats = {"targets": targets, "filled": filled, "bays": [len(s.bays) for s in sites],
+             "no_fit": int((model_idx < 0).sum()), "reset": n_reset, "dropped": dropped}
+    return vehicles, stats
+
+
+# ------------------------------------------------------------------------- scenario
+def place_parking(rayscene, cfg, rng: np.random.Generator, catalog, seed=None, scene_name=None,
+                  n_vehicles=None, n_lines=None) -> Placement:
+    """Run a ``parking``, ``street-parking`` or ``mixed`` scenario (a ScenarioConfig)."""
+    import warnings
+
+    import shapely
+
+    pc: ParkingConfig = cfg.parking
+    lots_on, kerbs_on, traffic_on = PARKING_KINDS[cfg.kind]
+    check_mix(catalog, pc)
+    t0 = time.perf_counter()
+    rs = rayscene
+    moving: list[PlacedVehicle] = []
+    tstats: dict = {}
+    if traffic_on:
+        from .traffic import place as place_traffic
+
+        tcfg = dataclasses.replace(cfg, kind="lines", parking=None)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            tp = place_traffic(rs, tcfg, rng=rng, n_vehicles=n_vehicles, n_lines=n_lines, catalog=catalog,
+                               seed=seed, scene_name=scene_name)
+        moving = [dataclasses.replace(v, state="moving") for v in tp.vehicles]
+        tstats = tp.stats
+    obstacles = [shapely.Polygon(v.corners_xy(cfg.gap_m)) for v in moving]
+    lots = find_lots(rs, pc) if lots_on else []
+    kerbs = find_kerbs(rs, pc, rng, cfg.probe, cfg.traffic) if kerbs_on else []
+    sites = [_Site("lot", lt.id, lt.bays) for lt in lots] + [_Site("kerb", k.id, k.bays) for k in kerbs]
+
+    def z_of(xy):
+        tr = rs.trace_down(xy)
+        return np.where(np.isfinite(tr.z), tr.z, 0.0)
+
+    parked, fstats = fill_bays(sites, pc, catalog, rng, obstacles, first_id=len(moving) + 1, z_of=z_of)
+    vehicles = moving + parked
+    vehicles = [dataclasses.replace(v, **_original(rs, v)) for v in vehicles]
+    elapsed = time.perf_counter() - t0
+    nl = len(lots)
+    stats = {
+        "vehicles": len(vehicles),
+        "parked": len(parked),
+        "moving": len(moving),
+        "lots": [{"id": lt.id, "center_xy": [round(lt.frame.cx, 3), round(lt.frame.cy, 3)],
+                  "row_deg": round(float(np.degrees(lt.frame.u_rad)), 3),
+                  "size_m": [round(lt.frame.long_m, 3), round(lt.frame.short_m, 3)],
+                  "layout_source": lt.layout_source, "bays": len(lt.bays),
+                  "target_occupancy": round(fstats["targets"][i], 4),
+                  "filled": fstats["filled"][i]} for i, lt in enumerate(lots)],
+        "kerbs": len(kerbs),
+        "kerb_bays": int(sum(len(k.bays) for k in kerbs)),
+        "kerb_bays_kept_free": int(sum(k.dropped_bays for k in kerbs)),
+        "kerb_filled": int(sum(fstats["filled"][nl:])),
+        "no_fit": fstats["no_fit"],
+        "jitter_reset": fstats["reset"],
+        "dropped_overlap": fstats["dropped"],
+    }
+    if traffic_on:
+        stats["traffic"] = {k: tstats[k] for k in ("lines", "opposite_lanes", "line_end_reasons") if k in tstats}
+    if lots_on and not lots and not kerbs_on:
+        raise PlacementError(
+            f"scene {rs.scene.name!r}: vertical traces found no parking lot (labels "
+            f"{', '.join(_LOT_LABELS)}, at least {pc.min_lot_m:g} m wide)")
+    return Placement(
+        scene=scene_name or rs.scene.name,
+        scenario=cfg.name,
+        seed=seed,
+        parameters=cfg.to_dict(),
+        vehicles=with_lonlat(vehicles, rs.scene.crs),
+        stats=stats,
+        timing={"seconds": elapsed, "vehicles_per_s": len(vehicles) / elapsed if elapsed else 0.0},
+        georeference=rs.scene.georeference(),
+    )
+
+
+def _original(rs, v) -> dict:
+    o = rs.scene.to_original(np.array([v.x_m, v.y_m, v.z_m], dtype=np.float64))
+    return {"x_orig_m": float(o[0]), "y_orig_m": float(o[1]), "z_orig_m": float(o[2])}
+
+
+# ------------------------------------------------------------------------- validator
+def parking_report(placement: Placement, lots: list[Lot] | None = None, kerbs: list[Kerb] | None = None,
+                   rayscene=None) -> dict:
+    """Parked-vehicle figures: in-bay fraction (share of vehicles whose footprint stays
+    within its bay grown by STICK_OUT_M), overlaps between parked footprints, alignment
+    (degrees between the vehicle axis and its bay axis, modulo 180), and, with a rayscene,
+    the share of parked footprints wholly on lot or road surface (3 x 5 traces).
+
+    Without ``lots``/``kerbs`` the bays are found again from ``rayscene``'s traces
+    (lots only)."""
+    import shapely
+
+    parked = [v for v in placement.vehicles if v.state == "parked"]
+    if not parked:
+        return {"parked": 0}
+    if lots is None and rayscene is not None:
+        from .parking_config import ParkingConfig as _PC
+
+        pc = placement.parameters.get("parking") or {}
+        known = {f.name for f in dataclasses.fields(_PC)}
+        cfg = _PC(**{k: (tuple(v) if k == "kerb_road_width_m" else v) for k, v in pc.items() if k in known})
+        lots = find_lots(rayscene, cfg)
+    lot_by = {lt.id: lt for lt in lots or []}
+    kerb_by = {k.id: k for k in kerbs or []}
+    in_bay, align = [], []
+    for v in parked:
+        site = lot_by.get(v.lot) if v.lot >= 0 else kerb_by.get(v.kerb)
+        if site is None or not (0 <= v.bay < len(site.bays)):
+            in_bay.append(np.nan)
+            align.append(np.nan)
+            continue
+        bb = site.bays
+        bay_poly = shapely.Polygon(bb.corners()[v.bay]).buffer(STICK_OUT_M + 1e-6, join_style="mitre")
+        in_bay.append(float(bay_poly.contains(shapely.Polygon(v.corners_xy()))))
+        d = np.degrees(np.angle(np.exp(1j * (v.heading_rad - bb.axis_rad[v.bay]))))
+        align.append(float(min(abs(d), 180 - abs(d))))
+    polys = shapely.polygons(np.array([v.corners_xy() for v in parked]))
+    tree = shapely.STRtree(polys)
+    a, b = tree.query(polys, predicate="intersects")
+    k = a < b
+    overlaps = int((shapely.area(shapely.intersection(polys[a[k]], polys[b[k]])) > 1e-6).sum())
+    ib = np.array(in_bay)
+    al = np.array(align)
+    out = {
+        "parked": len(parked),
+        "in_bay_fraction": round(float(np.nanmean(ib)), 6) if np.isfinite(ib).any() else None,
+        "unmatched": int((~np.isfinite(ib)).sum()),
+        "overlaps": overlaps,
+        "alignment_deg": {"mean": round(float(np.nanmean(al)), 4), "max": round(float(np.nanmax(al)), 4)}
+        if np.isfinite(al).any() else None,
+    }
+    if rayscene is not None:
+        f = np.array([-0.5, -0.25, 0.0, 0.25, 0.5])
+        g = np.array([-0.5, 0.0, 0.5])
+        out_pts = []
+        for v in parked:
+            gu, gv = np.meshgrid(f * (v.length_m - 0.02), g * (v.width_m - 0.02))
+            c, s = np.cos(v.heading_rad), np.sin(v.heading_rad)
+            out_pts.append(np.stack([v.x_m + c * gu.ravel() - s * gv.ravel(),
+                                     v.y_m + s * gu.ravel() + c * gv.ravel()], 1))
+        lab = _trace_labels(rayscene, np.concatenate(out_pts)).reshape(len(parked), -1)
+        surf = [LABEL_IDS[n] for n in ("parking", "parking_marking", "road", "lane_marking")]
+        out["on_surface_fraction"] = round(float(np.isin(lab, surf).all(axis=1).mean()), 6)
+    return out
