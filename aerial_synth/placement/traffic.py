@@ -582,9 +582,11 @@ def place(
     """
     if n_vehicles is not None and n_lines is not None:
         raise PlacementError("give either a vehicle count or a line count, not both")
-    for name, v in (("vehicles", n_vehicles), ("lines", n_lines)):
-        if v is not None and (int(v) != v or v < 1):
-            raise PlacementError(f"--{name}: expected a positive integer, got {v}")
+    from .. import validators as V
+
+    n_vehicles = None if n_vehicles is None else V.integer("--vehicles", n_vehicles, 1, error=PlacementError)
+    n_lines = None if n_lines is None else V.integer("--lines", n_lines, 1, error=PlacementError)
+    seed = None if seed is None else V.integer("--seed", seed, 0, error=PlacementError)
     cfg = load_scenario(scenario, overrides)
     if rng is None:
         rng = np.random.default_rng(seed)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import shapely
 
-from aerial_synth.errors import PlacementError
+from aerial_synth.errors import AerialSynthError, PlacementError
 from aerial_synth.placement import place, validate_placement
 from aerial_synth.placement.traffic import PlacementWarning
 from aerial_synth.scene.raycast import RayScene
@@ -215,3 +215,22 @@ def test_gap_is_kept(catalog):
     a, b = shapely.STRtree(grown).query(grown, predicate="intersects")
     pairs = a < b
     assert np.all(shapely.area(shapely.intersection(grown[a[pairs]], grown[b[pairs]])) < 1e-9)
+
+
+@pytest.mark.parametrize(
+    "kw, message",
+    [
+        ({"n_vehicles": float("nan")}, "--vehicles: expected a positive integer, got nan"),
+        ({"n_vehicles": 0}, "--vehicles: expected a positive integer, got 0"),
+        ({"n_vehicles": "abc"}, "--vehicles: expected a positive integer, got 'abc'"),
+        ({"n_lines": -2}, "--lines: expected a positive integer, got -2"),
+        ({"seed": -1}, "--seed: expected a non-negative integer, got -1"),
+        ({"seed": 1.5}, "--seed: expected a non-negative integer, got 1.5"),
+        ({"overrides": {"gap_m": float("nan")}}, "--set gap_m: expected a finite number >= 0 and <= 10, got nan"),
+    ],
+)
+def test_place_api_refuses_bad_counts_and_seeds(catalog, kw, message):
+    rs = RayScene(layouts.straight(length=60.0))
+    with pytest.raises(AerialSynthError) as exc:
+        place(rs, "jam", catalog=catalog, **kw)
+    assert str(exc.value) == message
