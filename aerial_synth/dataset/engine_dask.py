@@ -1,0 +1,252 @@
+"""Export engine on Dask distributed: the same task graph as the local pool, on a cluster.
+
+``aerial-synth export ... --dask tcp://HOST:8786`` runs on an existing cluster (a
+``dask scheduler`` and ``dask worker`` processes, see docs/scale.md); ``--dask local:K``
+starts a ``LocalCluster`` of K worker processes on the loopback interface.
+
+The task graph is the local one: placement groups, then images, split at **image
+granularity** (:func:`plan_tasks`): each task is a contiguous run of images of one
+placement group, and a group is cut into as many runs as needed to give every worker work
+(a small export uses every worker). A worker that needs a group's placement recomputes it
+deterministically from ``SeedSequence([seed, group, 1])`` (and keeps it for the next run of
+the same group), so the bytes of every image depend only on (parameters, index): the
+output is byte-identical to ``--workers 1`` whatever the engine or the number of workers,
+and ``--resume`` works whichever engine wrote the first part.
+
+Workers write into the output folder themselves, with the same atomic writes as the local
+pool; on a multi-machine cluster that folder must be on a filesystem every worker sees at
+the same path. A worker that dies mid-image loses nothing: its temporary files never
+become the image's files, the scheduler gives its task to another worker, and the
+stray temporaries are removed before the aggregates are written.
+
+Threads: each worker process gets ``cores of its host // worker processes on that host``
+threads for numba, open3d (Embree) and OpenMP (:func:`limit_threads`,
+:func:`threads_per_worker`), so K processes do not oversubscribe the cores. The local
+process pool can call the same helpers.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import time
+from pathlib import Path
+
+from ..errors import ExportError
+
+__all__ = ["DaskEngine", "plan_tasks", "threads_per_worker", "limit_threads", "parse_dask_address"]
+
+#: An unreachable scheduler is reported within this many seconds (the CLI promises 10).
+CONNECT_TIMEOUT_S = 6.0
+_LOCAL = re.compile(r"^local:(\d+)$")
+_TCP = re.compile(r"^(tcp|tls)://[^\s/:]+(:\d+)?$")
+
+
+# ------------------------------------------------------------------ helpers
+
+
+def threads_per_worker(workers_on_host: int, ncpu: int | None = None) -> int:
+    """Threads per worker process so that ``workers_on_host`` processes share the cores."""
+    ncpu = ncpu or os.cpu_count() or 1
+    return max(1, int(ncpu) // max(1, int(workers_on_host)))
+
+
+def limit_threads(nthreads: int) -> int:
+    """Limit this process's compute threads: numba (the shading kernels; set for the
+    calling thread, so call it in the thread that renders), OpenMP (``OMP_NUM_THREADS``
+    for libraries that start their OpenMP runtime later) and BLAS pools where
+    ``threadpoolctl`` is installed. open3d's Embree threads are set per RayScene
+    (``nthreads``); pass the same number there. Returns the number applied."""
+    n = max(1, int(nthreads))
+    os.environ["OMP_NUM_THREADS"] = str(n)
+    try:
+        import numba
+
+        numba.set_num_threads(max(1, min(n, numba.config.NUMBA_NUM_THREADS)))
+    except ImportError:  # pragma: no cover - numba is a core dependency
+        pass
+    try:
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(n)
+    except ImportError:
+        pass
+    return n
+
+
+def plan_tasks(indices, images_per_placement: int, workers: int) -> list[list[int]]:
+    """Split the images to render into tasks: contiguous runs of one placement group each.
+
+    Whole groups when there are at least ``2 * workers`` of them (each placement is then
+    computed once); otherwise each group is cut into equal runs so that there are about
+    ``2 * workers`` tasks and every worker has work. Deterministic; image order kept."""
+    groups: dict[int, list[int]] = {}
+    for i in sorted(int(i) for i in indices):
+        groups.setdefault(i // int(images_per_placement), []).append(i)
+    if not groups:
+        return []
+    target = 2 * max(1, int(workers))
+    pieces = 1 if len(groups) >= target else math.ceil(target / len(groups))
+    tasks = []
+    for g in sorted(groups):
+        imgs = groups[g]
+        k = min(pieces, len(imgs))
+        size = math.ceil(len(imgs) / k)
+        tasks += [imgs[s:s + size] for s in range(0, len(imgs), size)]
+    return tasks
+
+
+def parse_dask_address(text: str) -> tuple[str, object]:
+    """``("local", K)`` or ``("tcp", "tcp://host:port")``; one-line ExportError otherwise."""
+    s = str(text).strip()
+    m = _LOCAL.match(s)
+    if m:
+        k = int(m.group(1))
+        if not 1 <= k <= 256:
+            raise ExportError(f"--dask: expected local:K with K in 1..256 worker processes, got {text!r}")
+        return "local", k
+    if _TCP.match(s):
+        return "tcp", s if re.search(r":\d+$", s) else s + ":8786"
+    raise ExportError(f"--dask: expected tcp://HOST:PORT (a running dask scheduler) or local:K, got {text!r}")
+
+
+# ------------------------------------------------------------------ worker side
+
+_STATE: dict = {}
+
+
+def _render_run(cfg, out: str, indices: list[int], nthreads_by_worker: dict, extra_formats=()) -> list:
+    """Dask task: render a run of images of one placement group (in order)."""
+    from distributed import get_worker
+
+    from ..formats.registry import names, register
+    from .worker import ImageWorker
+
+    for fmt in extra_formats:  # formats registered at run time in the client
+        if fmt.name not in names():
+            register(fmt)
+    n = int(nthreads_by_worker.get(get_worker().address, 1))
+    limit_threads(n)
+    key = (cfg, out, n)
+    w = _STATE.get(key)
+    if w is None:
+        _STATE.clear()
+        w = _STATE[key] = ImageWorker(cfg, Path(out), nthreads=n)
+    return [(i, w.render(i)) for i in indices]
+
+
+def _cpu_count() -> int:
+    return os.cpu_count() or 1
+
+
+# ------------------------------------------------------------------ client side
+
+
+class DaskEngine:
+    """A connection to a Dask cluster (or a LocalCluster it owns). Use as a context manager
+    or call :meth:`close`."""
+
+    def __init__(self, client, cluster=None, address: str = ""):
+        self.client = client
+        self.cluster = cluster
+        self.address = address
+
+    @classmethod
+    def connect(cls, spec: str, timeout_s: float = CONNECT_TIMEOUT_S) -> "DaskEngine":
+        """``spec``: ``tcp://HOST:PORT`` or ``local:K``. An unreachable scheduler raises a
+        one-line ExportError within ``timeout_s`` (plus the import of distributed)."""
+        kind, arg = parse_dask_address(spec)
+        try:
+            import logging
+
+            from distributed import Client, LocalCluster
+        except ImportError:
+            raise ExportError("--dask: needs Dask distributed; install it with pip install 'aerial-synth[dask]'") from None
+        if kind == "local":
+            import dask
+
+            k = int(arg)
+            nthreads = threads_per_worker(k)
+            with dask.config.set({"distributed.nanny.pre-spawn-environ.OMP_NUM_THREADS": str(nthreads)}):
+                cluster = LocalCluster(n_workers=k, threads_per_worker=1, processes=True,
+                                       host="127.0.0.1", dashboard_address=None,
+                                       silence_logs=logging.ERROR)
+            try:
+                client = Client(cluster, timeout=f"{max(timeout_s, 30.0)}s")
+                client.wait_for_workers(k, timeout=120)
+            except Exception:
+                cluster.close()
+                raise
+            return cls(client, cluster, cluster.scheduler_address)
+        t0 = time.perf_counter()
+        try:
+            client = Client(str(arg), timeout=f"{timeout_s}s")
+        except (OSError, TimeoutError) as exc:
+            raise ExportError(
+                f"--dask {arg}: cannot reach a Dask scheduler there within {time.perf_counter() - t0:.0f} s "
+                f"({type(exc).__name__}); start one with 'dask scheduler' or check the address"
+            ) from None
+        return cls(client, None, str(arg))
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def close(self) -> None:
+        try:
+            self.client.close()
+        finally:
+            if self.cluster is not None:
+                self.cluster.close()
+
+    def worker_threads(self) -> dict:
+        """{worker address: threads}: each host's cores shared by its worker processes."""
+        ncpu = self.client.run(_cpu_count)
+        hosts: dict[str, int] = {}
+        for addr in ncpu:
+            h = addr.rsplit(":", 1)[0]
+            hosts[h] = hosts.get(h, 0) + 1
+        return {addr: threads_per_worker(hosts[addr.rsplit(":", 1)[0]], n) for addr, n in ncpu.items()}
+
+    def n_workers(self) -> int:
+        return len(self.client.scheduler_info(n_workers=-1).get("workers", {}))
+
+    def run(self, cfg, build, indices, bar=None) -> int:
+        """Render ``indices`` of the export ``cfg`` into ``build``; returns images finished.
+
+        Progress: ``bar.update(n)`` per finished task (a tqdm bar or anything alike)."""
+        from distributed import as_completed
+
+        from ..formats.registry import BUILTIN, get
+        from .output import remove_stray_temps
+
+        indices = list(indices)
+        if not indices:
+            return 0
+        nworkers = max(1, self.n_workers())
+        tasks = plan_tasks(indices, cfg.images_per_placement, nworkers)
+        threads = self.worker_threads()
+        extra = [get(n) for n in cfg.formats if n not in BUILTIN]
+        out = str(Path(build).resolve())
+        token = f"{os.getpid()}-{time.time_ns()}"
+        futures = [
+            self.client.submit(_render_run, cfg, out, t, threads, extra,
+                               key=f"aerial-synth-image-{t[0]:06d}-{t[-1]:06d}-{token}", pure=False)
+            for t in tasks
+        ]
+        done = 0
+        try:
+            for fut in as_completed(futures):
+                res = fut.result()
+                done += len(res)
+                if bar is not None:
+                    bar.update(len(res))
+        except Exception:
+            for f in futures:
+                f.cancel()
+            raise
+        remove_stray_temps(Path(build))  # temporaries of a worker that died mid-image
+        return done

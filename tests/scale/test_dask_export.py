@@ -1,0 +1,146 @@
+"""Export on a real dask.distributed LocalCluster (2 processes, loopback, no dashboard):
+byte-identical to --workers 1, a killed worker's image redone, resume across engines,
+bad input in one line."""
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from aerial_synth.dataset.export import ExportConfig, export_dataset
+from aerial_synth.errors import ExportError
+
+from .conftest import run_cli, tree_bytes
+
+distributed = pytest.importorskip("distributed")
+
+ARGS = dict(images=8, formats="dota,coco", split=0.75, seed=4, images_per_placement=4, n_vehicles=8,
+            width_px=96, height_px=96, simple_vehicles=True)
+
+
+def _cfg(scene):
+    return ExportConfig(scene=scene, **ARGS)
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    import logging
+
+    c = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                 dashboard_address=None, silence_logs=logging.ERROR)
+    try:
+        with distributed.Client(c) as cl:
+            cl.wait_for_workers(2, timeout=120)
+        yield c
+    finally:
+        c.close()
+
+
+@pytest.fixture(scope="module")
+def reference(cross_scene, tmp_path_factory):
+    out = tmp_path_factory.mktemp("ref") / "ds"
+    export_dataset(_cfg(cross_scene), out, workers=1, progress=False)
+    return tree_bytes(out)
+
+
+def _same(a, b):
+    assert a.keys() == b.keys()
+    assert [k for k in a if a[k] != b[k]] == []
+
+
+def test_local_cluster_byte_identical(cluster, cross_scene, reference, tmp_path):
+    out = tmp_path / "dask"
+    res = export_dataset(_cfg(cross_scene), out, dask=cluster.scheduler_address, progress=False)
+    assert res.rendered == 8
+    _same(reference, tree_bytes(out))
+
+
+def test_killed_worker_image_redone(cluster, cross_scene, reference, tmp_path):
+    out = tmp_path / "killed"
+    partial = out.parent / f".{out.name}.aerial-synth-partial"
+    err = []
+
+    def run():
+        try:
+            export_dataset(_cfg(cross_scene), out, dask=cluster.scheduler_address, progress=False)
+        except Exception as exc:  # noqa: BLE001 - reported below
+            err.append(exc)
+
+    th = threading.Thread(target=run)
+    th.start()
+    killed = None
+    with distributed.Client(cluster.scheduler_address) as cl:
+        pids = cl.run(os.getpid)
+        deadline = time.monotonic() + 240
+        while killed is None and th.is_alive() and time.monotonic() < deadline:
+            busy = [a for a, keys in cl.processing().items() if keys]
+            started = (partial / "meta").is_dir() and any((partial / "meta").iterdir())
+            if busy and started:
+                killed = pids[busy[0]]
+                os.kill(killed, signal.SIGKILL)  # mid-export, with a task on that worker
+            time.sleep(0.05)
+    th.join(timeout=400)
+    assert not th.is_alive() and not err, err
+    assert killed is not None, "the export finished before a worker could be killed"
+    _same(reference, tree_bytes(out))
+
+
+def test_resume_across_engines(cluster, cross_scene, reference, tmp_path):
+    """Kill a --workers 1 export after its first image, finish it with --dask --resume."""
+    out = tmp_path / "resumed"
+    partial = out.parent / f".{out.name}.aerial-synth-partial"
+    cli = ["export", "--scene", cross_scene, "--images", 8, "--format", "dota,coco", "--split", 0.75,
+           "--seed", 4, "--images-per-placement", 4, "--vehicles", 8, "--size", 96, "--simple-vehicles",
+           "--no-progress", "--out", out]
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]))
+    p = subprocess.Popen([sys.executable, "-m", "aerial_synth.cli", *map(str, cli)], env=env,
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 240
+    while p.poll() is None and time.monotonic() < deadline:
+        if (partial / "meta").is_dir() and any((partial / "meta").iterdir()):
+            p.kill()
+            break
+        time.sleep(0.02)
+    p.wait(timeout=60)
+    done_before = len(list((partial / "meta").glob("*.json"))) if partial.is_dir() else 8
+    r = run_cli(*cli, "--resume", "--dask", cluster.scheduler_address)
+    assert r.returncode == 0, r.stderr
+    assert done_before < 8, "the first export finished before it was killed"
+    _same(reference, tree_bytes(out))
+
+
+def test_unreachable_scheduler_one_line_within_10s(cross_scene, tmp_path):
+    import distributed  # noqa: F401 - import time is not the scheduler's
+
+    from aerial_synth.dataset.engine_dask import DaskEngine
+
+    t0 = time.monotonic()
+    with pytest.raises(ExportError) as e:
+        DaskEngine.connect("tcp://127.0.0.1:9")
+    assert time.monotonic() - t0 < 10.0
+    assert "--dask tcp://127.0.0.1:9" in str(e.value) and "\n" not in str(e.value)
+    out = tmp_path / "never"
+    r = run_cli("export", "--scene", cross_scene, "--images", 2, "--out", out, "--dask", "tcp://127.0.0.1:9")
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "--dask" in lines[0] and "scheduler" in lines[0]
+    assert list(tmp_path.iterdir()) == []  # nothing written
+
+
+@pytest.mark.parametrize("extra, field", [
+    (["--dask", "local:2", "--workers", "2"], "--workers"),
+    (["--dask", "local:2", "--workers", "1"], "--workers"),
+    (["--dask", "nowhere"], "--dask"),
+])
+def test_bad_engine_arguments(cross_scene, tmp_path, extra, field):
+    out = tmp_path / "never"
+    r = run_cli("export", "--scene", cross_scene, "--images", 2, "--out", out, *extra)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and field in lines[0]
+    assert list(tmp_path.iterdir()) == []
