@@ -177,7 +177,7 @@ def _markings(roads: list[_Road], road_area, junctions):
                                       quad_segs=4)
         pieces.append(shapely.buffer(curves, MARKING_W_M / 2, cap_style="flat", quad_segs=2))
     if not pieces:
-        return shapely.Polygon()
+        return np.array([], dtype=object)
     polys = np.concatenate(pieces)
     polys = polys[~shapely.is_empty(polys)]
     clip = shapely.buffer(road_area, -EDGE_INSET_M / 2)
@@ -188,8 +188,9 @@ def _markings(roads: list[_Road], road_area, junctions):
     inside = shapely.contains_properly(clip, polys)
     rest = polys[~inside]
     if len(rest):
-        rest = shapely.intersection(rest, clip)
-    return shapely.union_all(np.concatenate([polys[inside], rest]))
+        rest = shapely.get_parts(shapely.intersection(rest, clip))
+        rest = rest[shapely.get_type_id(rest) == 3]
+    return np.concatenate([polys[inside], rest])
 
 
 def _junctions(roads: list[_Road]) -> np.ndarray:
@@ -251,6 +252,30 @@ def _trunks(xy, top_z, radius=0.15, sections=6):
     return v.reshape(-1, 3), f.reshape(-1, 3)
 
 
+def _triangles(polys, z):
+    """Flat triangles covering each polygon of an array (no union: overlapping parts of
+    the same layer simply overlap). polys: (n,) Polygons; z: scalar or (n,) metres.
+    Returns (v (3m, 3), f (m, 3)), counter-clockwise seen from above."""
+    import shapely
+
+    polys = np.asarray(polys, dtype=object)
+    if not len(polys):
+        return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
+    tris = shapely.constrained_delaunay_triangles(polys)
+    parts, idx = shapely.get_parts(tris, return_index=True)
+    if not len(parts):
+        return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
+    t = shapely.get_coordinates(shapely.get_exterior_ring(parts)).reshape(-1, 4, 2)[:, :3]
+    a, b, c = t[:, 0], t[:, 1], t[:, 2]
+    cross = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    keep = np.abs(cross) > 1e-12
+    t, idx, cw = t[keep], idx[keep], cross[keep] < 0
+    t[cw] = t[cw][:, ::-1]
+    zz = np.broadcast_to(np.asarray(z, float), (len(polys),))[idx]
+    v = np.concatenate([t.reshape(-1, 2), np.repeat(zz, 3)[:, None]], axis=1)
+    return v, np.arange(len(v), dtype=np.int64).reshape(-1, 3)
+
+
 def _roofs_and_walls(polys, heights):
     """Flat roofs at each building's height and vertical walls down to 0, for all buildings
     at once. polys: (n,) shapely Polygons (holes allowed); heights: (n,) metres.
@@ -258,16 +283,7 @@ def _roofs_and_walls(polys, heights):
     import shapely
 
     polys = shapely.orient_polygons(np.asarray(polys, dtype=object))  # exterior CCW, holes CW
-    tris = shapely.constrained_delaunay_triangles(polys)
-    parts, idx = shapely.get_parts(tris, return_index=True)
-    t = shapely.get_coordinates(shapely.get_exterior_ring(parts)).reshape(-1, 4, 2)[:, :3]
-    a, b, c = t[:, 0], t[:, 1], t[:, 2]
-    cross = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
-    keep = np.abs(cross) > 1e-12
-    t, idx, cw = t[keep], idx[keep], cross[keep] < 0
-    t[cw] = t[cw][:, ::-1]
-    rv = np.concatenate([t.reshape(-1, 2), np.repeat(heights[idx], 3)[:, None]], axis=1)
-    rf = np.arange(len(rv), dtype=np.int64).reshape(-1, 3)
+    rv, rf = _triangles(polys, heights)
     rings, ridx = shapely.get_rings(polys, return_index=True)
     xy, k = shapely.get_coordinates(rings, return_index=True)
     seg = np.flatnonzero(k[:-1] == k[1:])  # consecutive points of the same (closed) ring
@@ -291,15 +307,14 @@ def _union(geoms):
 
 
 def _polys(geoms, clip):
-    """Only the polygonal parts of ``geoms`` ∩ clip, unioned."""
+    """The polygonal parts of ``geoms`` ∩ clip, as an array (not unioned)."""
     import shapely
 
     if not len(geoms):
-        return shapely.Polygon()
+        return np.array([], dtype=object)
     g = shapely.intersection(np.asarray(geoms, dtype=object), clip)
     parts = shapely.get_parts(g)
-    parts = parts[np.isin(shapely.get_type_id(parts), (3,))]
-    return _union(list(parts))
+    return parts[(shapely.get_type_id(parts) == 3) & ~shapely.is_empty(parts)]
 
 
 def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: str,
@@ -394,9 +409,12 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
     objects: list[SceneObject] = []
 
     def flat(name, label, poly, z, material=None):
-        if poly is None or poly.is_empty:
+        if isinstance(poly, np.ndarray):
+            v, f = _triangles(poly, z)  # many polygons, each triangulated on its own
+        elif poly is None or poly.is_empty:
             return
-        v, f = flat_polygon(poly, z)
+        else:
+            v, f = flat_polygon(poly, z)
         if len(f):
             objects.append(SceneObject(name, label, v, f, material or ""))
 
@@ -480,7 +498,7 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
 
     hints = RoadHints(hint_roads)
     truth = SceneTruth(road_area=road_area, roads=tuple(truth_roads),
-                       parking_area=None if parking.is_empty else parking)
+                       parking_area=_union(list(parking)) if len(parking) else None)
     meta = {
         "file": source,
         "format": "osm",
