@@ -41,7 +41,7 @@ OLD_SUFFIX = ".aerial-synth-old"
 
 
 def partial_dir(out: Path) -> Path:
-    out = Path(os.path.abspath(out))
+    out = Path(os.path.realpath(out))
     return out.parent / f".{out.name}{PARTIAL_SUFFIX}"
 
 
@@ -83,7 +83,7 @@ def plan_output(cfg: ExportConfig, out_dir, resume: bool, force: bool) -> Output
     ExportError with one line for a folder it must not or cannot use."""
     shown = str(out_dir)
     check_output_dir(out_dir, "--out")
-    out = Path(os.path.abspath(out_dir))
+    out = Path(os.path.realpath(out_dir))  # a link to a folder: build beside its target
     if out.parent == out or not out.name:
         raise OutputError(f"--out {shown}: expected a dataset folder, not the file-system root")
     if out.name.endswith((PARTIAL_SUFFIX, OLD_SUFFIX)):
