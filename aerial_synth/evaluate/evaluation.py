@@ -28,6 +28,7 @@ from .labels import (
     parse_names,
     parse_yolo_obb_lines,
     read_dota_folder,
+    read_lines,
     resolve_dota_folder,
 )
 
@@ -114,10 +115,7 @@ def _task1_fast(lines, image_index):
 
 
 def _read_lines(path: Path) -> list[str]:
-    try:
-        return path.read_text(encoding="utf-8").splitlines()
-    except UnicodeDecodeError:
-        raise EvaluationError(f"{path}: expected UTF-8 text, got undecodable bytes") from None
+    return read_lines(path)
 
 
 def read_yolo_predictions(pred_dir: Path, gt: list[ImageLabels], names: list[str],

@@ -24,6 +24,7 @@ from ..errors import EvaluationError
 __all__ = [
     "IMAGE_EXTS",
     "ImageLabels",
+    "read_lines",
     "parse_dota_lines",
     "dota_lines",
     "parse_yolo_obb_lines",
@@ -65,6 +66,14 @@ class ImageLabels:
 
     def __len__(self) -> int:
         return len(self.classes)
+
+
+def read_lines(path) -> list[str]:
+    """Text lines of a label or prediction file (UTF-8, a byte-order mark ignored)."""
+    try:
+        return Path(path).read_text(encoding="utf-8-sig").splitlines()
+    except UnicodeDecodeError:
+        raise EvaluationError(f"{path}: expected UTF-8 text, got undecodable bytes") from None
 
 
 def _num(token: str, where: str, what: str) -> float:
@@ -232,7 +241,7 @@ def parse_names(text: str, option: str = "--names") -> list[str]:
         import yaml
 
         try:
-            data = yaml.safe_load(p.read_text(encoding="utf-8"))
+            data = yaml.safe_load(p.read_text(encoding="utf-8-sig"))
         except FileNotFoundError:
             raise EvaluationError(f"{option} {text}: no such file") from None
         except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
@@ -377,11 +386,7 @@ def read_dota_folder(labels_dir: Path, images_dir: Path | None, option: str = "-
     images = _image_index(images_dir)
     out = []
     for f in files:
-        try:
-            text = f.read_text(encoding="utf-8")
-        except UnicodeDecodeError:
-            raise EvaluationError(f"{f}: expected UTF-8 text, got undecodable bytes") from None
-        polys, classes, diff, gsd, src = parse_dota_lines(text.splitlines(), str(f))
+        polys, classes, diff, gsd, src = parse_dota_lines(read_lines(f), str(f))
         img = images.get(f.stem)
         if need_images and img is None:
             raise EvaluationError(f"{f}: no image {f.stem}.* in {images_dir}")
@@ -453,7 +458,7 @@ def read_dataset(path, option: str = "DIR") -> tuple[str, list[ImageLabels]]:
             size = image_size(img)
             if lab.is_file():
                 polys, classes, _ = parse_yolo_obb_lines(
-                    lab.read_text(encoding="utf-8").splitlines(), str(lab), names, size, with_conf=False)
+                    read_lines(lab), str(lab), names, size, with_conf=False)
             else:
                 polys, classes = np.zeros((0, 4, 2)), []
             items.append(ImageLabels(img.stem, polys, classes, np.zeros(len(classes), bool),
@@ -465,7 +470,7 @@ def read_dataset(path, option: str = "DIR") -> tuple[str, list[ImageLabels]]:
             stem = img.name.rsplit("_co.", 1)[0]
             lab = ann / f"{stem}.txt"
             if lab.is_file():
-                polys, classes, diff = parse_vedai_lines(lab.read_text(encoding="utf-8").splitlines(), str(lab))
+                polys, classes, diff = parse_vedai_lines(read_lines(lab), str(lab))
             else:
                 polys, classes, diff = np.zeros((0, 4, 2)), [], np.zeros(0, bool)
             items.append(ImageLabels(stem, polys, classes, diff, None, None,
@@ -475,5 +480,5 @@ def read_dataset(path, option: str = "DIR") -> tuple[str, list[ImageLabels]]:
             items.append(ImageLabels(img.stem, np.zeros((0, 4, 2)), [], np.zeros(0, bool),
                                      None, None, None, img, extra={"unlabelled": True}))
     if not items:
-        raise EvaluationError(f"{option} {path}: no labelled images found ({layout} layout)")
+        raise EvaluationError(f"{option} {path}: expected images or labels ({layout} layout), found none")
     return layout, items

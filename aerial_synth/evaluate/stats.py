@@ -227,9 +227,11 @@ def dataset_stats(path, *, gsd: float | None = None, max_images: int = 500, seed
         pick = np.sort(rng.choice(len(with_img), max_images, replace=False))
         with_img = [with_img[i] for i in pick]
     hists = {r: np.zeros((3, HIST_BINS)) for r in ("overall", "inside", "ring")}
+    unreadable: list[str] = []
     for it in with_img:
         img = _load_bgr(it.image_path)
         if img is None:
+            unreadable.append(str(it.image_path))
             continue
         gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
         sd = float(gray.std())
@@ -261,7 +263,8 @@ def dataset_stats(path, *, gsd: float | None = None, max_images: int = 500, seed
         "layout": layout,
         "images": len(items),
         "labelled_images": len(labelled),
-        "pixel_statistics_images": len(with_img),
+        "pixel_statistics_images": len(with_img) - len(unreadable),
+        "unreadable_images": unreadable[:20],
         "objects": n_obj,
         "classes": dict(sorted(counts.items())),
         "class_shares": {c: n / n_obj for c, n in sorted(counts.items())} if n_obj else {},
