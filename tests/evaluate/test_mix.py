@@ -202,3 +202,22 @@ def test_failing_mix_writes_nothing_and_cli_errors_are_one_line(tmp_path, capsys
     man = json.loads((out / "manifest.json").read_text())
     assert man["format"] == "aerial-synth-mix"
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []  # no temp left
+
+
+def test_pentagon_cut_merges_its_shortest_edge_as_the_devkit():
+    b = rect(90, 50, 30, 12, 30)  # one corner past x = 100: the clipped polygon has 5 corners
+    inter = shapely.Polygon(b).intersection(shapely.box(0, 0, 100, 100))
+    pts = np.asarray(inter.exterior.coords)[:-1]
+    assert len(pts) == 5
+    d = np.linalg.norm(np.roll(pts, -1, 0) - pts, axis=1)
+    k = int(np.argmin(d))
+    merged = (pts[k] + pts[(k + 1) % 5]) / 2
+    expected = {tuple(np.round(p, 6)) for i, p in enumerate(pts) if i not in (k, (k + 1) % 5)}
+    expected.add(tuple(np.round(merged, 6)))
+    idx, P, D, C = clip_to_tile([b], [0], (0, 0, 100, 100), 0.7)
+    assert idx.tolist() == [0] and D.tolist() == [True] and C.tolist() == [True]
+    assert {tuple(np.round(p, 6)) for p in P[0]} == expected
+    # corners stay clockwise on screen and start at the corner nearest the original first one
+    x, y = P[0][:, 0], P[0][:, 1]
+    assert np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) > 0
+    assert np.argmin(np.linalg.norm(P[0] - b[0], axis=1)) == 0
