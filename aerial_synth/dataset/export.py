@@ -130,10 +130,9 @@ def export_dataset(
 
     todo = [i for i in range(cfg.images) if not (plan.mode == "resume" and is_done(cfg, build, i))]
     skipped = cfg.images - len(todo)
-    groups: dict[int, list[int]] = {}
-    for i in todo:
-        groups.setdefault(i // cfg.images_per_placement, []).append(i)
-    tasks = [groups[g] for g in sorted(groups)]
+    from .engine_dask import plan_tasks  # runs of images: a small export still uses every worker
+
+    tasks = plan_tasks(todo, cfg.images_per_placement, workers)
 
     from tqdm import tqdm
 

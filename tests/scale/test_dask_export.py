@@ -53,6 +53,7 @@ def _same(a, b):
     assert [k for k in a if a[k] != b[k]] == []
 
 
+@pytest.mark.slow  # a 2-process LocalCluster: 30-200 s on a shared 2-core machine
 def test_local_cluster_byte_identical(cluster, cross_scene, reference, tmp_path):
     out = tmp_path / "dask"
     res = export_dataset(_cfg(cross_scene), out, dask=cluster.scheduler_address, progress=False)
@@ -60,6 +61,7 @@ def test_local_cluster_byte_identical(cluster, cross_scene, reference, tmp_path)
     _same(reference, tree_bytes(out))
 
 
+@pytest.mark.slow  # a 2-process LocalCluster: 30-200 s on a shared 2-core machine
 def test_killed_worker_image_redone(cluster, cross_scene, reference, tmp_path):
     out = tmp_path / "killed"
     partial = out.parent / f".{out.name}.aerial-synth-partial"
@@ -90,6 +92,7 @@ def test_killed_worker_image_redone(cluster, cross_scene, reference, tmp_path):
     _same(reference, tree_bytes(out))
 
 
+@pytest.mark.slow  # a 2-process LocalCluster: 30-200 s on a shared 2-core machine
 def test_resume_across_engines(cluster, cross_scene, reference, tmp_path):
     """Kill a --workers 1 export after its first image, finish it with --dask --resume."""
     out = tmp_path / "resumed"
