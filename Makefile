@@ -65,8 +65,9 @@ test: install-test
 test-all: install-test
 	$(BIN)/python -m pytest -q -m "slow or not slow"
 
+# Benchmark suite (tools/bench_suite.py runs tools/bench_*.py and more): writes bench.json.
 bench: install
-	$(BIN)/python tools/bench_scenes.py
+	$(BIN)/python tools/bench_suite.py --out bench.json
 
 clean:
 	rm -rf $(VENV) out .pytest_cache

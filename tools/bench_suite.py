@@ -1,0 +1,234 @@
+#!/usr/bin/env python
+"""Benchmark suite: runs the sub-benchmarks and writes one ``bench.json``.
+
+    .venv/bin/python tools/bench_suite.py [--out bench.json] [--images 40] [--quick] [--only NAME,...]
+
+Sections (each also records its command and wall time):
+
+* ``placement``  tools/bench_place.py: vehicles/s, engine time / bare ray time;
+* ``frame``      tools/bench_render.py: frame time, frame / bare primary cast;
+* ``export``     city_park jam exports at 1 and 2 local workers: images/s, speed-up;
+* ``dask``       the same export on a 2-process Dask LocalCluster: images/s (and its
+                 ratio to the 1-worker run of this suite);
+* ``tiles``      tiled placement of ``city_2km`` (4 km^2) in a child process per grid:
+                 peak RSS for 1 tile and for 16 tiles, vehicles, seconds;
+* ``cli``        the cold ``aerial-synth --help`` time (median of 5 fresh processes).
+
+Timings on a shared machine are noisy: compare ratios within one run (the suite records
+the load average before and after every section). Nothing here asserts a time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PY = sys.executable
+SECTIONS = ("cli", "placement", "frame", "tiles", "export", "dask")
+
+
+def _load() -> list[float]:
+    try:
+        return [round(x, 2) for x in os.getloadavg()]
+    except OSError:
+        return []
+
+
+def _run(cmd: list[str], timeout: float = 1800) -> tuple[str, float]:
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    t0 = time.perf_counter()
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env, cwd=ROOT)
+    wall = time.perf_counter() - t0
+    if r.returncode not in (0, 1):  # bench_export returns 1 when its target is missed
+        raise RuntimeError(f"{' '.join(cmd)} failed ({r.returncode}): {r.stderr.strip()[-500:]}")
+    return r.stdout, wall
+
+
+def _num(pattern: str, text: str, cast=float):
+    m = re.search(pattern, text)
+    return cast(m.group(1).replace(",", "")) if m else None
+
+
+# ------------------------------------------------------------------ sections
+
+
+def bench_cli(a) -> dict:
+    exe = str(Path(PY).with_name("aerial-synth"))
+    cmd = [exe, "--help"] if Path(exe).exists() else [PY, "-m", "aerial_synth.cli", "--help"]
+    times = []
+    for _ in range(5):
+        t0 = time.perf_counter()
+        subprocess.run(cmd, capture_output=True, check=True, cwd=ROOT)
+        times.append(time.perf_counter() - t0)
+    return {"command": " ".join(cmd), "help_cold_s": round(statistics.median(times), 3),
+            "help_s_all": [round(t, 3) for t in times]}
+
+
+def bench_placement(a) -> dict:
+    cmd = [PY, "tools/bench_place.py", "--vehicles", str(a.place_vehicles), "--repeat", str(a.repeat)]
+    out, wall = _run(cmd)
+    return {
+        "command": " ".join(cmd[1:]),
+        "vehicles": _num(r"median [\d.]+ s for (\d+) vehicles", out, int),
+        "seconds_median": _num(r"median ([\d.]+) s for", out),
+        "vehicles_per_s": _num(r"; ([\d.]+) vehicles/s;", out),
+        "engine_over_bare_rays": _num(r"engine/bare = ([\d.]+)x", out),
+        "wall_s": round(wall, 1),
+        "raw": out.strip().splitlines()[-2:],
+    }
+
+
+def bench_frame(a) -> dict:
+    cmd = [PY, "tools/bench_render.py", "--repeat", str(a.repeat)]
+    out, wall = _run(cmd)
+    return {
+        "command": " ".join(cmd[1:]),
+        "frame_ms_median": _num(r"frame 1024x1024 \(\w+\) median ([\d.]+) ms", out),
+        "bare_primary_cast_ms": _num(r"bare cast_rays, primary rays: median ([\d.]+) ms", out),
+        "frame_over_bare_primary": _num(r"primary rays: median [\d.]+ ms -> frame / bare ([\d.]+)", out),
+        "wall_s": round(wall, 1),
+    }
+
+
+_TILES_CHILD = r"""
+import json, resource, sys, time, warnings
+warnings.simplefilter("ignore")
+from aerial_synth.scene.tiles import TiledWorld
+from aerial_synth.placement.tiled import place_tiled
+tile_m, n = float(sys.argv[1]), int(sys.argv[2])
+w = TiledWorld.load("city_2km")
+t0 = time.perf_counter()
+pl = place_tiled(w, w.grid(tile_m, 60.0), "jam", seed=0, n_vehicles=n)
+wall = time.perf_counter() - t0
+print(json.dumps({"tiles": len(w.grid(tile_m, 60.0)), "tile_m": tile_m, "vehicles": len(pl.vehicles),
+                  "requested": n, "seconds": round(wall, 2),
+                  "vehicles_per_s": round(len(pl.vehicles) / wall, 1),
+                  "dropped_at_borders": pl.stats["tiles"]["dropped_at_borders"],
+                  "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)}))
+"""
+
+
+def bench_tiles(a) -> dict:
+    res = {"world": "city_2km (2 km x 2 km = 4 km^2, scenes/city_2km.yaml)", "margin_m": 60.0,
+           "vehicles_requested": a.tile_vehicles}
+    for label, tile_m in (("one_tile", 2000.0), ("sixteen_tiles", 500.0)):
+        cmd = [PY, "-c", _TILES_CHILD, str(tile_m), str(a.tile_vehicles)]
+        out, wall = _run(cmd)
+        d = json.loads(out.strip().splitlines()[-1])
+        d["wall_s_with_imports"] = round(wall, 1)
+        res[label] = d
+    res["command"] = "place_tiled(TiledWorld.load('city_2km'), grid(tile_m, 60), 'jam', seed=0, n_vehicles=N) in a child process"
+    return res
+
+
+def _export(a, out: Path, **kw) -> dict:
+    from aerial_synth.dataset.export import ExportConfig, export_dataset
+
+    cfg = ExportConfig(scene=a.scene, scenario="jam", images=a.images, formats="dota", seed=0,
+                       images_per_placement=a.images_per_placement)
+    t0 = time.perf_counter()
+    export_dataset(cfg, out, force=True, progress=False, **kw)
+    wall = time.perf_counter() - t0
+    return {"images": a.images, "seconds": round(wall, 1), "images_per_s": round(a.images / wall, 3)}
+
+
+def bench_export(a) -> dict:
+    tmp = Path(tempfile.mkdtemp(prefix="bench_suite_"))
+    try:
+        one = _export(a, tmp / "w1", workers=1)
+        two = _export(a, tmp / "w2", workers=2)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return {
+        "command": f"export_dataset(ExportConfig(scene={a.scene!r}, scenario='jam', images={a.images}, "
+                   f"formats='dota', images_per_placement={a.images_per_placement}), workers=K)",
+        "workers_1": one, "workers_2": two,
+        "speedup_2_over_1": round(one["seconds"] / two["seconds"], 3),
+        "target_speedup_2": 1.7,
+    }
+
+
+def bench_dask(a, export_res: dict | None) -> dict:
+    tmp = Path(tempfile.mkdtemp(prefix="bench_suite_dask_"))
+    try:
+        t0 = time.perf_counter()
+        d = _export(a, tmp / "dask", dask="local:2")
+        d["seconds_including_cluster_start"] = round(time.perf_counter() - t0, 1)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    res = {"command": "same export with dask='local:2' (LocalCluster, 2 processes, loopback)", "local_2": d}
+    if export_res:
+        res["speedup_over_workers_1"] = round(export_res["workers_1"]["seconds"] / d["seconds"], 3)
+    return res
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default="bench.json")
+    ap.add_argument("--images", type=int, default=40, help="images per export run (40)")
+    ap.add_argument("--images-per-placement", type=int, default=10)
+    ap.add_argument("--scene", default="city_park")
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--place-vehicles", type=int, default=1000)
+    ap.add_argument("--tile-vehicles", type=int, default=20000)
+    ap.add_argument("--only", default=",".join(SECTIONS), help=f"comma list of {', '.join(SECTIONS)}")
+    ap.add_argument("--quick", action="store_true", help="small runs (8 images, 1 repeat) to check the suite")
+    a = ap.parse_args(argv)
+    if a.quick:
+        a.images, a.repeat, a.place_vehicles, a.tile_vehicles = 8, 1, 300, 3000
+        a.images_per_placement = 4
+    only = [s.strip() for s in a.only.split(",") if s.strip()]
+    bad = [s for s in only if s not in SECTIONS]
+    if bad:
+        print(f"--only: expected names from {', '.join(SECTIONS)}, got {bad[0]!r}", file=sys.stderr)
+        return 2
+    sys.path.insert(0, str(ROOT))
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                                cwd=ROOT).stdout.strip()
+    except OSError:
+        commit = ""
+    doc = {
+        "suite": "tools/bench_suite.py",
+        "command": " ".join([Path(PY).name, "tools/bench_suite.py", *(argv if argv is not None else sys.argv[1:])]),
+        "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        "git_commit": commit,
+        "machine": {"cpu_count": os.cpu_count(), "platform": sys.platform, "python": sys.version.split()[0]},
+        "note": "shared machines are noisy; compare ratios within one run; load averages per section",
+        "sections": {},
+    }
+    out = Path(a.out)
+    for name in [s for s in SECTIONS if s in only]:
+        print(f"[bench] {name} ...", flush=True)
+        before = _load()
+        t0 = time.perf_counter()
+        try:
+            if name == "dask":
+                res = bench_dask(a, doc["sections"].get("export"))
+            else:
+                res = globals()[f"bench_{name}"](a)
+        except Exception as exc:  # a broken sub-benchmark is recorded, the others still run
+            res = {"error": f"{type(exc).__name__}: {exc}"}
+        res["load_avg_before_after"] = [before, _load()]
+        res["section_wall_s"] = round(time.perf_counter() - t0, 1)
+        doc["sections"][name] = res
+        print(f"[bench] {name}: {json.dumps(res)[:400]}", flush=True)
+        tmp = out.with_name(f".{out.name}.tmp")
+        tmp.write_text(json.dumps(doc, indent=2, sort_keys=True) + "\n")
+        os.replace(tmp, out)  # written after every section, so a long run keeps what it has
+    print(f"wrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
