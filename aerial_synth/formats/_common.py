@@ -7,7 +7,7 @@ import numpy as np
 from ..errors import ExportError
 from ..vehicles import CLASSES
 
-__all__ = ["CATEGORIES", "LabelFormatError", "fmt_num", "parse_float", "polygon4"]
+__all__ = ["CATEGORIES", "LabelFormatError", "fmt_num", "parse_float", "polygon4", "read_text", "read_json"]
 
 #: Detection classes, in class-index order (YOLO index 0.., COCO id 1..), as DOTA/EAGLE name
 #: them. The one list is the vehicle catalog's (``aerial_synth.vehicles.CLASSES``).
@@ -40,3 +40,24 @@ def polygon4(points) -> tuple[tuple[float, float], ...]:
     """(4, 2) array-like -> tuple of 4 (x, y) float tuples."""
     p = np.asarray(points, dtype=float).reshape(4, 2)
     return tuple((float(x), float(y)) for x, y in p)
+
+
+def read_text(path) -> str:
+    """A label file's UTF-8 text; a file that is not UTF-8 text raises LabelFormatError."""
+    from pathlib import Path
+
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise LabelFormatError(f"{path}: expected UTF-8 text, found byte {exc.object[exc.start]:#04x} "
+                               f"at offset {exc.start}") from None
+
+
+def read_json(path):
+    """A JSON file's value; malformed JSON raises LabelFormatError naming the line."""
+    import json
+
+    try:
+        return json.loads(read_text(path))
+    except json.JSONDecodeError as exc:
+        raise LabelFormatError(f"{path}:{exc.lineno}: expected JSON, {exc.msg}") from None

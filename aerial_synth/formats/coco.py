@@ -11,14 +11,13 @@ screen), ``heading_img_deg``, ``difficult``, ``orientation_unclear``, ``vehicle_
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..io_utils import atomic_write_text, dumps_json
-from ._common import CATEGORIES, LabelFormatError
+from ._common import CATEGORIES, LabelFormatError, read_json
 from .registry import DatasetInfo, LabelFormat
 
 __all__ = [
@@ -178,7 +177,7 @@ def from_dict(d: dict, where: str = "<coco>") -> tuple[list[CocoImage], list[Coc
             )
             for a in d["annotations"]
         ]
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError, OverflowError) as exc:
         raise LabelFormatError(f"{where}: not a COCO instances file ({type(exc).__name__}: {exc})") from None
     return images, objects
 
@@ -188,7 +187,7 @@ def write(path, d: dict) -> Path:
 
 
 def read(path) -> tuple[list[CocoImage], list[CocoObject]]:
-    return from_dict(json.loads(Path(path).read_text(encoding="utf-8")), where=str(path))
+    return from_dict(read_json(path), where=str(path))
 
 
 class CocoFormat(LabelFormat):

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..io_utils import atomic_write_text
-from ._common import CATEGORIES, LabelFormatError, fmt_num, parse_float, polygon4
+from ._common import CATEGORIES, LabelFormatError, fmt_num, parse_float, polygon4, read_text
 from .registry import LabelFormat
 
 __all__ = ["FORMAT", "DotaFormat", "DotaObject", "DotaLabel", "to_lines", "from_lines",
@@ -100,7 +100,7 @@ def write(path, objects, gsd_m, image_source: str = IMAGE_SOURCE) -> Path:
 
 
 def read(path, categories=CATEGORIES) -> DotaLabel:
-    content = Path(path).read_text(encoding="utf-8")
+    content = read_text(path)
     return from_lines(content.splitlines(), where=str(path), categories=categories)
 
 

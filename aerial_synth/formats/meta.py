@@ -15,13 +15,12 @@ oriented box, image heading and (kept only) the visible-mask RLE.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..annotate.boxes import VehicleAnnotation
 from ..io_utils import atomic_write_text, dumps_json
-from ._common import LabelFormatError
+from ._common import LabelFormatError, read_json
 
 __all__ = ["FORMAT", "VERSION", "ImageRecord", "to_dict", "from_dict", "write", "read"]
 
@@ -100,6 +99,8 @@ def to_dict(r: ImageRecord) -> dict:
 
 
 def from_dict(d: dict, where: str = "<meta>") -> ImageRecord:
+    if not isinstance(d, dict):
+        raise LabelFormatError(f"{where}: expected a JSON object, got {type(d).__name__}")
     if d.get("format") != FORMAT:
         raise LabelFormatError(f"{where}: expected format {FORMAT!r}, got {d.get('format')!r}")
     try:
@@ -133,7 +134,7 @@ def from_dict(d: dict, where: str = "<meta>") -> ImageRecord:
             segmentations=segs,
             georeference=d.get("georeference", {}) or {},
         )
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
         raise LabelFormatError(f"{where}: bad image metadata ({type(exc).__name__}: {exc})") from None
 
 
@@ -142,4 +143,4 @@ def write(path, record: ImageRecord) -> Path:
 
 
 def read(path) -> ImageRecord:
-    return from_dict(json.loads(Path(path).read_text(encoding="utf-8")), where=str(path))
+    return from_dict(read_json(path), where=str(path))

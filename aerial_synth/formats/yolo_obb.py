@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io_utils import atomic_write_text
-from ._common import CATEGORIES, LabelFormatError, fmt_num, parse_float, polygon4
+from ._common import CATEGORIES, LabelFormatError, fmt_num, parse_float, polygon4, read_text
 from .registry import DatasetInfo, LabelFormat
 
 __all__ = [
@@ -127,7 +127,7 @@ def write(path, objects) -> Path:
 
 
 def read(path, n_classes: int | None = len(CATEGORIES)):
-    content = Path(path).read_text(encoding="utf-8")
+    content = read_text(path)
     return from_lines(content.splitlines(), where=str(path), n_classes=n_classes)
 
 
