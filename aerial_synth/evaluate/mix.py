@@ -423,8 +423,12 @@ def make_mix(cfg: MixConfig) -> dict:
     syn_splits = _dota_splits(Path(cfg.synthetic), "--synthetic")
     rng = np.random.default_rng(cfg.seed)
 
-    real_train = _read_split(*real_splits.get("train", next(iter(real_splits.values()))), "--real")
-    real_val_src = [s for s in real_splits if s in ("val", "valid", "validation")]
+    val_names = ("val", "valid", "validation")
+    real_val_src = [s for s in real_splits if s in val_names]
+    train_keys = ["train"] if "train" in real_splits else [s for s in real_splits if s not in val_names]
+    if not train_keys:  # only a validation split: it is the source, and val is held out of it
+        train_keys, real_val_src = real_val_src[:1], []
+    real_train = _read_split(*real_splits[train_keys[0]], "--real")
     if real_val_src:
         real_val = _read_split(*real_splits[real_val_src[0]], "--real")
         real_train = _shuffle(real_train, rng)
@@ -446,9 +450,11 @@ def make_mix(cfg: MixConfig) -> dict:
         val_items += [t for p in _plan_real(real_val, cfg) for t in p]
     if cfg.val in ("synthetic", "both"):
         val_items += [_Item("synthetic", s, (1.0, 1.0), (0, 0), None, f"syn-{s.name}") for s in syn_val]
-    names = [i.out_stem for i in chosen]
-    if len(set(names)) != len(names):
-        raise EvaluationError("mix: two source images share a name; rename them")
+    for group in (chosen, val_items):
+        names = [i.out_stem for i in group]
+        if len(set(names)) != len(names):
+            dup = sorted({n for n in names if names.count(n) > 1})[0]
+            raise EvaluationError(f"mix: two source images give the output name {dup!r}; rename one")
 
     classes = list(cfg.classes) if cfg.classes is not None else sorted(
         {c for it in real_train + real_val + syn_train + syn_val for c in it.classes})
@@ -498,6 +504,9 @@ def make_mix(cfg: MixConfig) -> dict:
                 "gsd": cfg.gsd, "gsd_missing": cfg.gsd_missing, "classes": classes,
             },
             "counts": counts,
+            "available": {"real_train_images": len(real_train), "real_val_images": len(real_val),
+                          "real_train_outputs": len(train_plans), "synthetic_train_images": len(syn_train),
+                          "synthetic_val_images": len(syn_val)},
             "sources": [{"source_image": k, "outputs": v} for k, v in used.items()],
             "images": entries,
         }

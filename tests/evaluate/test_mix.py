@@ -221,3 +221,22 @@ def test_pentagon_cut_merges_its_shortest_edge_as_the_devkit():
     x, y = P[0][:, 0], P[0][:, 1]
     assert np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) > 0
     assert np.argmin(np.linalg.norm(P[0] - b[0], axis=1)) == 0
+
+
+def test_without_a_real_val_split_whole_images_are_held_out(tmp_path):
+    make_dota(tmp_path / "real", 10, "r", size=(300, 200))  # images/ + labelTxt/, no splits
+    make_dota(tmp_path / "syn/dota/train", 4, "s")
+    man = make_mix(MixConfig(real=tmp_path / "real", synthetic=tmp_path / "syn", out=tmp_path / "mix",
+                             real_images=16, tile=160, overlap=20, val_fraction=0.2, seed=3))
+    src = {"train": set(), "val": set()}
+    for e in man["images"]:
+        if e["origin"] == "real":
+            src[e["split"]].add(e["source_image"])
+    assert len(src["val"]) == 2 and not (src["val"] & src["train"])  # no tile of a val image trains
+    assert man["available"]["real_train_images"] == 8
+    assert man["available"]["real_train_outputs"] == 8 * 4  # 2 x 2 tiles per 300 x 200 image
+    assert man["counts"]["train_real"] == 16 and man["counts"]["val_real"] == 2 * 4
+    with pytest.raises(EvaluationError, match="needs 33 real training images .* only 32"):
+        make_mix(MixConfig(real=tmp_path / "real", synthetic=tmp_path / "syn", out=tmp_path / "m2",
+                           real_images=33, tile=160, overlap=20, seed=3))
+    assert not (tmp_path / "m2").exists()
