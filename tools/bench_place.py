@@ -3,7 +3,9 @@
 
 Prints wall time per placement (after one warm-up run that builds the Embree BVH and the
 vehicle catalog), vehicles/s, rays/s and casts, plus the bare cast_rays time for the same
-number of vertical traces so the engine's overhead over Embree is visible.
+number of vertical traces so the engine's overhead over Embree is visible, and the
+validator's quality figures over all timed placements (whole footprint on drivable
+surface, overlaps, gap violations, heading error).
 
     .venv/bin/python tools/bench_place.py [--scene city_park] [--scenario jam] [--vehicles 1000] [--repeat 5]
 """
@@ -25,7 +27,7 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=5)
     args = ap.parse_args()
 
-    from aerial_synth.placement import place
+    from aerial_synth.placement import place, validate_placement
     from aerial_synth.placement.traffic import PlacementWarning
     from aerial_synth.scene import load_scene
     from aerial_synth.scene.raycast import RayScene
@@ -38,7 +40,7 @@ def main() -> None:
     warnings.simplefilter("ignore", PlacementWarning)
     place(rs, args.scenario, seed=12345, catalog=cat, n_vehicles=args.vehicles)  # warm-up
     print(f"setup (scene, BVH, catalog, warm-up): {time.perf_counter() - t0:.2f} s")
-    times, vps, rays, casts, counts = [], [], [], [], []
+    times, vps, rays, casts, counts, reports = [], [], [], [], [], []
     for seed in range(args.repeat):
         t = time.perf_counter()
         p = place(rs, args.scenario, seed=seed, catalog=cat, n_vehicles=args.vehicles)
@@ -48,6 +50,7 @@ def main() -> None:
         rays.append(p.stats["rays"])
         casts.append(p.stats["casts"])
         vps.append(len(p.vehicles) / dt)
+        reports.append(validate_placement(rs, p, scene.truth, traffic=p.parameters.get("traffic", "right")))
         print(f"seed {seed}: {len(p.vehicles)} vehicles in {dt:.3f} s  "
               f"({len(p.vehicles) / dt:.0f} vehicles/s, {p.stats['rays'] / dt / 1e6:.2f} M rays/s, "
               f"{p.stats['rays']:,} rays in {p.stats['casts']} casts)")
@@ -63,6 +66,19 @@ def main() -> None:
           f"{n_rays / med / 1e6:.2f} M rays/s through the engine")
     print(f"bare trace of the same {n_rays:,} rays in one cast: {bare:.3f} s "
           f"({n_rays / bare / 1e6:.1f} M rays/s); engine/bare = {med / bare:.1f}x")
+    n = sum(r.n for r in reports)
+    ok = sum(int(r.footprint_ok.sum()) for r in reports)
+    herr = np.concatenate([r.heading_error_deg for r in reports])
+    herr = herr[np.isfinite(herr)]
+    area = np.concatenate([r.area_drivable for r in reports])
+    area = area[np.isfinite(area)]
+    print(f"validator over {n} vehicles: footprint on drivable {100 * ok / max(n, 1):.2f} %"
+          f" ({n - ok} off), footprint area on drivable min "
+          f"{area.min() if len(area) else float('nan'):.4f}, corners on drivable "
+          f"{100 * np.mean([r.corners_drivable for r in reports]):.2f} %, overlaps "
+          f"{sum(r.overlaps for r in reports)}, gap violations {sum(r.gap_violations for r in reports)}"
+          + (f", heading error median {np.median(herr):.2f} deg p99 {np.percentile(herr, 99):.2f} deg"
+             if len(herr) else ""))
 
 
 if __name__ == "__main__":

@@ -268,7 +268,7 @@ def _one_line(exc: AerialSynthError) -> None:
     assert msg and "\n" not in msg and "Traceback" not in msg
 
 
-@settings(max_examples=250, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(st.tuples(st.sampled_from(_KEYS), st.one_of(_near.map(str), st.text(max_size=10))),
                 max_size=5),
        st.sampled_from(["jam", "normal", "sparse", "random", "multilane"]))
@@ -317,7 +317,7 @@ def _mutated_scenarios():
     return build()
 
 
-@settings(max_examples=250, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(_mutated_scenarios())
 def test_property_scenario_mapping_parses_or_raises_one_line(data):
     try:
