@@ -408,6 +408,7 @@ class _Engine:
         c = self.locate(q, new_head, offs)
         c.ok &= found & (far > offs)
         c.reason[~found] = "no_edge"
+        self.wrong_way(c)  # direction hints: the far side may be a one-way road of its own
         self.segment_ok(c, offs)
         variants = self.sample_variants(len(picks))
         L = np.array([v.model.length_m for v in variants])
