@@ -257,3 +257,28 @@ def cut_scene(scene: Scene, rect: Rect) -> Scene:
         objs.append(SceneObject(o.name, o.label, v[used], inv.reshape(-1, 3), material=o.material, color=o.color))
     return Scene(name=scene.name, objects=objs, source=scene.source, truth=None, label_config=scene.label_config,
                  meta={**scene.meta, "window_m": [float(c) for c in rect]}, origin=scene.origin, crs=scene.crs)
+
+
+def world_for_camera(world: TiledWorld, grid: TileGrid, placement, camera, ground_z: float = 0.0,
+                     pad_m: float = 30.0, catalog=None, simple_boxes: bool = False):
+    """What one render task needs and nothing more: the RayScene of the tiles the camera's
+    ground footprint touches (see :meth:`TiledWorld.scene_for_xy`) holding the placement's
+    vehicles that stand in that window.
+
+    Returns (rayscene, placement of those vehicles, tiles). The vehicles keep their ids, so
+    the frame's instance buffer carries the ids of the whole world's placement."""
+    import dataclasses
+
+    from ..render import add_placement
+    from .raycast import RayScene
+
+    fp = camera.ground_footprint_xy(ground_z)
+    scene, tiles = world.scene_for_xy(grid, fp, pad_m)
+    b = scene.bounds()
+    lo, hi = b[0, :2], b[1, :2]
+    vs = [v for v in placement.vehicles
+          if lo[0] - v.length_m <= v.x_m <= hi[0] + v.length_m and lo[1] - v.length_m <= v.y_m <= hi[1] + v.length_m]
+    sub = dataclasses.replace(placement, vehicles=vs)
+    rs = RayScene(scene)
+    add_placement(rs, sub, catalog, simple_boxes=simple_boxes)
+    return rs, sub, tiles

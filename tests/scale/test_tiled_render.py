@@ -1,0 +1,35 @@
+"""A render task loads only the tiles its footprint touches, and sees what the whole world
+shows there."""
+
+import warnings
+
+import numpy as np
+
+from aerial_synth.camera import CameraConfig, sample_pose_targeted
+from aerial_synth.placement import place
+from aerial_synth.render import add_placement, render_frame
+from aerial_synth.scene.raycast import RayScene
+from aerial_synth.scene.tiles import TiledWorld, world_for_camera
+
+
+def test_frame_from_touched_tiles_equals_whole_world(small_city_spec, small_city_scene):
+    world = TiledWorld.from_spec(small_city_spec)
+    grid = world.grid(125.0, 30.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        pl = place(RayScene(small_city_scene), "jam", seed=2, n_vehicles=150)
+    cam_cfg = CameraConfig(altitude_m=40.0, width_px=96, height_px=96, max_tilt_deg=10.0)
+    full = RayScene(small_city_scene)
+    add_placement(full, pl, simple_boxes=True)
+    compared = 0
+    for k in range(3):
+        cam = sample_pose_targeted(cam_cfg, pl, np.random.default_rng(k), within_xy=world.bounds)
+        rs, sub, tiles = world_for_camera(world, grid, pl, cam, ground_z=0.05, simple_boxes=True)
+        assert 1 <= len(tiles) <= 4 < len(grid)  # only the touched tiles, not the world
+        a = render_frame(full, cam, pl, np.random.default_rng(9))
+        b = render_frame(rs, cam, sub, np.random.default_rng(9))
+        np.testing.assert_array_equal(a.instance, b.instance)
+        assert (a.semantic == b.semantic).mean() > 0.999
+        assert len(np.unique(a.instance)) > 1
+        compared += 1
+    assert compared == 3
