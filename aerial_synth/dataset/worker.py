@@ -309,8 +309,13 @@ _POOL_WORKER: ImageWorker | None = None
 
 def init_pool_worker(cfg: ExportConfig, out: str, nthreads: int, parent_pid: int,
                      extra_formats=()) -> None:
-    """Pool initializer: watch the parent, share the cores, register run-time formats."""
+    """Pool initializer: watch the parent, share the cores, register run-time formats.
+    Ctrl-C is the parent's to handle (it stops the pool): workers ignore SIGINT, so an
+    interrupted export prints no worker tracebacks."""
+    import signal
+
     global _POOL_WORKER
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     _watch_parent(parent_pid)
     from ..formats.registry import names, register
 

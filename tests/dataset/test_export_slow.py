@@ -21,3 +21,31 @@ def test_city_park_jam_all_formats_two_workers(tmp_path):
     assert r1.summary["vehicles_kept"] > 0
     lab = dota.read(tmp_path / "a" / "dota" / "train" / "labelTxt" / "000000.txt")
     assert lab.gsd_m == pytest.approx(0.12, rel=0.1) and np.isfinite(lab.gsd_m)
+
+
+@pytest.mark.slow
+def test_ctrl_c_with_workers_one_line_and_resumable(tiny_scene, tmp_path):
+    """SIGINT to an export with --workers 2: one line, exit 130, no worker traceback, the
+    partial build kept for --resume, --out not created."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from .conftest import REPO
+
+    out = tmp_path / "ds"
+    part = tmp_path / ".ds.aerial-synth-partial"
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    p = subprocess.Popen([sys.executable, "-m", "aerial_synth.cli", "export", "--scene", tiny_scene,
+                          "--images", "6", "--images-per-placement", "2", "--size", "128", "--vehicles", "8",
+                          "--simple-vehicles", "--workers", "2", "--no-progress", "--out", str(out)],
+                         env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    t0 = time.time()
+    while not list((part / "meta").glob("*.json")) and p.poll() is None and time.time() - t0 < 300:
+        time.sleep(0.05)
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 130 and err.decode().strip() == "aerial-synth: interrupted"
+    assert not out.exists() and (part / "manifest.json").is_file()
