@@ -7,6 +7,7 @@ run options that do not (workers, resume, force, progress) are arguments of
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
@@ -67,6 +68,10 @@ class ExportConfig:
 
         E = ExportError
         s = object.__setattr__
+        for name in ("scene", "labels", "scenario"):  # paths are stored as text (manifest)
+            val = getattr(self, name)
+            if isinstance(val, os.PathLike):
+                s(self, name, os.fspath(val))
         s(self, "formats", parse_names(self.formats))
         s(self, "images", v.integer("--images", self.images, 1, error=E))
         s(self, "split", v.in_range("--split", self.split, 0.0, 1.0, lo_open=True, error=E))
@@ -84,6 +89,8 @@ class ExportConfig:
         v.one_of("--image-ext", self.image_ext, IMAGE_EXTS, error=E)
         if not isinstance(self.scene, str) or not self.scene:
             raise E(f"--scene: expected a scene name or file, got {v.show(self.scene)}")
+        if self.labels is not None and (not isinstance(self.labels, str) or not self.labels):
+            raise E(f"--labels: expected a label-rules file, got {v.show(self.labels)}")
         if not isinstance(self.scenario, str) or not self.scenario:
             raise E(f"--scenario: expected a scenario name or file, got {v.show(self.scenario)}")
         if not isinstance(self.box, BoxConfig):

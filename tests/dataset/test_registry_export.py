@@ -74,3 +74,36 @@ def test_export_with_a_registered_test_format(count_format, tiny_scene, tmp_path
 def test_unregistered_format_refused(tiny_scene):
     with pytest.raises(ExportError, match="unknown format 'count'"):
         ExportConfig(scene=tiny_scene, formats="count")
+
+
+@pytest.mark.parametrize("kw, msg", [
+    (dict(images=0), "--images: expected a positive integer, got 0"),
+    (dict(images="abc"), "--images"),
+    (dict(images=True), "--images"),
+    (dict(scene=""), "--scene"),
+    (dict(labels=3), "--labels"),
+    (dict(formats=""), "--format"),
+    (dict(formats=("dota", "kitti")), "unknown format 'kitti'"),
+    (dict(split=0), "--split"),
+    (dict(split=float("nan")), "--split"),
+    (dict(width_px=0), "--width"),
+    (dict(height_px=2.5), "--height"),
+    (dict(n_vehicles=0), "--vehicles"),
+    (dict(n_lines=-1), "--lines"),
+    (dict(seed=-1), "--seed"),
+    (dict(scene_seed=-5), "--scene-seed"),
+    (dict(images_per_placement=0), "--images-per-placement"),
+    (dict(image_ext="gif"), "--image-ext"),
+])
+def test_export_config_refuses_bad_values(kw, msg):
+    with pytest.raises(ExportError, match=msg.replace("(", r"\(")) as exc:
+        ExportConfig(**kw)
+    assert "\n" not in str(exc.value)
+
+
+def test_export_config_paths_and_order():
+    from pathlib import Path
+
+    c = ExportConfig(scene=Path("/x/scene.obj"), formats="coco,dota")
+    assert c.scene == "/x/scene.obj" and c.formats == ("dota", "coco")
+    assert ExportConfig.from_dict(c.to_dict()) == c
