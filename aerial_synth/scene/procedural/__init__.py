@@ -7,8 +7,9 @@ vertices (checked with :meth:`Scene.vertex_hash`).
 
 World frame: metres, x east, y north, z up; the scene is centred on the origin.
 Heights: ground 0.0, road and parking 0.05, lane markings 0.06, sidewalks raised 0.12.
-Ground has holes where roads, parking and water are, so no two surfaces share a height
-over the same point.
+Ground covers the scene except water (holes only there, the one other surface at its
+height), so it lies 5 cm under roads and parking and catches every camera ray that slips
+past their edges; no two surfaces share a height over the same point.
 
 The generator also fills ``Scene.truth`` (road polygons and centre lines) for tests and the
 validator; placement never reads it.
