@@ -22,6 +22,7 @@ _COMMAND_MODULES = (
     "aerial_synth.scene.cli",
     "aerial_synth.vehicles.cli",
     "aerial_synth.placement.cli",
+    "aerial_synth.placement.tiled_cli",
     "aerial_synth.render.cli",
     "aerial_synth.dataset.cli",
     "aerial_synth.evaluate.cli",

@@ -113,6 +113,8 @@ wall = time.perf_counter() - t0
 print(json.dumps({"tiles": len(w.grid(tile_m, 60.0)), "tile_m": tile_m, "vehicles": len(pl.vehicles),
                   "requested": n, "seconds": round(wall, 2),
                   "vehicles_per_s": round(len(pl.vehicles) / wall, 1),
+                  "scene_seconds": round(pl.timing["scene_seconds"], 2),
+                  "place_seconds": round(pl.timing["place_seconds"], 2),
                   "dropped_at_borders": pl.stats["tiles"]["dropped_at_borders"],
                   "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)}))
 """

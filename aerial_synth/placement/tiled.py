@@ -90,10 +90,13 @@ def place_tiled(
     dropped = 0
     warned: list[str] = []
     single_stats = None
+    t_scene = t_place = 0.0
     t0 = time.perf_counter()
     for k, tile in enumerate(tiles):
+        ts = time.perf_counter()
         scene = world.scene_for(tile.window)
         rs = RayScene(scene, nthreads=0)
+        t_scene += time.perf_counter() - ts
         want = None
         if n_vehicles is not None:
             x0, y0, x1, y1 = tile.window
@@ -108,6 +111,7 @@ def place_tiled(
                     raise
                 pl = None  # a tile without roads (a park, a lake) holds no vehicles
         warned += [str(w.message) for w in caught]
+        t_place += pl.timing.get("seconds", 0.0) if pl is not None else 0.0
         del rs, scene
         if pl is None:
             per_tile.append({"tile": [tile.i, tile.j], "placed": 0, "kept": 0})
@@ -159,7 +163,8 @@ def place_tiled(
         parameters=cfg.to_dict(),
         vehicles=kept,
         stats=stats,
-        timing={"seconds": elapsed, "vehicles_per_s": len(kept) / elapsed if elapsed else 0.0},
+        timing={"seconds": elapsed, "vehicles_per_s": len(kept) / elapsed if elapsed else 0.0,
+                "scene_seconds": t_scene, "place_seconds": t_place},
     )
     if warned and n_tiles == 1:
         warnings.warn(warned[0], PlacementWarning, stacklevel=2)

@@ -98,3 +98,32 @@ def test_tile_smaller_than_longest_vehicle_refused(world):
         place_tiled(world, world.grid(3.0, 1.0), "jam", seed=0, n_vehicles=10)
     msg = str(e.value)
     assert "--tile-m" in msg and "3" in msg and "\n" not in msg
+
+
+def test_cli_tile_smaller_than_longest_vehicle(tmp_path):
+    from .conftest import run_cli
+
+    out = tmp_path / "out"
+    r = run_cli("place-tiled", "--tile-m", 3, "--out", out)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "--tile-m" in lines[0] and "longest vehicle" in lines[0] and "3" in lines[0]
+    assert not out.exists()
+
+
+def test_cli_writes_the_tiled_placement(tmp_path):
+    import json
+
+    import yaml
+
+    from .conftest import run_cli
+
+    spec = tmp_path / "town.yaml"
+    spec.write_text(yaml.safe_dump({"generator": "city", "name": "town", "seed": 2, "size_km": 0.3}))
+    out = tmp_path / "out"
+    r = run_cli("place-tiled", "--scene", spec, "--tile-m", 150, "--margin-m", 30, "--vehicles", 60,
+                "--out", out)
+    assert r.returncode == 0, r.stderr
+    d = json.loads((out / "placement.json").read_text())
+    assert d["stats"]["tiles"]["grid"] == [2, 2] and len(d["vehicles"]) > 20
+    assert [v["id"] for v in d["vehicles"]] == list(range(1, len(d["vehicles"]) + 1))
