@@ -222,15 +222,14 @@ def find_kerbs(rayscene, cfg: ParkingConfig, rng: np.random.Generator, probe=Non
     lo, hi = b[0, :2], b[1, :2]
     road_lut = np.zeros(len(LABEL_IDS) + 1, bool)
     road_lut[[LABEL_IDS["road"], LABEL_IDS["lane_marking"]]] = True
-    bay_L = cfg.kerb_bay_m
     kerbs: list[Kerb] = []
     claimed = []  # shapely polygons of kerb stretches already used
-    tries = 0
     want = cfg.kerb_lines
-    while len(kerbs) < want and tries < 40:
+    tries = 0
+    while len(kerbs) < want and tries < 8:
         tries += 1
         xy = rng.uniform(lo, hi, size=(4096, 2))
-        seeds = xy[pr.is_road(xy)][: max(8, 2 * (want - len(kerbs)))]
+        seeds = xy[pr.is_road(xy)][: max(16, 2 * (want - len(kerbs)))]
         if not len(seeds):
             continue
         D = 36
@@ -238,81 +237,82 @@ def find_kerbs(rayscene, cfg: ParkingConfig, rng: np.random.Generator, probe=Non
         m = pr.march(seeds, ang, first_only=True, chunk=24)
         best = np.argmin(m.count, axis=1)
         ok = m.found[np.arange(len(seeds)), best]
-        phi = ang[np.arange(len(seeds)), best]  # towards the nearest edge
-        for i in np.flatnonzero(ok):
+        phi = ang[np.arange(len(seeds)), best][ok]  # towards the nearest edge
+        for edge, n_out, width in _kerb_lines(pr, seeds[ok], phi, cfg, unit):
             if len(kerbs) >= want:
                 break
-            line = _kerb_line(pr, seeds[i], phi[i], cfg, unit)
-            if line is None:
-                continue
-            edge, t_dir, n_out, width = line
             if not (cfg.kerb_road_width_m[0] <= width <= cfg.kerb_road_width_m[1]):
                 continue
-            zone = shapely.LineString(edge).buffer(3.0, cap_style="flat")
-            if claimed and any(zone.intersects(z) for z in claimed):
+            line = shapely.LineString(edge)
+            zone = line.buffer(3.0, cap_style="flat")
+            if claimed and shapely.intersects(np.array(claimed, dtype=object), zone).any():
                 continue
             centres = (edge[:-1] + edge[1:]) / 2 - n_out[:-1] * cfg.kerb_offset_m
             seg = edge[1:] - edge[:-1]
             axis = np.arctan2(seg[:, 1], seg[:, 0])
-            if traffic == "left":
-                axis = axis + np.pi
-            # right-hand traffic: the kerb is on the parked car's right
+            # right-hand traffic: the kerb is on the parked car's right (left: on its left)
             cross = np.cos(axis) * n_out[:-1, 1] - np.sin(axis) * n_out[:-1, 0]
-            axis = np.where(cross < 0, axis, axis + np.pi) if traffic == "right" else np.where(
-                cross > 0, axis, axis + np.pi)
-            bays = Bays(centres, np.mod(axis, 2 * np.pi), np.zeros(len(centres), int), float(t_dir),
-                        2.0 * cfg.kerb_offset_m, bay_L, 0.0)
-            keep = _kerb_free(rs, road_lut, bays, n_out[:-1], edge, cfg)
+            kerb_left = cross > 0
+            axis = np.where(kerb_left == (traffic == "right"), axis + np.pi, axis)
+            bays = Bays(centres, np.mod(axis, 2 * np.pi), np.zeros(len(centres), int), 0.0,
+                        2.0 * cfg.kerb_offset_m, cfg.kerb_bay_m, 0.0)
+            seg_len = np.linalg.norm(seg, axis=1)
+            keep = _kerb_free(rs, road_lut, bays, n_out[:-1], cfg)
+            keep &= np.abs(seg_len - cfg.kerb_bay_m) < 0.05 * cfg.kerb_bay_m  # a straight kerb
             kerbs.append(Kerb(len(kerbs), bays.take(keep), int((~keep).sum())))
-            if cfg.kerb_sides == "one":
-                claimed.append(shapely.LineString(edge).buffer(width + 3.0, cap_style="flat"))
-            else:
-                claimed.append(zone)
+            claimed.append(line.buffer(width + 3.0 if cfg.kerb_sides == "one" else 3.0, cap_style="flat"))
     return kerbs
 
 
-def _kerb_line(pr, seed, phi, cfg, unit, max_steps=400):
-    """Walk along the kerb nearest ``seed`` (edge direction ``phi``) both ways, one bay
-    length per step. Returns (edge points (k, 2), along direction, outward normals (k, 2),
-    road width) or None."""
+def _kerb_lines(pr, seeds, phi, cfg, unit, max_steps: int = 400):
+    """Walk along the kerb nearest each seed (edge direction ``phi``) both ways, one bay
+    length per step, all walkers in lock-step (one probe cast per step). Yields
+    (edge points (k, 2), outward normals (k, 2), road width) per seed with k >= 3."""
+    P = len(seeds)
+    if not P:
+        return
     step = cfg.kerb_bay_m
-    n_out = unit(phi)
-    # road width across this point: edge + opposite edge
-    m = pr.march(seed[None], np.array([[phi, phi + np.pi]]))
-    if not m.found.all():
-        return None
-    width = float(m.dist_m[0].sum())
-    e0 = m.edge_xy[0, 0]
-    t = np.array([-n_out[1], n_out[0]])
-    pts = {0: (e0, n_out)}
-    for sgn in (1.0, -1.0):
-        e, no = e0, n_out
-        for k in range(1, max_steps):
-            tt = np.array([-no[1], no[0]]) * sgn
-            q = e + tt * step - no * 2.0  # 2 m inside the road
-            a1 = np.arctan2(no[1], no[0])
-            mm = pr.march(q[None], np.array([[a1, a1 - sgn * np.radians(10.0)]]), max_distance_m=6.0)
-            if not mm.found.all() or abs(mm.dist_m[0, 0] - 2.0) > 0.5:
-                break  # junction, road end or the edge moved (a driveway / lay-by)
-            e1, e2 = mm.edge_xy[0, 0], mm.edge_xy[0, 1]
-            d = e2 - e1
-            if np.linalg.norm(d) < 1e-6:
-                break
-            d = d / np.linalg.norm(d)
-            new_no = np.array([d[1], -d[0]]) * sgn
-            if np.dot(new_no, no) < np.cos(np.radians(20.0)):
-                break
-            e, no = e1, new_no
-            pts[int(sgn) * k] = (e, no)
-    keys = sorted(pts)
-    if len(keys) < 3:
-        return None
-    edge = np.array([pts[k][0] for k in keys])
-    nrm = np.array([pts[k][1] for k in keys])
-    return edge, float(np.arctan2(t[1], t[0])), nrm, width
+    m = pr.march(seeds, np.stack([phi, phi + np.pi], 1))
+    width = m.dist_m.sum(axis=1)
+    good = m.found.all(axis=1)
+    e0 = m.edge_xy[:, 0]
+    n0 = unit(phi)
+    # walkers: 2 per seed (sgn +1 / -1)
+    sgn = np.concatenate([np.ones(P), -np.ones(P)])
+    e = np.concatenate([e0, e0])
+    no = np.concatenate([n0, n0])
+    active = np.concatenate([good, good])
+    trail = [[(e[w].copy(), no[w].copy())] for w in range(2 * P)]
+    for _ in range(max_steps):
+        ai = np.flatnonzero(active)
+        if not len(ai):
+            break
+        tt = np.stack([-no[ai, 1], no[ai, 0]], 1) * sgn[ai, None]
+        q = e[ai] + tt * step - no[ai] * 2.0  # 2 m inside the road
+        a1 = np.arctan2(no[ai, 1], no[ai, 0])
+        mm = pr.march(q, np.stack([a1, a1 - sgn[ai] * np.radians(10.0)], 1), max_distance_m=6.0)
+        e1, e2 = mm.edge_xy[:, 0], mm.edge_xy[:, 1]
+        d = e2 - e1
+        dn = np.linalg.norm(d, axis=1)
+        d = d / np.where(dn > 1e-9, dn, 1.0)[:, None]
+        new_no = np.stack([-d[:, 1], d[:, 0]], 1) * sgn[ai, None]
+        ok = (mm.found.all(axis=1) & (np.abs(mm.dist_m[:, 0] - 2.0) <= 0.5) & (dn > 1e-6)
+              & ((new_no * no[ai]).sum(axis=1) >= np.cos(np.radians(20.0))))
+        active[ai[~ok]] = False
+        go = ai[ok]
+        e[go], no[go] = e1[ok], new_no[ok]
+        for w in go:
+            trail[w].append((e[w].copy(), no[w].copy()))
+    for p in range(P):
+        if not good[p]:
+            continue
+        pts = trail[P + p][::-1] + trail[p][1:]  # backward walk reversed, then forward
+        if len(pts) < 3:
+            continue
+        yield (np.array([t[0] for t in pts]), np.array([t[1] for t in pts]), float(width[p]))
 
 
-def _kerb_free(rs, road_lut, bays, n_out, edge, cfg) -> np.ndarray:
+def _kerb_free(rs, road_lut, bays, n_out, cfg) -> np.ndarray:
     """(n,) bool: nothing beyond the kerb beside the bay or within kerb_clear_m of it is
     road (junction) or parking (driveway); no lane marking crosses the bay; the bay is road."""
     n = len(bays)
@@ -407,6 +407,7 @@ def fill_bays(sites: list, cfg: ParkingConfig, catalog, rng: np.random.Generator
     bw = np.empty(N)
     bl = np.empty(N)
     angle = np.empty(N)
+    out_m = np.empty(N)
     for k, site in enumerate(sites):
         sel = si == k
         if not sel.any():
@@ -416,6 +417,7 @@ def fill_bays(sites: list, cfg: ParkingConfig, catalog, rng: np.random.Generator
         cy[sel] = bb.centre_xy[bi[sel], 1]
         axis[sel] = bb.axis_rad[bi[sel]]
         bw[sel], bl[sel], angle[sel] = bb.width_m, bb.length_m, bb.angle_deg
+        out_m[sel] = STICK_OUT_M if site.kind == "lot" else 0.0  # kerb cars stay off the kerb
     # vehicles: class mix among those that fit
     tables = {False: _mix_table(catalog, cfg.mix, "parking.mix"),
               True: _mix_table(catalog, cfg.depot_mix, "parking.depot_mix")}
@@ -451,7 +453,7 @@ def fill_bays(sites: list, cfg: ParkingConfig, catalog, rng: np.random.Generator
     for _ in range(8):
         ext_l = L / 2 * np.cos(dth) + W / 2 * np.abs(np.sin(dth)) + np.abs(lon)
         ext_w = L / 2 * np.abs(np.sin(dth)) + W / 2 * np.cos(dth) + np.abs(lat)
-        bad = (ext_l > bl / 2 + STICK_OUT_M - 1e-6) | (ext_w > bw / 2 + STICK_OUT_M - 1e-6)
+        bad = (ext_l > bl / 2 + out_m - 1e-6) | (ext_w > bw / 2 + out_m - 1e-6)
         if not bad.any():
             break
         dth[bad] *= 0.5
