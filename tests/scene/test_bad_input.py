@@ -327,3 +327,26 @@ def test_read_only_output_folder(cli_main, capsys, tmp_path):
         assert "not writable" in _one_error_line(capsys)
     finally:
         ro.chmod(0o755)
+
+
+@pytest.mark.parametrize("cmd", ["place", "render", "export"])
+def test_scene_seed_on_every_command(capsys, tmp_path, cmd):
+    from aerial_synth.cli import main
+
+    out = tmp_path / "out"
+    assert main([cmd, "--scene-seed", "-1", "--out", str(out)]) == 2
+    line = _one_error_line(capsys)
+    assert line.startswith(f"aerial-synth {cmd}: --scene-seed: expected a non-negative integer, "
+                           f"got '-1'"), line
+    assert not out.exists()
+
+
+def test_float32_far_glb_warns_in_one_line(cli_main, capsys, tmp_path):
+    v, f = quad_yup(500_000 - 20, 500_000 + 20, 5_300_000 - 4, 5_300_000 + 4)
+    glb = write_glb(tmp_path / "baked.glb", [("road", v, f, None)])
+    out = tmp_path / "m.png"
+    assert cli_main(["scene", "show", str(glb), "--out", str(out), "--m-per-px", "0.5"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"aerial-synth: warning: scene file {glb}: "
+                                               "vertex coordinates up to 5300004 m"), err
+    assert out.stat().st_size > 0

@@ -257,3 +257,21 @@ def test_shifted_city_park_1000_vehicles(city_park_files, kind):
     _, pb = _place(b, 1000)
     assert len(pa.vehicles) == 1000
     _compare_placements(pa, pb, b.origin, SHIFT)
+
+
+def test_ascii_ply_keeps_full_precision(tmp_path):
+    """An ASCII PLY (one object, named after the file, z-up) with UTM-sized text coordinates
+    recentres with its fractional millimetres intact."""
+    x0, y0 = 512_345.6789, 5_312_345.4321
+    v = np.array([[x0, y0, 1.5], [x0 + 40, y0, 1.5], [x0 + 40, y0 + 8, 1.5], [x0, y0 + 8, 1.5]])
+    head = ("ply\nformat ascii 1.0\nelement vertex 4\nproperty double x\nproperty double y\n"
+            "property double z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n")
+    body = "".join(f"{a:.4f} {b:.4f} {c:.4f}\n" for a, b, c in v) + "3 0 1 2\n3 0 2 3\n"
+    ply = tmp_path / "road_utm.ply"
+    ply.write_text(head + body)
+    sc = load_scene(ply)
+    assert sc.origin == (512_000.0, 5_312_000.0, 0.0)
+    (o,) = sc.objects
+    assert o.label == "road"
+    assert np.allclose(o.vertices, v - np.array(sc.origin), atol=1e-9, rtol=0)
+    assert np.allclose(sc.to_original(o.vertices), v, atol=1e-9, rtol=0)
