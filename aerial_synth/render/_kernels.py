@@ -114,9 +114,12 @@ def surface(
 
 
 @njit(**_OPTS)
-def gather_shadow_rays(own, rays, t, normal, light, peel):  # pragma: no cover - compiled
+def gather_shadow_rays(own, rays, t, normal, light, peel, disk, seed):  # pragma: no cover
     """(k,) pixel indices with ``own`` and their (k, 6) shadow rays towards ``light``,
-    starting ``peel`` metres off the surface along its normal."""
+    starting ``peel`` metres off the surface along its normal. ``disk`` (2, 3): two vectors
+    spanning the sun's disk (perpendicular to ``light``, length tan(angular radius)); each
+    ray aims at a point of the disk drawn uniformly from a hash of (seed, pixel index), so
+    shadow edges get a penumbra as wide as the occluder's distance x the disk's angle."""
     n = own.shape[0]
     k = 0
     for i in range(n):
@@ -124,14 +127,25 @@ def gather_shadow_rays(own, rays, t, normal, light, peel):  # pragma: no cover -
             k += 1
     idx = np.empty(k, np.int64)
     out = np.empty((k, 6), np.float32)
+    golden = np.uint64(0x9E3779B97F4A7C15)
+    soft = disk[0, 0] != 0 or disk[0, 1] != 0 or disk[0, 2] != 0
     j = 0
     for i in range(n):
         if own[i]:
             idx[j] = i
             ti = t[i]
-            for a in range(3):
-                out[j, a] = rays[i, a] + ti * rays[i, 3 + a] + peel * normal[i, a]
-                out[j, 3 + a] = light[a]
+            a = np.float32(0.0)
+            b = np.float32(0.0)
+            if soft:
+                z = _mix64(seed + np.uint64(i + 1) * golden)
+                u1 = np.float32((z >> np.uint64(40)) * (1.0 / 16777216.0))
+                u2 = np.float32(((z >> np.uint64(16)) & np.uint64(0xFFFFFF)) * (1.0 / 16777216.0))
+                rr = np.sqrt(u1)
+                a = rr * np.cos(np.float32(2.0 * np.pi) * u2)
+                b = rr * np.sin(np.float32(2.0 * np.pi) * u2)
+            for q in range(3):
+                out[j, q] = rays[i, q] + ti * rays[i, 3 + q] + peel * normal[i, q]
+                out[j, 3 + q] = light[q] + a * disk[0, q] + b * disk[1, q]
             j += 1
     return idx, out
 
@@ -154,13 +168,19 @@ def spread_shadow(h, w, step, own, ndl, idx, occ, lit):  # pragma: no cover - co
 
 @njit(parallel=True, **_OPTS)
 def compose(
-    h, w, rays, t, face, normal, depth, ndl, lit, has_lit, face_material, face_albedo, tiles,
-    textured, fine_t, coarse_t, dry_t, wetk_t, spec_t, shine_t, f0_t, wet, light, sun_rgb,
-    sky_rgb, miss_rgb, veil_rgb, e_sun, e_sky, spec_dim, haze, inv_alt, vignetting, lut, out,
+    h, w, rays, t, face, normal, depth, ndl, lit, has_lit, ao, has_ao, face_material,
+    face_albedo, mat_gain, tiles, textured, fine_t, coarse_t, dry_t, wetk_t, spec_t, shine_t,
+    f0_t, wet,
+    light, sun_rgb, sky_rgb, miss_rgb, veil_rgb, e_sun, e_sky, spec_dim, haze, inv_alt,
+    vignetting, out,
 ):  # pragma: no cover - compiled
-    """Albedo with procedural texture and wetness, light, specular + sky reflection, haze,
-    vignetting and tone curve -> ``out`` (h, w, 3) uint8. ``sun_rgb`` / ``sky_rgb`` /
-    ``veil_rgb`` already include the camera gain."""
+    """Albedo (per-face, times the frame's per-material RGB gain ``mat_gain`` (m, 3)) with
+    procedural texture and wetness, light (sun x shadow, sky x ambient occlusion), specular + sky reflection, haze and vignetting -> ``out`` (h, w, 3) float32
+    linear radiance (tone mapping is :func:`tone`).
+
+    Haze: transmission (1 - haze) ** (path / altitude) along the pixel's ray (longer, more
+    hazy paths towards the edges of a tilted view) and a veil ``veil_rgb`` brighter
+    towards the sun (a simple forward-scattering phase term)."""
     lx, ly, lz = light[0], light[1], light[2]
     one = np.float32(1.0)
     zero = np.float32(0.0)
@@ -168,26 +188,34 @@ def compose(
     t1 = tiles[1]
     t2 = tiles[2]
     dry_r, dry_g, dry_b = np.float32(0.42), np.float32(0.36), np.float32(0.20)
+    log_clear = np.float32(np.log(max(one - haze, np.float32(1e-3))))
     for r in prange(h):
         vy = (np.float32(r) + np.float32(0.5) - np.float32(h) / 2) / (np.float32(h) / 2)
         for c in range(w):
             i = r * w + c
             trans = one
             hz = zero
+            dx_, dy_, dz_ = rays[i, 3], rays[i, 4], rays[i, 5]
+            dn = np.sqrt(dx_ * dx_ + dy_ * dy_ + dz_ * dz_)
             if haze > 0:
-                hz = haze * min(max(depth[i] * inv_alt, np.float32(0.7)), np.float32(1.4))
-                trans = one - hz
+                ti = t[i]
+                path = ti * dn * inv_alt if ti < np.float32(1e30) else np.float32(1.6)
+                path = min(max(path, np.float32(0.3)), np.float32(3.0))
+                trans = np.float32(np.exp(log_clear * path))
+                hz = (one - trans) * (one + np.float32(0.4) * (dx_ * lx + dy_ * ly + dz_ * lz)
+                                      / dn)
+            vig = one
             if vignetting > 0:
                 vx = (np.float32(c) + np.float32(0.5) - np.float32(w) / 2) / (np.float32(w) / 2)
-                trans *= one - vignetting * np.float32(0.5) * (vy * vy + vx * vx)
+                vig = one - vignetting * np.float32(0.5) * (vy * vy + vx * vx)
             f = face[i]
             if f < 0:
                 cr, cg, cb = miss_rgb[0], miss_rgb[1], miss_rgb[2]
             else:
                 m = face_material[f]
-                ar = face_albedo[f, 0]
-                ag = face_albedo[f, 1]
-                ab = face_albedo[f, 2]
+                ar = face_albedo[f, 0] * mat_gain[m, 0]
+                ag = face_albedo[f, 1] * mat_gain[m, 1]
+                ab = face_albedo[f, 2] * mat_gain[m, 2]
                 nc = zero
                 if textured:
                     qx, qy = _tex_coords(rays, t, i)
@@ -221,24 +249,21 @@ def compose(
                     ag *= g
                     ab *= g
                     sk += np.float32(0.5) * wk
-                    f0 += np.float32(0.04) * wk + np.float32(0.06) * pud
+                    f0 += np.float32(0.04) * wk + np.float32(0.3) * pud
                     if wk > 0:
                         shine = np.float32(60.0)
                 li = lit[i] if has_lit else one
+                occ = ao[i] if has_ao else one
                 nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
                 s_sun = e_sun * ndl[i] * li * trans
-                s_sky = e_sky * (np.float32(0.55) + np.float32(0.45) * nz) * trans
+                s_sky = e_sky * (np.float32(0.55) + np.float32(0.45) * nz) * occ * trans
                 cr = ar * (s_sun * sun_rgb[0] + s_sky * sky_rgb[0])
                 cg = ag * (s_sun * sun_rgb[1] + s_sky * sky_rgb[1])
                 cb = ab * (s_sun * sun_rgb[2] + s_sky * sky_rgb[2])
                 if sk > 0 or f0 > 0:
-                    vx_ = -rays[i, 3]
-                    vy_ = -rays[i, 4]
-                    vz_ = -rays[i, 5]
-                    vn = np.sqrt(vx_ * vx_ + vy_ * vy_ + vz_ * vz_)
-                    vx_ /= vn
-                    vy_ /= vn
-                    vz_ /= vn
+                    vx_ = -dx_ / dn
+                    vy_ = -dy_ / dn
+                    vz_ = -dz_ / dn
                     hx, hy, hz_ = vx_ + lx, vy_ + ly, vz_ + lz
                     hn = np.sqrt(hx * hx + hy * hy + hz_ * hz_)
                     ndh = (nx * hx + ny * hy + nz * hz_) / hn
@@ -249,7 +274,9 @@ def compose(
                     if f0 > 0:
                         fres = f0 + (one - f0) * (one - ndv) ** 5
                     a = sp * np.float32(1.5) * trans
-                    b = fres * np.float32(0.9) * trans
+                    # sky radiance in the units of the diffuse terms: e_sky x sky colour
+                    b = fres * np.float32(1.2) * e_sky * trans * (
+                        np.float32(0.4) + np.float32(0.6) * occ)
                     cr += a * sun_rgb[0] + b * sky_rgb[0]
                     cg += a * sun_rgb[1] + b * sky_rgb[1]
                     cb += a * sun_rgb[2] + b * sky_rgb[2]
@@ -257,19 +284,170 @@ def compose(
                 cr += hz * veil_rgb[0]
                 cg += hz * veil_rgb[1]
                 cb += hz * veil_rgb[2]
-            out[r, c, 0] = lut[_q12(cr)]
-            out[r, c, 1] = lut[_q12(cg)]
-            out[r, c, 2] = lut[_q12(cb)]
+            out[r, c, 0] = cr * vig
+            out[r, c, 1] = cg * vig
+            out[r, c, 2] = cb * vig
+
+
+@njit(parallel=True, **_OPTS)
+def tone(lin, gains, saturation, lut, out):  # pragma: no cover - compiled
+    """Camera rendering of linear radiance ``lin`` (h, w, 3) float32 -> ``out`` uint8:
+    per-channel gain (exposure x white balance), saturation about the luma (ITU-R 601
+    weights, so gray is kept), then the tone look-up table ``lut`` (m,) uint8 indexed by
+    value x ``LUT_SCALE`` (values past its end saturate)."""
+    h, w, _ = lin.shape
+    m = lut.shape[0] - 1
+    s = np.float32(LUT_SCALE)
+    for r in prange(h):
+        for c in range(w):
+            cr = lin[r, c, 0] * gains[0]
+            cg = lin[r, c, 1] * gains[1]
+            cb = lin[r, c, 2] * gains[2]
+            y = np.float32(0.299) * cr + np.float32(0.587) * cg + np.float32(0.114) * cb
+            cr = y + saturation * (cr - y)
+            cg = y + saturation * (cg - y)
+            cb = y + saturation * (cb - y)
+            out[r, c, 0] = lut[_qlut(cr * s, m)]
+            out[r, c, 1] = lut[_qlut(cg * s, m)]
+            out[r, c, 2] = lut[_qlut(cb * s, m)]
+
+
+LUT_SCALE = 4096.0  # look-up table entries per unit of exposed linear value
 
 
 @njit(inline="always")
-def _q12(v):  # pragma: no cover - compiled
-    x = v * np.float32(1024.0)
+def _qlut(x, m):  # pragma: no cover - compiled
     if not x > 0:  # also NaN
         return 0
-    if x >= np.float32(4095.0):
-        return 4095
+    if x >= np.float32(m):
+        return m
     return np.int64(x)
+
+
+@njit(parallel=True, **_OPTS)
+def gather_ao_rays(h, w, step, rays, t, normal, face, n_dirs, peel, seed):  # pragma: no cover
+    """Ambient-occlusion probes: one sample pixel per step x step block (its centre) that
+    hit something casts ``n_dirs`` cosine-weighted rays over the hemisphere of its normal,
+    stratified in azimuth with a per-block rotation from a hash of (seed, block index).
+    Returns block index (k,) int64 of each sample and rays (k * n_dirs, 6) float32, in
+    block order (rows of blocks in parallel, each written at its prefix-sum offset)."""
+    bh = (h + step - 1) // step
+    bw = (w + step - 1) // step
+    per_row = np.zeros(bh + 1, np.int64)
+    for br in prange(bh):
+        r = min(br * step + step // 2, h - 1)
+        k = 0
+        for bc in range(bw):
+            c = min(bc * step + step // 2, w - 1)
+            if face[r * w + c] >= 0:
+                k += 1
+        per_row[br + 1] = k
+    for br in range(bh):
+        per_row[br + 1] += per_row[br]
+    k = per_row[bh]
+    blocks = np.empty(k, np.int64)
+    out = np.empty((k * n_dirs, 6), np.float32)
+    golden = np.uint64(0x9E3779B97F4A7C15)
+    s = np.uint64(seed)
+    two_pi = np.float32(2.0 * np.pi)
+    for br in prange(bh):
+        r = min(br * step + step // 2, h - 1)
+        j = per_row[br]
+        for bc in range(bw):
+            c = min(bc * step + step // 2, w - 1)
+            i = r * w + c
+            if face[i] < 0:
+                continue
+            b = br * bw + bc
+            blocks[j] = b
+            nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
+            # tangent frame around the normal
+            if abs(nz) < np.float32(0.9):
+                ux, uy, uz = -ny, nx, np.float32(0.0)
+            else:
+                ux, uy, uz = np.float32(0.0), -nz, ny
+            un = np.sqrt(ux * ux + uy * uy + uz * uz)
+            ux /= un
+            uy /= un
+            uz /= un
+            vx = ny * uz - nz * uy
+            vy = nz * ux - nx * uz
+            vz = nx * uy - ny * ux
+            ti = t[i]
+            px = rays[i, 0] + ti * rays[i, 3] + peel * nx
+            py = rays[i, 1] + ti * rays[i, 4] + peel * ny
+            pz = rays[i, 2] + ti * rays[i, 5] + peel * nz
+            z = _mix64(s + np.uint64(b + 1) * golden)
+            rot = np.float32((z >> np.uint64(40)) * (1.0 / 16777216.0))
+            for d in range(n_dirs):
+                z2 = _mix64(z + np.uint64(d + 1) * golden)
+                u1 = np.float32(((z2 >> np.uint64(40)) + 0.5) * (1.0 / 16777216.0))
+                phi = two_pi * ((np.float32(d) + rot) / np.float32(n_dirs))
+                sr = np.sqrt(u1)  # cosine-weighted: sin(theta) = sqrt(u)
+                cz = np.sqrt(np.float32(1.0) - u1)
+                a = sr * np.cos(phi)
+                bb = sr * np.sin(phi)
+                row = j * n_dirs + d
+                out[row, 0] = px
+                out[row, 1] = py
+                out[row, 2] = pz
+                out[row, 3] = a * ux + bb * vx + cz * nx
+                out[row, 4] = a * uy + bb * vy + cz * ny
+                out[row, 5] = a * uz + bb * vz + cz * nz
+            j += 1
+    return blocks, out
+
+
+@njit(parallel=True, **_OPTS)
+def spread_ao(h, w, step, blocks, occ, n_dirs, semantic, depth, ao):  # pragma: no cover
+    """``ao`` (n,) float32: unoccluded fraction of the sky hemisphere per pixel, bilinear
+    between the four nearest block samples that lie on the same surface (same label, depth
+    within 0.3 m + 5 %), else the pixel's own block sample; 1 where none applies."""
+    bh = (h + step - 1) // step
+    bw = (w + step - 1) // step
+    low = np.full(bh * bw, np.float32(-1.0))
+    for j in prange(blocks.shape[0]):
+        cnt = 0
+        for d in range(n_dirs):
+            if occ[j * n_dirs + d]:
+                cnt += 1
+        low[blocks[j]] = np.float32(1.0) - np.float32(cnt) / np.float32(n_dirs)
+    half = step // 2
+    for r in prange(h):
+        fr = (np.float32(r) - np.float32(half)) / np.float32(step)
+        br0 = min(max(np.int64(np.floor(fr)), 0), bh - 1)
+        br1 = min(br0 + 1, bh - 1)
+        wr = min(max(fr - np.float32(br0), np.float32(0.0)), np.float32(1.0))
+        for c in range(w):
+            i = r * w + c
+            fc = (np.float32(c) - np.float32(half)) / np.float32(step)
+            bc0 = min(max(np.int64(np.floor(fc)), 0), bw - 1)
+            bc1 = min(bc0 + 1, bw - 1)
+            wc = min(max(fc - np.float32(bc0), np.float32(0.0)), np.float32(1.0))
+            acc = np.float32(0.0)
+            wsum = np.float32(0.0)
+            for q in range(4):
+                bri = br0 if q < 2 else br1
+                bci = bc0 if q % 2 == 0 else bc1
+                wq = (wr if q >= 2 else np.float32(1.0) - wr) * (
+                    wc if q % 2 == 1 else np.float32(1.0) - wc)
+                v = low[bri * bw + bci]
+                if v < 0 or wq <= 0:
+                    continue
+                sr = min(bri * step + half, h - 1)
+                sc = min(bci * step + half, w - 1)
+                si = sr * w + sc
+                if semantic[si] != semantic[i]:
+                    continue
+                if abs(depth[si] - depth[i]) > np.float32(0.3) + np.float32(0.05) * depth[i]:
+                    continue
+                acc += wq * v
+                wsum += wq
+            if wsum > 0:
+                ao[i] = acc / wsum
+            else:
+                v = low[(r // step) * bw + c // step]
+                ao[i] = v if v >= 0 else np.float32(1.0)
 
 
 @njit(inline="always")
@@ -281,19 +459,27 @@ def _mix64(z):  # pragma: no cover - compiled
 
 
 @njit(parallel=True, **_OPTS)
-def add_noise(img, seed, scale, quantiles):  # pragma: no cover - compiled
-    """In place: ``img`` (h, w, 3) uint8 += trunc(scale * z), saturated to [0, 255], the
-    same z for the three channels of a pixel. z is standard normal: the pixel's hash of
-    (seed, pixel index) picks one of the 2^16 equal-probability ``quantiles`` (the normal
-    inverse CDF at (k + 0.5) / 2^16). Counter-based, so any thread count gives the same
-    image."""
+def add_noise(img, seed, scale, shot, quantiles):  # pragma: no cover - compiled
+    """In place: ``img`` (h, w, 3) uint8 += trunc(sigma * z), saturated to [0, 255], the
+    same z for the three channels of a pixel, sigma = sqrt(scale^2 + shot^2 * v / 255) with v
+    the pixel's mean value (read noise plus photon noise that grows with brightness). z is
+    standard normal: the pixel's hash of (seed, pixel index) picks one of the 2^16
+    equal-probability ``quantiles`` (the normal inverse CDF at (k + 0.5) / 2^16).
+    Counter-based, so any thread count gives the same image."""
     h, w, _ = img.shape
     golden = np.uint64(0x9E3779B97F4A7C15)
     s = np.uint64(seed)
+    s2 = scale * scale
+    k2 = shot * shot / np.float32(255.0 * 3.0)
     for r in prange(h):
         for c in range(w):
             z = _mix64(s + np.uint64(r * w + c + 1) * golden)
-            d = np.int32(quantiles[np.int64(z >> np.uint64(48))] * scale)
+            sig = scale
+            if shot > 0:
+                v = np.float32(np.int32(img[r, c, 0]) + np.int32(img[r, c, 1])
+                               + np.int32(img[r, c, 2]))
+                sig = np.sqrt(s2 + k2 * v)
+            d = np.int32(quantiles[np.int64(z >> np.uint64(48))] * sig)
             for ch in range(3):
                 v = np.int32(img[r, c, ch]) + d
                 img[r, c, ch] = 0 if v < 0 else (255 if v > 255 else v)

@@ -17,21 +17,29 @@ import time
 __all__ = ["register", "add_camera_args", "camera_config_from_args", "run"]
 
 PLACEMENT_KEY = 0x504C  # "PL"
+MAX_IMAGE_PX = 16384
 
 
 def add_camera_args(p: argparse.ArgumentParser) -> None:
     """Camera options shared by commands that render."""
+    from ..validators import arg_float, arg_int
+
     g = p.add_argument_group("camera")
-    g.add_argument("--altitude", type=float, default=60.0, metavar="M",
+    g.add_argument("--altitude", type=arg_float("--altitude", 0.0, 100_000.0, lo_open=True),
+                   default=60.0, metavar="M",
                    help="camera height above the target ground, metres (default 60)")
-    g.add_argument("--width", type=int, default=1024, metavar="PX", help="image width (1024)")
-    g.add_argument("--height", type=int, default=1024, metavar="PX", help="image height (1024)")
-    g.add_argument("--gsd", type=float, default=None, metavar="M",
-                   help="ground sampling distance at nadir, m/px (default 0.12)")
-    g.add_argument("--focal", type=float, default=None, metavar="PX", help="focal length, px")
-    g.add_argument("--fov", type=float, default=None, metavar="DEG",
-                   help="horizontal field of view, degrees")
-    g.add_argument("--max-tilt", type=float, default=15.0, metavar="DEG",
+    g.add_argument("--width", type=arg_int("--width", 1, MAX_IMAGE_PX), default=1024,
+                   metavar="PX", help="image width (1024)")
+    g.add_argument("--height", type=arg_int("--height", 1, MAX_IMAGE_PX), default=1024,
+                   metavar="PX", help="image height (1024)")
+    g.add_argument("--gsd", type=arg_float("--gsd", 0.0, 1000.0, lo_open=True), default=None,
+                   metavar="M", help="ground sampling distance at nadir, m/px (default 0.12)")
+    g.add_argument("--focal", type=arg_float("--focal", 0.0, 1e7, lo_open=True), default=None,
+                   metavar="PX", help="focal length, px")
+    g.add_argument("--fov", type=arg_float("--fov", 0.0, 180.0, lo_open=True, hi_open=True),
+                   default=None, metavar="DEG", help="horizontal field of view, degrees")
+    g.add_argument("--max-tilt", type=arg_float("--max-tilt", 0.0, 89.0, hi_open=True),
+                   default=15.0, metavar="DEG",
                    help="tilt off nadir ~ U[-max, max] (default 15; must be < 89)")
 
 
@@ -46,6 +54,7 @@ def camera_config_from_args(args):
 
 def register(sub) -> None:
     from ..scene.cli import add_scene_args
+    from ..validators import arg_choice, arg_float, arg_int
 
     p = sub.add_parser(
         "render",
@@ -58,37 +67,42 @@ def register(sub) -> None:
     p.add_argument("--scenario", default="jam", metavar="NAME|FILE",
                    help="traffic scenario: a bundled name (listed by 'aerial-synth place --help') "
                    "or a YAML file (jam)")
-    p.add_argument("--vehicles", type=int, default=None, metavar="N",
-                   help="vehicles to place (default: the scenario's)")
-    p.add_argument("--images", type=int, default=1, metavar="N", help="frames to render (1)")
-    p.add_argument("--seed", type=int, default=0, metavar="S", help="run seed (0)")
+    p.add_argument("--vehicles", type=arg_int("--vehicles", 1, 10_000_000), default=None,
+                   metavar="N", help="vehicles to place (default: the scenario's)")
+    p.add_argument("--images", type=arg_int("--images", 1, 10_000_000), default=1, metavar="N",
+                   help="frames to render (1)")
+    p.add_argument("--seed", type=arg_int("--seed", 0, 2**63 - 1), default=0, metavar="S",
+                   help="run seed (0)")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
-    p.add_argument("--sampler", choices=("targeted", "grid"), default="targeted",
+    p.add_argument("--sampler", type=arg_choice("--sampler", ("targeted", "grid")),
+                   default="targeted",
                    help="camera poses: near a random vehicle, or survey tiles (targeted)")
-    p.add_argument("--overlap", type=float, default=0.2, metavar="F",
-                   help="grid sampler tile overlap fraction (0.2)")
+    p.add_argument("--overlap", type=arg_float("--overlap", 0.0, 1.0, hi_open=True),
+                   default=0.2, metavar="F",
+                   help="grid sampler tile overlap fraction in [0, 1) (0.2)")
     p.add_argument("--placement-per-image", action="store_true",
                    help="a new placement for every image (default: one per run)")
-    p.add_argument("--depth-format", choices=("npy", "png"), default="npy",
+    p.add_argument("--depth-format", type=arg_choice("--depth-format", ("npy", "png")),
+                   default="npy",
                    help="depth as float32 metres .npy or 16-bit centimetre PNG (npy)")
-    p.add_argument("--backend", choices=("raycast", "pyrender"), default="raycast",
-                   help="RGB backend (labels always come from ray casting)")
+    p.add_argument("--backend", type=arg_choice("--backend", ("raycast", "pyrender")),
+                   default="raycast", help="RGB backend (labels always come from ray casting)")
+    p.add_argument("--preset", type=arg_choice("--preset", ("full", "fast")), default="full",
+                   help="shading preset: full (every realism factor) or fast (no ambient "
+                   "occlusion or sun-disk sampling, coarser shadow rays) (full)")
+    p.add_argument("--randomise", type=arg_choice("--randomise", ("none", "textures")),
+                   default="none",
+                   help="domain randomisation: textures = random material, sun and sky "
+                   "colours (Tobin et al. 2017), a style to mix with realistic frames (none)")
     p.add_argument("--no-shadows", action="store_true", help="skip shadow rays")
-    p.add_argument("--jpeg-probability", type=float, default=None, metavar="P",
-                   help="probability of JPEG artefacts per frame (0.5)")
+    p.add_argument("--jpeg-probability", type=arg_float("--jpeg-probability", 0.0, 1.0),
+                   default=None, metavar="P",
+                   help="probability of JPEG artefacts per frame (0.6)")
     add_camera_args(p)
     p.set_defaults(func=run)
 
 
 def _check_args(args) -> None:
-    from ..errors import ConfigError
-
-    if args.images < 1:
-        raise ConfigError(f"--images: expected a positive integer, got {args.images}")
-    if args.seed < 0:
-        raise ConfigError(f"--seed: expected a non-negative integer, got {args.seed}")
-    if args.vehicles is not None and args.vehicles < 1:
-        raise ConfigError(f"--vehicles: expected a positive integer, got {args.vehicles}")
     from ..placement import load_scenario
 
     # the one list of bundled scenarios (placement.SCENARIOS) or a .yaml file, every field checked
@@ -96,12 +110,10 @@ def _check_args(args) -> None:
 
 
 def run(args) -> int:
-    from pathlib import Path
-
     import numpy as np
 
     from ..camera import grid_poses, sample_pose_targeted
-    from ..io_utils import atomic_write_text
+    from ..io_utils import atomic_write_text, check_output_dir
     from ..placement import place
     from ..scene.cli import scene_from_args
     from ..scene.raycast import RayScene
@@ -110,20 +122,28 @@ def run(args) -> int:
     from .shading import RenderConfig
     from .world import add_placement
 
-    cam_cfg = camera_config_from_args(args)  # validate cheap things before loading anything
-    kw = {"backend": args.backend, "shadows": not args.no_shadows}
+    # validate everything cheap before loading or writing anything
+    cam_cfg = camera_config_from_args(args)
+    kw = {"backend": args.backend, "shadows": not args.no_shadows,
+          "randomise": args.randomise}
     if args.jpeg_probability is not None:
         kw["jpeg_probability"] = args.jpeg_probability
-    rcfg = RenderConfig(**kw)
+    rcfg = RenderConfig.preset(args.preset, **kw)
     _check_args(args)
+    out = check_output_dir(args.out, "--out")
     if args.backend == "pyrender":
         from .pyrender_backend import check_available
 
         check_available()
     t0 = time.perf_counter()
     scene = scene_from_args(args)
+    grid = None
+    if args.sampler == "grid":  # before any write: a bad grid leaves nothing behind
+        b = scene.bounds()
+        lows = [o.vertices[:, 2].min() for o in scene.objects if len(o.vertices)]
+        gz = float(np.median(lows)) if lows else 0.0
+        grid = grid_poses(cam_cfg, b[:, :2], overlap=args.overlap, ground_z=gz)
     rs = RayScene(scene)
-    out = Path(args.out)
 
     def make_placement(key):
         rng = np.random.default_rng(np.random.SeedSequence(key))
@@ -137,12 +157,6 @@ def run(args) -> int:
     if not args.placement_per_image:
         placement = make_placement([args.seed, PLACEMENT_KEY])
         atomic_write_text(out / "placement.json", placement.to_json())
-    grid = None
-    if args.sampler == "grid":
-        b = scene.bounds()
-        lows = [o.vertices[:, 2].min() for o in scene.objects if len(o.vertices)]
-        gz = float(np.median(lows)) if lows else 0.0
-        grid = grid_poses(cam_cfg, b[:, :2], overlap=args.overlap, ground_z=gz)
     n_veh = 0
     for i in range(args.images):
         if args.placement_per_image:

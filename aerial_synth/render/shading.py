@@ -36,27 +36,46 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..scene.model import MATERIAL_IDS, MATERIALS
+from ..validators import boolean, in_range, integer, known_keys, one_of, probability
 
-__all__ = ["RenderConfig", "sample_factors", "shade", "sun_direction"]
+__all__ = ["RenderConfig", "PRESETS", "sample_factors", "shade", "sun_direction",
+           "solve_tone", "tone_lut"]
 
 
-def _range(name: str, value, lo: float, hi: float) -> tuple[float, float]:
-    try:
-        a, b = (float(v) for v in value)
-    except (TypeError, ValueError):
-        raise ConfigError(f"render config {name}: expected (low, high), got {value!r}") from None
-    if not (math.isfinite(a) and math.isfinite(b) and lo <= a <= b <= hi):
-        raise ConfigError(
-            f"render config {name}: expected {lo:g} <= low <= high <= {hi:g}, got ({a:g}, {b:g})"
-        )
+def _pair(name: str, value, lo: float, hi: float) -> tuple[float, float]:
+    """A (low, high) range within [lo, hi], low <= high."""
+    field = f"render config {name}"
+    expected = f"(low, high) with {lo:g} <= low <= high <= {hi:g}"
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:
+        raise ConfigError(f"{field}: expected {expected}, got {value!r}")
+    a = in_range(f"{field} low", value[0], lo, hi)
+    b = in_range(f"{field} high", value[1], lo, hi)
+    if a > b:
+        raise ConfigError(f"{field}: expected {expected}, got ({a:g}, {b:g})")
     return (a, b)
 
 
-def _prob(name: str, value) -> float:
-    v = float(value)
-    if not 0.0 <= v <= 1.0:
-        raise ConfigError(f"render config {name}: expected a probability in [0, 1], got {value!r}")
-    return v
+#: Named presets (keyword overrides of the defaults): ``full`` is every realism factor on
+#: (the default); ``fast`` drops ambient occlusion and the sun-disk sampling and casts one
+#: shadow ray per 3 x 3 block (see docs/rendering.md for the measured costs).
+PRESETS: dict[str, dict] = {
+    "full": {},
+    "fast": {"ambient_occlusion": False, "soft_shadows": False, "shadow_step": 3},
+}
+
+_PAIRS = {  # name: (lowest, highest) allowed
+    "sun_azimuth_deg": (0, 360), "sun_elevation_deg": (1, 90), "sun_radius_deg": (0, 5),
+    "haze": (0, 1), "haze_tint": (-1, 1), "overcast": (0, 1), "wet": (0, 1),
+    "key_gray": (5, 250), "contrast_cv": (0.01, 2), "contrast_sd_max": (1, 127),
+    "exposure": (0.05, 20), "tone_shoulder": (0, 4), "white_balance": (-1, 1),
+    "tint": (-0.5, 0.5), "saturation": (0, 3), "blur_sigma_px": (0, 10),
+    "chromatic_blur": (0, 2), "noise_sigma": (0, 0.5), "shot_noise": (0, 0.5),
+    "jpeg_quality": (1, 100), "vignetting": (0, 0.9), "asphalt_albedo": (0.05, 4),
+    "concrete_albedo": (0.05, 4), "ground_albedo": (0.05, 4),
+}
+#: ``randomise`` modes: "none" (realistic), "textures" (domain randomisation after Tobin et
+#: al. 2017: every material's colour, the light's colour and the sky's drawn at random)
+RANDOMISE = ("none", "textures")
 
 
 @dataclass(frozen=True)
@@ -64,48 +83,75 @@ class RenderConfig:
     """Ranges of the influence factors (each drawn uniformly per frame) and switches.
 
     A fixed value is a range with low == high, e.g. ``sun_elevation_deg=(40, 40)``.
-    overcast / wet / jpeg apply with their probability, then their strength is drawn.
+    overcast / wet / jpeg / grayscale apply with their probability, then their strength is
+    drawn. The spreads of the camera factors (key_gray, contrast, white balance, saturation,
+    JPEG quality) are chosen to match real aerial imagery: see docs/rendering.md.
+
+    exposure_mode "auto": the camera meters the frame's linear radiance and picks the
+    exposure gain that gives the drawn mean gray ``key_gray`` and the tone-curve power that
+    gives the drawn gray standard deviation min(contrast_cv x key_gray, contrast_sd_max);
+    "fixed": gain ``exposure`` and the display power 1 / 2.2 (a plain camera).
     """
 
     sun_azimuth_deg: tuple[float, float] = (0.0, 360.0)
     sun_elevation_deg: tuple[float, float] = (25.0, 70.0)
-    haze: tuple[float, float] = (0.0, 0.3)
+    sun_radius_deg: tuple[float, float] = (0.27, 1.0)
+    haze: tuple[float, float] = (0.0, 0.2)
+    haze_tint: tuple[float, float] = (-1.0, 1.0)
     overcast_probability: float = 0.25
     overcast: tuple[float, float] = (0.3, 1.0)
     wet_probability: float = 0.15
     wet: tuple[float, float] = (0.4, 1.0)
+    exposure_mode: str = "auto"
+    key_gray: tuple[float, float] = (48.0, 185.0)
+    contrast_cv: tuple[float, float] = (0.25, 0.55)
+    contrast_sd_max: tuple[float, float] = (32.0, 50.0)
     exposure: tuple[float, float] = (0.9, 1.1)
-    white_balance: tuple[float, float] = (-0.04, 0.04)
-    blur_sigma_px: tuple[float, float] = (0.4, 0.8)
-    noise_sigma: tuple[float, float] = (0.004, 0.012)
-    jpeg_probability: float = 0.5
-    jpeg_quality: tuple[float, float] = (70.0, 95.0)
-    vignetting: tuple[float, float] = (0.0, 0.15)
+    tone_shoulder: tuple[float, float] = (0.0, 0.6)
+    white_balance: tuple[float, float] = (-0.15, 0.15)
+    tint: tuple[float, float] = (-0.04, 0.04)
+    saturation: tuple[float, float] = (0.55, 1.1)
+    grayscale_probability: float = 0.1
+    blur_sigma_px: tuple[float, float] = (0.4, 0.9)
+    chromatic_blur: tuple[float, float] = (0.0, 0.35)
+    noise_sigma: tuple[float, float] = (0.002, 0.008)
+    shot_noise: tuple[float, float] = (0.01, 0.03)
+    jpeg_probability: float = 0.6
+    jpeg_quality: tuple[float, float] = (55.0, 95.0)
+    vignetting: tuple[float, float] = (0.0, 0.25)
+    asphalt_albedo: tuple[float, float] = (0.35, 1.3)
+    concrete_albedo: tuple[float, float] = (0.8, 1.15)
+    ground_albedo: tuple[float, float] = (0.75, 1.2)
+    randomise: str = "none"
     shadows: bool = True
+    soft_shadows: bool = True
+    shadow_step: int = 2
+    ambient_occlusion: bool = True
+    ao_step: int = 4
+    ao_rays: int = 4
+    ao_radius_m: float = 2.5
     texture: bool = True
     texture_seed: int = 0
     backend: str = "raycast"
 
     def __post_init__(self) -> None:
         s = object.__setattr__
-        s(self, "sun_azimuth_deg", _range("sun_azimuth_deg", self.sun_azimuth_deg, 0, 360))
-        s(self, "sun_elevation_deg", _range("sun_elevation_deg", self.sun_elevation_deg, 1, 90))
-        s(self, "haze", _range("haze", self.haze, 0, 1))
-        s(self, "overcast", _range("overcast", self.overcast, 0, 1))
-        s(self, "wet", _range("wet", self.wet, 0, 1))
-        s(self, "exposure", _range("exposure", self.exposure, 0.05, 20))
-        s(self, "white_balance", _range("white_balance", self.white_balance, -0.5, 0.5))
-        s(self, "blur_sigma_px", _range("blur_sigma_px", self.blur_sigma_px, 0, 10))
-        s(self, "noise_sigma", _range("noise_sigma", self.noise_sigma, 0, 0.5))
-        s(self, "jpeg_quality", _range("jpeg_quality", self.jpeg_quality, 1, 100))
-        s(self, "vignetting", _range("vignetting", self.vignetting, 0, 0.9))
-        for p in ("overcast_probability", "wet_probability", "jpeg_probability"):
-            s(self, p, _prob(p, getattr(self, p)))
-        if self.backend not in ("raycast", "pyrender"):
-            raise ConfigError(
-                f"render config backend: expected one of raycast, pyrender, got {self.backend!r}"
-            )
-        s(self, "texture_seed", int(self.texture_seed))
+        for name, (lo, hi) in _PAIRS.items():
+            s(self, name, _pair(name, getattr(self, name), lo, hi))
+        for p in ("overcast_probability", "wet_probability", "jpeg_probability",
+                  "grayscale_probability"):
+            s(self, p, probability(f"render config {p}", getattr(self, p)))
+        for b in ("shadows", "soft_shadows", "ambient_occlusion", "texture"):
+            boolean(f"render config {b}", getattr(self, b))
+        one_of("render config backend", self.backend, ("raycast", "pyrender"))
+        one_of("render config exposure_mode", self.exposure_mode, ("auto", "fixed"))
+        one_of("render config randomise", self.randomise, RANDOMISE)
+        s(self, "shadow_step", integer("render config shadow_step", self.shadow_step, 1, 16))
+        s(self, "ao_step", integer("render config ao_step", self.ao_step, 1, 32))
+        s(self, "ao_rays", integer("render config ao_rays", self.ao_rays, 1, 64))
+        s(self, "ao_radius_m", in_range("render config ao_radius_m", self.ao_radius_m, 0.05,
+                                        50.0))
+        s(self, "texture_seed", integer("render config texture_seed", self.texture_seed, 0))
 
     def to_dict(self) -> dict:
         out = {}
@@ -115,21 +161,26 @@ class RenderConfig:
         return out
 
     @classmethod
+    def preset(cls, name: str = "full", **overrides) -> "RenderConfig":
+        """The named preset (:data:`PRESETS`) with keyword overrides."""
+        one_of("render preset", name, tuple(PRESETS))
+        return cls(**{**PRESETS[name], **overrides})
+
+    @classmethod
     def from_mapping(cls, data) -> "RenderConfig":
         if not data:
             return cls()
-        names = {f.name for f in fields(cls)}
-        unknown = sorted(set(data) - names)
-        if unknown:
-            raise ConfigError(
-                f"render config: unknown key(s) {unknown}; expected {', '.join(sorted(names))}"
-            )
+        known_keys("render config", data, [f.name for f in fields(cls)])
         kw = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
         return cls(**kw)
 
 
 def sample_factors(cfg: RenderConfig, rng: np.random.Generator) -> dict:
-    """Draw every influence factor for one frame (fixed draw order: deterministic)."""
+    """Draw every influence factor for one frame (fixed draw order: deterministic).
+
+    Everything drawn is in the returned dict (and so in meta.json), including
+    ``pixel_seed``, the seed of the per-pixel hashes (sun-disk samples, ambient-occlusion
+    directions, sensor noise)."""
     u = rng.uniform
     f = {
         "sun_azimuth_deg": float(u(*cfg.sun_azimuth_deg)),
@@ -149,13 +200,123 @@ def sample_factors(cfg: RenderConfig, rng: np.random.Generator) -> dict:
     f["vignetting"] = float(u(*cfg.vignetting))
     f["shadows"] = bool(cfg.shadows)
     f["texture_seed"] = cfg.texture_seed if cfg.texture else None
+    # --- realism factors (issue 15), drawn after the original ones
+    f["sun_radius_deg"] = float(u(*cfg.sun_radius_deg)) if cfg.soft_shadows else 0.0
+    f["haze_tint"] = float(u(*cfg.haze_tint))
+    f["exposure_mode"] = cfg.exposure_mode
+    f["key_gray"] = float(u(*cfg.key_gray))
+    cv, sd_max = float(u(*cfg.contrast_cv)), float(u(*cfg.contrast_sd_max))
+    f["contrast_cv"], f["contrast_sd_max"] = cv, sd_max
+    f["target_gray_sd"] = min(cv * f["key_gray"], sd_max)
+    f["tone_shoulder"] = float(u(*cfg.tone_shoulder))
+    f["tint"] = float(u(*cfg.tint))
+    f["saturation"] = float(u(*cfg.saturation))
+    f["grayscale"] = bool(rng.random() < cfg.grayscale_probability)
+    f["chromatic_blur"] = float(u(*cfg.chromatic_blur))
+    f["shot_noise"] = float(u(*cfg.shot_noise))
+    f["shadow_step"] = cfg.shadow_step
+    f["ambient_occlusion"] = (
+        {"step_px": cfg.ao_step, "rays": cfg.ao_rays, "radius_m": cfg.ao_radius_m}
+        if cfg.ambient_occlusion else None)
+    f["asphalt_albedo"] = float(u(*cfg.asphalt_albedo))
+    f["concrete_albedo"] = float(u(*cfg.concrete_albedo))
+    f["ground_albedo"] = float(u(*cfg.ground_albedo))
+    f["randomise"] = cfg.randomise
+    if cfg.randomise == "textures":  # a random colour gain per material, sun and sky
+        f["material_rgb_gain"] = np.exp(rng.normal(0.0, 0.6, (len(MATERIALS), 3))).round(
+            4).tolist()
+        f["sun_rgb"] = rng.uniform(0.6, 1.0, 3).round(4).tolist()
+        f["sky_rgb"] = rng.uniform(0.3, 1.0, 3).round(4).tolist()
+    f["pixel_seed"] = int(rng.integers(0, 2**62, dtype=np.int64))
     return f
+
+
+_ASPHALT = [MATERIAL_IDS["asphalt"]]
+_CONCRETE = [MATERIAL_IDS[k] for k in ("concrete", "paving")]
+_GROUND = [MATERIAL_IDS[k] for k in ("grass", "soil")]
+
+
+def material_gains(factors: dict) -> np.ndarray:
+    """(n_materials, 3) float32 albedo gain per material for this frame: aged or fresh
+    asphalt, lighter or darker concrete and ground; random colours in ``randomise`` mode."""
+    g = np.ones((len(MATERIALS), 3), np.float32)
+    g[_ASPHALT] *= np.float32(factors.get("asphalt_albedo", 1.0))
+    g[_CONCRETE] *= np.float32(factors.get("concrete_albedo", 1.0))
+    g[_GROUND] *= np.float32(factors.get("ground_albedo", 1.0))
+    if factors.get("material_rgb_gain") is not None:
+        g *= np.asarray(factors["material_rgb_gain"], np.float32)
+    return g
 
 
 def sun_direction(azimuth_deg: float, elevation_deg: float) -> np.ndarray:
     """(3,) unit vector towards the sun, world (x east, y north, z up)."""
     a, e = math.radians(azimuth_deg), math.radians(elevation_deg)
     return np.array([math.sin(a) * math.cos(e), math.cos(a) * math.cos(e), math.sin(e)])
+
+
+# --------------------------------------------------------------------------- tone
+_LUMA = np.array([0.299, 0.587, 0.114])
+_LUT_SIZE = 4 * 4096  # exposed linear values 0 .. 4 (K.LUT_SCALE entries per unit)
+
+
+def _curve(v: np.ndarray, shoulder: float, power: float) -> np.ndarray:
+    """Tone curve on exposed linear values: clip at 1, soft shoulder, power (gamma)."""
+    v = np.clip(v, 0.0, 1.0)
+    return (v * (1.0 + shoulder) / (1.0 + shoulder * v)) ** power
+
+
+def tone_lut(shoulder: float, power: float) -> np.ndarray:
+    """(16384,) uint8 display value for exposed linear value k / 4096."""
+    x = np.arange(_LUT_SIZE, dtype=np.float64) / 4096.0
+    return np.clip(_curve(x, shoulder, power) * 255.0 + 0.5, 0, 255).astype(np.uint8)
+
+
+def solve_tone(luma: np.ndarray, key_gray: float, target_sd: float, shoulder: float,
+               power_range: tuple[float, float] = (0.3, 1.6)) -> tuple[float, float]:
+    """Auto exposure and contrast: (gain, power) such that the display gray
+    255 * curve(gain * luma, shoulder, power) has mean ``key_gray`` and standard deviation
+    as close to ``target_sd`` as ``power_range`` allows. ``luma``: linear luminances of a
+    subsample of the frame (after white balance). Bisection on a 256-bin log histogram."""
+    y = luma[np.isfinite(luma) & (luma > 1e-6)]
+    if len(y) == 0:
+        return 1.0, 1.0 / 2.2
+    ly = np.log(y)
+    lo, hi = float(ly.min()), float(ly.max()) + 1e-6
+    cnt, edges = np.histogram(ly, bins=256, range=(lo, hi))
+    yc = np.exp(0.5 * (edges[1:] + edges[:-1]))
+    wts = cnt / cnt.sum()
+
+    def stats(lg, p):
+        g = 255.0 * _curve(math.exp(lg) * yc, shoulder, p)
+        m = float(wts @ g)
+        return m, math.sqrt(max(float(wts @ (g * g)) - m * m, 0.0))
+
+    def gain_for(p):
+        a, b = -lo - 12.0, -lo + 12.0  # log gain: the darkest to the brightest pixel at 1
+        for _ in range(22):  # to 24 / 2^22 in log gain
+            mid = 0.5 * (a + b)
+            if stats(mid, p)[0] < key_gray:
+                a = mid
+            else:
+                b = mid
+        return 0.5 * (a + b)
+
+    plo, phi = power_range
+    if stats(gain_for(phi), phi)[1] <= target_sd:
+        p = phi
+    elif stats(gain_for(plo), plo)[1] >= target_sd:
+        p = plo
+    else:
+        a, b = math.log(plo), math.log(phi)
+        for _ in range(12):
+            mid = 0.5 * (a + b)
+            pm = math.exp(mid)
+            if stats(gain_for(pm), pm)[1] < target_sd:
+                a = mid
+            else:
+                b = mid
+        p = math.exp(0.5 * (a + b))
+    return math.exp(gain_for(p)), p
 
 
 # ----------------------------------------------------------------------- materials
@@ -219,25 +380,45 @@ def _normal_quantiles() -> np.ndarray:
     return q
 
 
-def _tone_lut() -> np.ndarray:
-    """12-bit linear (0..4 in steps of 1/1024) -> 8-bit display value: soft shoulder + gamma."""
-    x = np.arange(4096, dtype=np.float64) / 1024.0
-    y = x / (1.0 + 0.25 * x) * 1.25
-    return np.clip(np.power(np.clip(y, 0, 1), 1 / 2.2) * 255.0 + 0.5, 0, 255).astype(np.uint8)
+def _disk_vectors(L: np.ndarray, radius_deg: float) -> np.ndarray:
+    """(2, 3) float32 vectors perpendicular to L spanning the sun's disk (length
+    tan(radius)); zeros for a point sun."""
+    if radius_deg <= 0:
+        return np.zeros((2, 3), np.float32)
+    up = np.array([0.0, 0.0, 1.0]) if abs(L[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    u = np.cross(L, up)
+    u /= np.linalg.norm(u)
+    v = np.cross(L, u)
+    k = math.tan(math.radians(radius_deg))
+    return (np.stack([u, v]) * k).astype(np.float32)
 
 
-_LUT = _tone_lut()
+def _haze_colour(tint: float, e_sky: float) -> np.ndarray:
+    """Veil radiance: tint -1 = blue-grey (clean air, Rayleigh), +1 = warm grey-brown
+    (smog, dust), through neutral grey."""
+    blue = np.array([0.56, 0.64, 0.78])
+    grey = np.array([0.66, 0.67, 0.68])
+    warm = np.array([0.74, 0.68, 0.58])
+    c = grey + (tint * (warm - grey) if tint > 0 else -tint * (blue - grey))
+    return (c * (0.8 + 0.4 * e_sky)).astype(np.float32)
 
 
-def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator,
-          timings: dict | None = None, shadow_step: int = 2) -> np.ndarray:
-    """Shaded RGB (H, W, 3) uint8 for the primary hits in ``buffers`` under ``factors``.
+def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | None = None,
+          timings: dict | None = None, shadow_step: int | None = None) -> np.ndarray:
+    """Shaded RGB (H, W, 3) uint8 for the primary hits in ``buffers`` under ``factors``
+    (from :func:`sample_factors`; the per-pixel randomness comes from
+    ``factors["pixel_seed"]``, so ``rng`` is not used and kept for compatibility).
+
+    Stages: surface (sun cosine) -> shadow rays (sun-disk samples) -> ambient-occlusion
+    rays -> compose (linear radiance) -> tone (auto exposure, white balance, saturation,
+    tone curve) -> sensor (chromatic blur, noise by brightness, JPEG).
+    Adds the metered ``exposure_gain`` and ``tone_power`` to ``factors``.
 
     timings : optional dict that receives seconds per shading stage (for benchmarks).
-    shadow_step : 1 = one shadow ray per pixel; k = one per k x k block plus every pixel
-                  that differs from its block's first pixel (another label, or a depth
-                  jump over 0.2 m), so object edges stay exact and only shadow edges
-                  inside one surface are coarser.
+    shadow_step : overrides ``factors["shadow_step"]``. 1 = one shadow ray per pixel; k =
+                  one per k x k block plus every pixel that differs from its block's first
+                  pixel (another label, or a depth jump over 0.2 m), so object edges stay
+                  exact and only shadow edges inside one surface are coarser.
     """
     import time
 
@@ -255,7 +436,10 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator,
 
     h, w = buffers.height_px, buffers.width_px
     n = h * w
+    if shadow_step is None:
+        shadow_step = factors.get("shadow_step", 2)
     step = max(1, int(shadow_step))
+    pseed = int(factors.get("pixel_seed", 0))
     oc = float(factors["overcast"])
     wet = np.float32(factors["wet"])
     L = sun_direction(factors["sun_azimuth_deg"], factors["sun_elevation_deg"]).astype(np.float32)
@@ -276,45 +460,89 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator,
     has_lit = bool(factors.get("shadows", True))
     lit = np.ones(n if has_lit else 1, np.float32)
     if has_lit:
+        disk = _disk_vectors(L.astype(np.float64), float(factors.get("sun_radius_deg", 0.0)))
         idx, srays = K.gather_shadow_rays(own, buffers.rays, buffers.t, buffers.normal, L,
-                                          np.float32(_PEEL))
+                                          np.float32(_PEEL), disk, np.uint64(pseed ^ 0x5D15C))
         occ = rayscene.test_occlusions(srays) if len(idx) else np.zeros(0, bool)
         mark("shadow_rays")
         K.spread_shadow(h, w, step, own, ndl, idx, occ, lit)
-        if oc > 0.02:  # overcast: a softer, wider shadow edge
-            lit = cv2.GaussianBlur(lit.reshape(h, w), (0, 0), 0.5 + 6.0 * oc).reshape(-1)
+        sig = (0.5 + 6.0 * oc) if oc > 0.02 else (0.6 if disk.any() else 0.0)
+        if sig > 0:  # sun-disk samples: a smooth penumbra; overcast: a wide, soft edge
+            lit = cv2.GaussianBlur(lit.reshape(h, w), (0, 0), sig).reshape(-1)
         mark("shadow_spread")
+
+    ao_cfg = factors.get("ambient_occlusion")
+    has_ao = bool(ao_cfg)
+    ao = np.ones(n if has_ao else 1, np.float32)
+    if has_ao:
+        ao_step, n_dirs = int(ao_cfg["step_px"]), int(ao_cfg["rays"])
+        blocks, arays = K.gather_ao_rays(h, w, ao_step, buffers.rays, buffers.t,
+                                         buffers.normal, buffers.face, n_dirs,
+                                         np.float32(_PEEL), np.uint64(pseed ^ 0xA0))
+        aocc = (rayscene.test_occlusions(arays, tfar=float(ao_cfg["radius_m"]))
+                if len(blocks) else np.zeros(0, bool))
+        K.spread_ao(h, w, ao_step, blocks, aocc, n_dirs, buffers.semantic.reshape(-1),
+                    buffers.depth.reshape(-1), ao)
+        mark("ambient_occlusion")
 
     elev = math.radians(factors["sun_elevation_deg"])
     warm = max(0.0, 1.0 - elev / math.radians(45.0))
-    wb = factors["white_balance"]
-    cam_gain = np.array([1.0 + wb, 1.0, 1.0 - wb], np.float32) * np.float32(factors["exposure"])
     sun_col = np.array([1.0, 0.96 - 0.05 * warm, 0.90 - 0.12 * warm], np.float32)
-    sky_col = np.array([0.60, 0.68, 0.85], np.float32)
+    sky_col = np.array([0.60, 0.68, 0.85], np.float32)  # blue sky light: shadows turn blue
+    if factors.get("sun_rgb") is not None:  # domain randomisation
+        sun_col = np.asarray(factors["sun_rgb"], np.float32)
+        sky_col = np.asarray(factors["sky_rgb"], np.float32)
     sky_col = sky_col + np.float32(oc) * (np.array([0.85, 0.86, 0.88], np.float32) - sky_col)
     e_sun = np.float32(1.15 * (1.0 - 0.85 * oc))
     e_sky = np.float32(0.30 + 0.45 * oc)
-    veil = np.array([0.62, 0.66, 0.72], np.float32) * np.float32(0.8 + 0.4 * e_sky)
+    veil = _haze_colour(float(factors.get("haze_tint", 0.0)), float(e_sky))
     alt = max(float(camera.altitude_m), 1.0)
-    rgb = np.empty((h, w, 3), np.uint8)
+    lin = np.empty((h, w, 3), np.float32)
     K.compose(h, w, buffers.rays, buffers.t, buffers.face, buffers.normal,
-              buffers.depth.reshape(-1), ndl, lit, has_lit, face_mat, face_alb, tiles, textured,
-              _FINE, _COARSE, _DRY, _WETK, _SPEC, _SHINE, _F0, wet, L,
-              (sun_col * cam_gain).astype(np.float32), (sky_col * cam_gain).astype(np.float32),
-              (sky_col * np.float32(0.25)).astype(np.float32),
-              (veil * cam_gain).astype(np.float32), e_sun, e_sky,
+              buffers.depth.reshape(-1), ndl, lit, has_lit, ao, has_ao, face_mat, face_alb,
+              material_gains(factors), tiles, textured, _FINE, _COARSE, _DRY, _WETK, _SPEC,
+              _SHINE, _F0, wet, L, sun_col, sky_col, (sky_col * np.float32(0.25)).astype(np.float32), veil, e_sun, e_sky,
               np.float32(1.0 - 0.9 * oc), np.float32(factors["haze"]), np.float32(1.0 / alt),
-              np.float32(factors.get("vignetting", 0.0)), _LUT, rgb)
+              np.float32(factors.get("vignetting", 0.0)), lin)
     mark("compose")
+
+    # ---------------------------------------------------------------- camera
+    wb = float(factors["white_balance"])  # log(R gain / B gain)
+    tint = float(factors.get("tint", 0.0))  # log G gain
+    gains = np.array([math.exp(wb / 2), math.exp(tint), math.exp(-wb / 2)])
+    gains /= float(_LUMA @ gains)
+    shoulder = float(factors.get("tone_shoulder", 0.25))
+    if factors.get("exposure_mode", "fixed") == "auto":
+        sub = lin[::4, ::4].reshape(-1, 3).astype(np.float64) @ (_LUMA * gains)
+        gain, power = solve_tone(sub, float(factors["key_gray"]),
+                                 float(factors["target_gray_sd"]), shoulder)
+    else:
+        gain, power = float(factors["exposure"]), 1.0 / 2.2
+    factors["exposure_gain"] = float(gain)
+    factors["tone_power"] = float(power)
+    rgb = np.empty((h, w, 3), np.uint8)
+    K.tone(lin, (gains * gain).astype(np.float32),
+           np.float32(factors.get("saturation", 1.0)), tone_lut(shoulder, power), rgb)
+    if factors.get("grayscale"):  # a panchromatic product (like several DOTA images)
+        g = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
+        rgb = np.ascontiguousarray(np.repeat(g[..., None], 3, axis=2))
+    mark("tone")
 
     # ---------------------------------------------------------------- sensor
     sig = factors["blur_sigma_px"]
+    ca = float(factors.get("chromatic_blur", 0.0))
     if sig > 0.05:
-        rgb = cv2.GaussianBlur(rgb, (0, 0), sig)
+        if ca > 0.01:  # lateral colour: red and blue a little softer than green
+            chans = [cv2.GaussianBlur(np.ascontiguousarray(rgb[..., k]), (0, 0), sig * f)
+                     for k, f in enumerate((1.0 + ca, 1.0, 1.0 + 1.5 * ca))]
+            rgb = np.ascontiguousarray(np.stack(chans, axis=2))
+        else:
+            rgb = cv2.GaussianBlur(rgb, (0, 0), sig)
     ns = factors["noise_sigma"]
-    if ns > 0:
-        seed = int(rng.integers(0, 2**63, dtype=np.int64))
-        K.add_noise(rgb, np.uint64(seed), np.float32(ns * 255.0), _normal_quantiles())
+    shot = float(factors.get("shot_noise", 0.0))
+    if ns > 0 or shot > 0:
+        K.add_noise(rgb, np.uint64(pseed ^ 0x4E015E), np.float32(ns * 255.0),
+                    np.float32(shot * 255.0), _normal_quantiles())
     mark("sensor")
     q = factors.get("jpeg_quality")
     if q:

@@ -149,7 +149,9 @@ def test_shadows_darken_the_road_north_of_the_building():
     cam = _nadir((27.5, 16.0, 0.0), SMALL)
     cfg = RenderConfig(sun_azimuth_deg=(180, 180), sun_elevation_deg=(45, 45), haze=(0, 0),
                        overcast_probability=0, wet_probability=0, jpeg_probability=0,
-                       noise_sigma=(0, 0), texture=False, vignetting=(0, 0))
+                       noise_sigma=(0, 0), texture=False, vignetting=(0, 0),
+                       exposure_mode="fixed", ambient_occlusion=False, grayscale_probability=0,
+                       shot_noise=(0, 0))
     f = render_frame(rs, cam, pl, np.random.default_rng(0), cfg)
     # sun in the south: the 9 m house (x 20..35, y 10..22) shades grass up to y = 31
     north = cam.project(np.array([[27.5, 26.0, 0.0]]))[0].astype(int)

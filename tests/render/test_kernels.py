@@ -30,7 +30,7 @@ def test_noise_is_standard_normal_and_thread_independent():
     def noisy(seed, threads):
         img = base.copy()
         _with_threads(threads, lambda: K.add_noise(img, np.uint64(seed), np.float32(20.0),
-                                                   _normal_quantiles()))
+                                                   np.float32(0.0), _normal_quantiles()))
         return img
 
     a, b = noisy(7, 1), noisy(7, 2)
@@ -45,7 +45,7 @@ def test_noise_is_standard_normal_and_thread_independent():
     assert noisy(8, 2).tobytes() != a.tobytes()
     # saturates instead of wrapping
     img = np.full((64, 64, 3), 250, np.uint8)
-    K.add_noise(img, np.uint64(1), np.float32(50.0), _normal_quantiles())
+    K.add_noise(img, np.uint64(1), np.float32(50.0), np.float32(0.0), _normal_quantiles())
     assert img.max() == 255 and (img >= 250 - 50 * 5).all()
 
 
@@ -143,7 +143,9 @@ def test_block_shadow_sampling_matches_one_ray_per_pixel():
     cam = Camera.look_at_ground(SMALL, (26.0, 6.0, 0.0), yaw_deg=30.0, tilt_deg=6.0)
     cfg = RenderConfig(sun_azimuth_deg=(200, 200), sun_elevation_deg=(25, 25), haze=(0, 0),
                        overcast_probability=0, wet_probability=0, jpeg_probability=0,
-                       noise_sigma=(0, 0), blur_sigma_px=(0, 0), vignetting=(0, 0))
+                       noise_sigma=(0, 0), blur_sigma_px=(0, 0), vignetting=(0, 0),
+                       exposure_mode="fixed", soft_shadows=False, shot_noise=(0, 0),
+                       grayscale_probability=0)
     factors = sample_factors(cfg, np.random.default_rng(0))
     buf = cast_buffers(rs, cam)
     one = shade(rs, cam, buf, factors, np.random.default_rng(0), shadow_step=1).astype(int)

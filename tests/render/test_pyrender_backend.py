@@ -60,7 +60,9 @@ def test_pyrender_silhouettes_match_raycast_on_a_bundled_scene_frame():
     add_placement(rs, pl)
     cam = sample_pose_targeted(CameraConfig(width_px=512, height_px=512), pl,
                                np.random.default_rng(0), within_xy=scene.bounds()[:, :2])
-    f = render_frame(rs, cam, pl, np.random.default_rng(0), RenderConfig(backend="pyrender"))
+    sun = dict(sun_elevation_deg=(60, 60), sun_azimuth_deg=(150, 150))
+    f = render_frame(rs, cam, pl, np.random.default_rng(0),
+                     RenderConfig(backend="pyrender", **sun))
     gl = render_instance_ids(rs, cam)
     ids = [i for i in np.unique(f.instance) if i]
     assert len(ids) >= 8
@@ -69,10 +71,11 @@ def test_pyrender_silhouettes_match_raycast_on_a_bundled_scene_frame():
         iou = (a & b).sum() / (a | b).sum()
         assert iou >= 0.98, (vid, int(a.sum()), iou)
     # labels always come from the rays: the pyrender frame's buffers equal the ray-cast ones
-    g = render_frame(rs, cam, pl, np.random.default_rng(0), RenderConfig())
+    g = render_frame(rs, cam, pl, np.random.default_rng(0), RenderConfig(**sun))
     assert np.array_equal(f.instance, g.instance) and np.array_equal(f.depth, g.depth)
     assert f.to_meta()["vehicles"] == g.to_meta()["vehicles"]
-    # and its RGB shows the same picture: the two backends' grey levels correlate
+    # and its RGB shows the same picture: the two backends' grey levels correlate (sun fixed:
+    # a low sun makes the shadows, which the preview lacks, dominate)
     assert f.rgb.shape == (512, 512, 3) and f.rgb.dtype == np.uint8
     a, b = f.rgb.mean(axis=2).ravel(), g.rgb.mean(axis=2).ravel()
     assert np.corrcoef(a, b)[0, 1] > 0.6
