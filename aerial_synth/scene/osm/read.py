@@ -27,7 +27,16 @@ OSM_SUFFIXES = (".osm", ".osm.bz2", ".osm.gz", ".osm.pbf", ".pbf")
 
 #: without a bbox or file bounds, the scene covers the data's extent plus this, metres
 EXTENT_MARGIN_M = 25.0
-_KEYS = ("highway", "building", "natural", "landuse", "amenity", "leisure", "water", "waterway")
+#: keys an area (closed way or multipolygon) needs to be looked at
+_AREA_KEYS = ("highway", "building", "natural", "landuse", "amenity", "leisure", "water",
+              "waterway")
+#: keys a (line) way needs: roads and paths, tree rows, rivers
+_WAY_KEYS = ("highway", "natural", "waterway")
+#: a building whose first node lies further than this outside the bbox is skipped before its
+#: geometry is made (degrees; buildings are far smaller)
+_BUILDING_REACH_DEG = 0.004
+#: the tags a building keeps (they set its height)
+_BUILDING_TAGS = ("building", "height", "building:levels", "roof:levels", "name")
 _FLUSH = 20000
 
 
@@ -114,6 +123,15 @@ def _way_wkb(fab, way) -> bytes | None:
         return shapely.to_wkb(shapely.linestrings(pts))
 
 
+def _first_location(area):
+    """(lon, lat) of an area's first node, or None."""
+    for ring in area.outer_rings():
+        for nd in ring:
+            loc = nd.location
+            return (loc.lon, loc.lat) if loc.valid() else None
+    return None
+
+
 def read_osm(path: str | Path, bbox: tuple | None = None) -> OsmData:
     """Read the scene features of an OSM file, keeping those that intersect ``bbox``.
 
@@ -143,8 +161,17 @@ def read_osm(path: str | Path, bbox: tuple | None = None) -> OsmData:
     if bbox is not None:
         x0, y0, x1, y1 = bbox
     try:
-        fp = osmium.FileProcessor(str(path)).with_areas(osmium.filter.KeyFilter(*_KEYS))
-        fp = fp.with_filter(osmium.filter.KeyFilter(*_KEYS))
+        # C++ filters: only tree nodes, road/path/tree-row/river ways and areas with a key
+        # we use ever reach Python (building ways come once, as areas)
+        osm = osmium.osm
+        fp = osmium.FileProcessor(str(path)).with_areas(osmium.filter.KeyFilter(*_AREA_KEYS))
+        fp = (fp.with_filter(osmium.filter.EntityFilter(osm.NODE | osm.WAY | osm.AREA))
+                .with_filter(osmium.filter.KeyFilter("natural").enable_for(osm.NODE))
+                .with_filter(osmium.filter.KeyFilter(*_WAY_KEYS).enable_for(osm.WAY))
+                .with_filter(osmium.filter.KeyFilter(*_AREA_KEYS).enable_for(osm.AREA)))
+        if bbox is not None:
+            r = _BUILDING_REACH_DEG
+            fx0, fy0, fx1, fy1 = x0 - r, y0 - r, x1 + r, y1 + r
         hb = fp.header.box()
         if hb.valid():
             header_box = (hb.bottom_left.lon, hb.bottom_left.lat, hb.top_right.lon,
@@ -181,11 +208,21 @@ def read_osm(path: str | Path, bbox: tuple | None = None) -> OsmData:
                 kind = area_kind(obj.tags)
                 if kind is None:
                     continue
+                if kind == "building":
+                    if bbox is not None:
+                        loc = _first_location(obj)
+                        if loc is not None and not (fx0 <= loc[0] <= fx1
+                                                    and fy0 <= loc[1] <= fy1):
+                            continue
+                    tg = obj.tags
+                    tags = {k: tg.get(k) for k in _BUILDING_TAGS if k in tg}
+                else:
+                    tags = dict(obj.tags)
                 try:
                     wkb = fab.create_multipolygon(obj)
                 except (osmium.InvalidLocationError, RuntimeError):
                     continue
-                areas.add((kind, obj.id, dict(obj.tags)), wkb)
+                areas.add((kind, obj.id, tags), wkb)
         lines.flush()
         areas.flush()
     except SceneError:
