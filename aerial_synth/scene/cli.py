@@ -26,8 +26,8 @@ def add_scene_args(parser: argparse.ArgumentParser, default: str | None = DEFAUL
         "--scene",
         default=default,
         metavar="NAME|FILE",
-        help=f"bundled scene name, scene spec .yaml or mesh .glb/.gltf/.obj/.ply "
-        f"(default: {default})",
+        help=f"bundled scene name, scene spec .yaml, mesh .glb/.gltf/.obj/.ply or OSM extract "
+        f".osm/.osm.bz2/.osm.pbf (default: {default})",
     )
     parser.add_argument(
         "--labels", default=None, metavar="FILE",
