@@ -9,7 +9,7 @@ import numpy as np
 from ..scene.model import LABEL_IDS
 from .model import Placement, footprint_corners_xy
 
-__all__ = ["FootprintIndex", "ValidationReport", "validate_placement", "footprint_samples", "drivable_area"]
+__all__ = ["FootprintIndex", "ValidationReport", "validate_placement", "footprint_points", "footprint_samples", "drivable_area"]
 
 
 #: Distance tolerance of the gap rule (metres): footprints exactly gap_m apart are accepted.
@@ -24,40 +24,63 @@ INNER_STEP_M = 1.0
 AREA_TOL_M = EDGE_STEP_M / 2
 
 
-def footprint_samples(x, y, heading, length, width, edge_step_m: float = EDGE_STEP_M,
-                      inner_step_m: float = INNER_STEP_M) -> np.ndarray:
-    """Points that stand for the whole footprint of each of n vehicles: (n, k, 2), metres.
+def _unit_samples(length: float, width: float, edge_step_m: float, inner_step_m: float) -> np.ndarray:
+    """(k, 2) sample positions of one footprint as fractions (u along, v across) in
+    [-0.5, 0.5]: 4 corners (front-left, front-right, rear-right, rear-left), the centre,
+    the 4 edge midpoints, the edges every <= edge_step_m, an inner grid <= inner_step_m."""
+    kl = max(2, int(np.ceil(length / edge_step_m)))
+    kw = max(2, int(np.ceil(width / edge_step_m)))
+    tl = np.arange(1, kl) / kl - 0.5
+    tw = np.arange(1, kw) / kw - 0.5
+    u = [0.5, 0.5, -0.5, -0.5, 0.0, 0.5, 0.0, -0.5, 0.0]
+    v = [0.5, -0.5, -0.5, 0.5, 0.0, 0.0, -0.5, 0.0, 0.5]
+    u += list(tl) + list(tl) + [0.5] * len(tw) + [-0.5] * len(tw)
+    v += [0.5] * len(tl) + [-0.5] * len(tl) + list(tw) + list(tw)
+    il = max(1, int(np.ceil(length / inner_step_m)))
+    iw = max(1, int(np.ceil(width / inner_step_m)))
+    gu, gv = np.meshgrid((np.arange(il) + 0.5) / il - 0.5, (np.arange(iw) + 0.5) / iw - 0.5, indexing="ij")
+    return np.stack([np.concatenate([u, gu.ravel()]), np.concatenate([v, gv.ravel()])], axis=1)
 
-    Order: the 4 corners (front-left, front-right, rear-right, rear-left), the centre, the 4
-    edge midpoints, then points along every edge no more than ``edge_step_m`` apart, then an
-    inner grid no more than ``inner_step_m`` apart. A kerb or a building corner that cuts
-    into a footprint crosses its edge; a right-angled corner reaching more than
-    ``edge_step_m`` / 2 into it always meets an edge sample. The inner grid catches posts
-    and trunks inside.
-    The counts follow the longest/widest vehicle of the batch so the array is regular.
+
+def footprint_points(x, y, heading, length, width, edge_step_m: float = EDGE_STEP_M,
+                     inner_step_m: float = INNER_STEP_M):
+    """Points that stand for the whole footprint of each of n vehicles, metres.
+
+    Returns ``(points (m, 2), owner (m,), start (n,), count (n,))``: vehicle i's points are
+    ``points[start[i] : start[i] + count[i]]``, in the order of :func:`_unit_samples`:
+    the 4 corners, the centre (index 4), the 4 edge midpoints, points along every edge no
+    more than ``edge_step_m`` apart, then an inner grid no more than ``inner_step_m`` apart.
+    A kerb or a building corner that cuts into a footprint crosses its edge; a right-angled
+    corner reaching more than ``edge_step_m`` / 2 into it always meets an edge sample. The
+    inner grid catches posts and trunks inside. Each vehicle gets the samples its own size
+    needs (a car about 140, a 12 m truck about 330 at the defaults).
     """
     x, y, h, ln, w = (np.atleast_1d(np.asarray(a, dtype=np.float64)) for a in (x, y, heading, length, width))
     x, y, h, ln, w = np.broadcast_arrays(x, y, h, ln, w)
     n = len(x)
     if n == 0:
-        return np.zeros((0, 9, 2))
-    kl = max(2, int(np.ceil(float(ln.max()) / edge_step_m)))
-    kw = max(2, int(np.ceil(float(w.max()) / edge_step_m)))
-    tl = np.arange(1, kl) / kl - 0.5  # interior points of a long edge, as a fraction
-    tw = np.arange(1, kw) / kw - 0.5
-    u = [0.5, 0.5, -0.5, -0.5, 0.0, 0.5, 0.0, -0.5, 0.0]  # corners, centre, edge midpoints
-    v = [0.5, -0.5, -0.5, 0.5, 0.0, 0.0, -0.5, 0.0, 0.5]
-    u += list(tl) + list(tl) + [0.5] * len(tw) + [-0.5] * len(tw)
-    v += [0.5] * len(tl) + [-0.5] * len(tl) + list(tw) + list(tw)
-    il = max(1, int(np.ceil(float(ln.max()) / inner_step_m)))
-    iw = max(1, int(np.ceil(float(w.max()) / inner_step_m)))
-    gu, gv = np.meshgrid((np.arange(il) + 0.5) / il - 0.5, (np.arange(iw) + 0.5) / iw - 0.5, indexing="ij")
-    u = np.concatenate([u, gu.ravel()])
-    v = np.concatenate([v, gv.ravel()])
-    lx = u[None, :] * ln[:, None]
-    ly = v[None, :] * w[:, None]
-    c, s = np.cos(h)[:, None], np.sin(h)[:, None]
-    return np.stack([x[:, None] + c * lx - s * ly, y[:, None] + s * lx + c * ly], axis=-1)
+        return np.zeros((0, 2)), np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64)
+    sizes, inv = np.unique(np.stack([ln, w], axis=1), axis=0, return_inverse=True)
+    inv = inv.reshape(-1)
+    tables = [_unit_samples(float(a), float(b), edge_step_m, inner_step_m) for a, b in sizes]
+    count = np.array([len(tables[j]) for j in inv], dtype=np.int64)
+    start = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
+    uv = np.concatenate([tables[j] for j in inv])
+    owner = np.repeat(np.arange(n), count)
+    lx = uv[:, 0] * ln[owner]
+    ly = uv[:, 1] * w[owner]
+    c, s = np.cos(h)[owner], np.sin(h)[owner]
+    pts = np.stack([x[owner] + c * lx - s * ly, y[owner] + s * lx + c * ly], axis=1)
+    return pts, owner, start, count
+
+
+def footprint_samples(x, y, heading, length, width, edge_step_m: float = EDGE_STEP_M,
+                      inner_step_m: float = INNER_STEP_M) -> np.ndarray:
+    """The samples of :func:`footprint_points` for vehicles of one size, as (n, k, 2)."""
+    pts, owner, start, count = footprint_points(x, y, heading, length, width, edge_step_m, inner_step_m)
+    if len(count) and not np.all(count == count[0]):
+        raise ValueError("footprint_samples: vehicles of different sizes; use footprint_points")
+    return pts.reshape(len(count), -1, 2)
 
 
 class FootprintIndex:
@@ -276,13 +299,12 @@ def validate_placement(rayscene, placement: Placement, truth=None, traffic: str 
     W = np.array([v.width_m for v in vs])
     drv = np.array(sorted(LABEL_IDS[s] for s in rayscene.label_config.drivable))
 
-    pts = footprint_samples(x, y, h, L, W, edge_step_m=edge_step_m)  # (n, k, 2)
-    k = pts.shape[1]
-    tr = rayscene.trace_down(pts.reshape(-1, 2))
-    on = np.isin(tr.label_id, drv).reshape(n, k)
-    on_frac = on.mean(axis=1)
-    corners_ok = float(on[:, :5].mean())  # 4 corners and the centre
-    ok = on.all(axis=1)
+    pts, owner, start, count = footprint_points(x, y, h, L, W, edge_step_m=edge_step_m)
+    tr = rayscene.trace_down(pts)
+    on = np.isin(tr.label_id, drv)
+    on_frac = np.bincount(owner, weights=on, minlength=n) / count
+    corners_ok = float(on[start[:, None] + np.arange(5)].mean())  # 4 corners and the centre
+    ok = np.bincount(owner[~on], minlength=n) == 0
 
     corners = footprint_corners_xy(x, y, h, L, W)  # (n, 4, 2)
     polys = shapely.polygons(corners)

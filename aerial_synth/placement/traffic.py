@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import PlacementError
 from .config import ScenarioConfig, load_scenario
-from .footprints import FootprintIndex, footprint_samples
+from .footprints import FootprintIndex, footprint_points
 from .linetrace import Prober, unit
 from .model import PlacedVehicle, Placement, with_lonlat
 from .parking_config import PARKING_KINDS
@@ -177,18 +177,18 @@ class _Engine:
     def check_footprints(self, c: _Cand, L: np.ndarray, W: np.ndarray) -> np.ndarray:
         """The whole footprint must trace (through ignorable vegetation only) to drivable
         labels: corners, centre, edge midpoints, the edges every 0.1 m and an inner grid
-        (:func:`.footprints.footprint_samples`), so a kerb or a building corner that cuts
+        (:func:`.footprints.footprint_points`), so a kerb or a building corner that cuts
         into the body between the corners refuses the vehicle. Returns z of the centre hit;
         marks failures in c.ok / c.reason."""
         sel = np.flatnonzero(c.ok)
         z = np.full(len(c.ok), np.nan)
         if not len(sel):
             return z
-        pts = footprint_samples(c.x[sel], c.y[sel], c.heading[sel], L[sel], W[sel])
-        k = pts.shape[1]
-        tr = self.prober.trace(pts.reshape(-1, 2))
-        good = np.isin(tr.label_id, self.drivable_ids).reshape(len(sel), k).all(axis=1)
-        z[sel] = tr.z.reshape(len(sel), k)[:, 4]  # sample 4 is the centre
+        pts, owner, start, _ = footprint_points(c.x[sel], c.y[sel], c.heading[sel], L[sel], W[sel])
+        tr = self.prober.trace(pts)
+        on = np.isin(tr.label_id, self.drivable_ids)
+        good = np.bincount(owner[~on], minlength=len(sel)) == 0
+        z[sel] = tr.z[start + 4]  # sample 4 is the centre
         bad = sel[~good]
         c.ok[bad] = False
         c.reason[bad] = "off_road"

@@ -11,7 +11,7 @@ from shapely.geometry import LineString, Polygon
 
 from aerial_synth.placement import PlacedVehicle, Placement, place, validate_placement
 from aerial_synth.placement import traffic as traffic_mod
-from aerial_synth.placement.footprints import FootprintIndex, footprint_samples
+from aerial_synth.placement.footprints import FootprintIndex, footprint_points, footprint_samples
 from aerial_synth.placement.traffic import PlacementWarning
 from aerial_synth.scene.build import prism
 from aerial_synth.scene.model import LABEL_IDS, SceneObject
@@ -154,9 +154,11 @@ def test_placement_refuses_a_footprint_a_building_corner_pokes_into(monkeypatch)
     assert rep.footprint_drivable == 1.0
 
     def corners_only(x, y, h, length, width, **kw):
-        return footprint_samples(x, y, h, length, width, **kw)[:, :5]
+        pts, owner, start, count = footprint_points(x, y, h, length, width, **kw)
+        keep = (start[:, None] + np.arange(5)).ravel()
+        return pts[keep], owner[keep], np.arange(len(start)) * 5, np.full(len(start), 5)
 
-    monkeypatch.setattr(traffic_mod, "footprint_samples", corners_only)
+    monkeypatch.setattr(traffic_mod, "footprint_points", corners_only)
     hits_old, _, rep_old = run()
     assert hits_old > 0  # the old check accepted bodies crossed by a building corner
     assert rep_old.footprint_drivable < 1.0
@@ -173,6 +175,23 @@ def test_footprint_samples_cover_edges_densely():
     assert xs[0] == pytest.approx(-6) and xs[-1] == pytest.approx(6)
     assert np.diff(xs).max() <= 0.1 + 1e-9
     assert (np.abs(local) <= [6 + 1e-9, 1.25 + 1e-9]).all()
+
+
+def test_footprint_points_follow_each_vehicle_size():
+    x, y, h = np.array([0.0, 50.0, 100.0]), np.zeros(3), np.array([0.0, 1.0, 2.0])
+    ln, wd = np.array([4.5, 12.0, 4.5]), np.array([1.8, 2.5, 1.8])
+    pts, owner, start, count = footprint_points(x, y, h, ln, wd)
+    assert count[0] == count[2] < count[1]  # a truck needs more samples than a car
+    assert owner.tolist() == [0] * count[0] + [1] * count[1] + [2] * count[2]
+    assert start.tolist() == [0, count[0], count[0] + count[1]]
+    for i in range(3):
+        block = pts[start[i]:start[i] + count[i]]
+        assert np.allclose(block[4], [x[i], y[i]])  # sample 4 is the centre
+        same = footprint_samples(x[i], y[i], h[i], ln[i], wd[i])[0]
+        assert np.array_equal(block, same)
+        poly = shapely.Polygon(PlacedVehicle(1, "m", "c", "x", ln[i], wd[i], 1.0, x[i], y[i], 0.0,
+                                             h[i]).corners_xy())
+        assert shapely.covers(poly.buffer(1e-9), shapely.points(block)).all()
 
 
 def test_drivable_ids_include_parking():
