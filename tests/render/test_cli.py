@@ -21,6 +21,18 @@ from aerial_synth.cli import main
         (["--scenario", "rush_hour"], "scenario"),
         (["--scene", "atlantis"], "atlantis"),
         (["--images", "0"], "images"),
+        (["--images", "two"], "images"),
+        (["--seed", "-1"], "seed"),
+        (["--vehicles", "0"], "vehicles"),
+        (["--sampler", "grid", "--overlap", "1.0"], "overlap"),
+        (["--sampler", "grid", "--overlap", "-0.1"], "overlap"),
+        (["--sampler", "spiral"], "sampler"),
+        (["--jpeg-probability", "1.5"], "jpeg-probability"),
+        (["--preset", "ultra"], "preset"),
+        (["--randomise", "everything"], "randomise"),
+        (["--depth-format", "exr"], "depth-format"),
+        (["--gsd", "nan"], "gsd"),
+        (["--width", "1e3"], "width"),
     ],
 )
 def test_bad_input_exits_2_with_one_line(extra, needle, tmp_path, capsys):
@@ -32,6 +44,23 @@ def test_bad_input_exits_2_with_one_line(extra, needle, tmp_path, capsys):
     assert len(lines) == 1 and needle in lines[0].lower(), err
     assert "Traceback" not in err
     assert not out.exists()  # nothing written
+
+
+def test_out_that_is_a_file_exits_2_and_writes_nothing(tmp_path, capsys):
+    f = tmp_path / "taken"
+    f.write_text("keep me")
+    rc = main(["render", "--scene", "suburb", "--images", "1", "--out", str(f)])
+    err = capsys.readouterr().err
+    assert rc == 2 and "--out" in err and len(err.strip().splitlines()) == 1
+    assert f.read_text() == "keep me"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["taken"]
+
+
+def test_grid_sampler_with_full_overlap_leaves_no_placement(tmp_path, capsys):
+    # used to write placement.json before refusing the grid
+    out = tmp_path / "g"
+    rc = main(["render", "--sampler", "grid", "--overlap", "1.0", "--out", str(out)])
+    assert rc == 2 and not out.exists()
 
 
 def _read_png(path, flags=-1):
