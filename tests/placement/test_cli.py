@@ -111,14 +111,25 @@ def _fifo(path):
     return path
 
 
+def _chardev(path):
+    import stat
+
+    try:
+        os.mknod(path, stat.S_IFCHR | 0o666, os.makedev(1, 3))  # a private /dev/null twin
+    except (PermissionError, OSError):
+        pytest.skip("mknod of a character device is not allowed here")
+    return path
+
+
 @pytest.mark.parametrize(
     "make, needle",
     [
         (lambda d: (d / "afile").write_text("keep") and d / "afile", "expected a folder, found a file"),
         (lambda d: (d / "afile").write_text("keep") and d / "afile" / "sub", "found a file"),
         (lambda d: _fifo(d / "fifo"), "expected a folder, found a FIFO"),
+        (lambda d: _chardev(d / "null"), "expected a folder, found a character device"),
     ],
-    ids=["file", "below-a-file", "fifo"],
+    ids=["file", "below-a-file", "fifo", "chardev"],
 )
 def test_out_that_is_not_a_folder_is_refused_before_any_work(straight_glb, tmp_path, capsys, make, needle):
     target = make(tmp_path)
