@@ -350,3 +350,20 @@ def test_float32_far_glb_warns_in_one_line(cli_main, capsys, tmp_path):
     assert len(err) == 1 and err[0].startswith(f"aerial-synth: warning: scene file {glb}: "
                                                "vertex coordinates up to 5300004 m"), err
     assert out.stat().st_size > 0
+
+
+@pytest.mark.parametrize("spec, expected", [
+    ({"generator": "depot", "size_m": [240, 200], "road_width_m": -3},
+     "road_width_m: expected a finite number > 0 and <= 200, got -3"),
+    ({"generator": "depot", "size_m": [240, 200], "garage": {"size_m": [3, 3]}},
+     "garage: missing key 'center'"),
+    ({"generator": "depot", "size_m": [240, 200], "yards": [{"center": [0, 0], "size_m": [-1, 5]}]},
+     "yards[0].size_m: expected [a, b]: 2 finite numbers > 0"),
+    ({"generator": "city", "size_km": 0.3, "blocks": 4}, "top level: unknown key(s) blocks"),
+    ({"generator": "city", "size_km": 0.3, "markings": {"dash_m": -1}},
+     "markings.dash_m: expected a finite number >= 0.5"),
+])
+def test_other_generators_fields(spec, expected):
+    with pytest.raises(SceneError) as ei:
+        generate(spec, source="g.yaml")
+    assert str(ei.value).startswith(f"g.yaml: {expected}"), str(ei.value)

@@ -9,8 +9,9 @@ one line naming the file and the field path, what was expected and what arrived:
 
 Unknown keys are refused (listing the known ones), so a typo never passes silently. Bounds
 keep generation finite: sizes up to 20 km, counts up to 20,000, spacings of at least 0.5 m.
-Generators other than the three below (``city``) validate their own keys; here they get
-only the common checks (``generator``, ``name``, ``seed``, ``size_m``).
+``city`` (procedural/city.py) checks its own values; here it gets the common checks
+(``generator``, ``name``, ``seed``, ``size_m``, ``markings``, ``tree_subdivisions``) and no
+unknown keys.
 """
 
 from __future__ import annotations
@@ -269,6 +270,13 @@ SCHEMAS: dict[str, dict[str, Check]] = {
         }),
         "poles": POLES,
     },
+    "depot": {
+        "road_width_m": pos(200.0),
+        "yards": nullable(list_of(LOT, 100)),
+        "garage": section({"center": pair(), "size_m": pair(0.0, 1e4, positive_only=True),
+                           "height_m": pos(200.0)}, required=("center", "size_m")),
+        "trees": section({"count": integer(0, MAX_COUNT)}),
+    },
     "highway": {
         "highway": section({
             "lanes": integer(1, 16),
@@ -328,6 +336,15 @@ def _check(spec: Any, seed: Any, generators) -> tuple[dict, int]:
     if "size_m" not in spec:
         raise SceneError("size_m: missing; expected [width, height] in metres")
     out["size_m"] = list(pair(0.0, size_hi, positive_only=True)("size_m", spec["size_m"]))
+    if "markings" in spec:
+        out["markings"] = MARKINGS("markings", spec["markings"])
+    if "tree_subdivisions" in spec:
+        out["tree_subdivisions"] = integer(0, 4)("tree_subdivisions", spec["tree_subdivisions"])
+    if kind == "city":  # procedural/city.py checks its values; here: no unknown keys
+        from .city import CITY_DEFAULTS
+
+        V.known_keys("top level", spec, _COMMON + ("size_km", "window_m") + tuple(CITY_DEFAULTS),
+                     error=E)
     schema = SCHEMAS.get(kind)
     if schema is None:  # another generator checks its own keys
         return out, s
@@ -336,10 +353,6 @@ def _check(spec: Any, seed: Any, generators) -> tuple[dict, int]:
     for key in REQUIRED.get(kind, ()):
         if key not in spec:
             raise SceneError(f"{key}: missing; the {kind} generator needs it (see docs/scenes.md)")
-    if "markings" in spec:
-        out["markings"] = MARKINGS("markings", spec["markings"])
-    if "tree_subdivisions" in spec:
-        out["tree_subdivisions"] = integer(0, 4)("tree_subdivisions", spec["tree_subdivisions"])
     for key, check in schema.items():
         if key in spec:
             out[key] = check(key, spec[key])
