@@ -253,12 +253,12 @@ _near = st.one_of(st.floats(min_value=-5, max_value=60), st.integers(min_value=-
 
 def _assert_valid(cfg: ScenarioConfig) -> None:
     assert isinstance(cfg, ScenarioConfig)
-    assert cfg.kind in ("lines", "random") and cfg.traffic in ("right", "left")
+    assert (cfg.kind in ("lines", "random") or cfg.parking is not None) and cfg.traffic in ("right", "left")
     for v in (cfg.lane_offset_m, cfg.gap_m, cfg.double_lane_probability, cfg.probe.step_m):
         assert isinstance(v, float) and math.isfinite(v)
     assert cfg.lane_offset_m > 0 and 0 <= cfg.gap_m <= 10 and 0 <= cfg.double_lane_probability <= 1
     assert cfg.vehicles_per_line.mean > 0 and cfg.vehicles_per_line.min >= 1
-    if cfg.kind == "lines":
+    if cfg.kind in ("lines", "mixed"):
         sp = cfg.spacing
         assert 0 < sp.mean_m and sp.lower_m < sp.mean_m < sp.max_m
 
