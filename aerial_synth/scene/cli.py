@@ -93,7 +93,12 @@ def _summary(scene) -> str:
     b = scene.bounds()
     parts = ", ".join(f"{k} {v}" for k, v in sorted(tri.items()))
     size = f"{b[1, 0] - b[0, 0]:.0f} m x {b[1, 1] - b[0, 1]:.0f} m"
-    return f"{scene.name}: {len(scene.objects)} objects, {scene.n_triangles} triangles, {size} ({parts})"
+    geo = ""
+    if any(scene.origin) or scene.crs:
+        o = ", ".join(f"{c + 0.0:.3f}".rstrip("0").rstrip(".") for c in scene.origin)
+        geo = f"; local frame origin ({o}) m" + (f" in {scene.crs}" if scene.crs else "")
+    return (f"{scene.name}: {len(scene.objects)} objects, {scene.n_triangles} triangles, {size} "
+            f"({parts}){geo}")
 
 
 def _warn_unmatched(scene) -> None:

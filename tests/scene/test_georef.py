@@ -275,3 +275,17 @@ def test_ascii_ply_keeps_full_precision(tmp_path):
     assert o.label == "road"
     assert np.allclose(o.vertices, v - np.array(sc.origin), atol=1e-9, rtol=0)
     assert np.allclose(sc.to_original(o.vertices), v, atol=1e-9, rtol=0)
+
+
+def test_cli_export_reports_and_keeps_the_georeference(cli_main, capsys, tmp_path):
+    t = np.eye(4)
+    t[:3, 3] = [500_000, 0, -5_300_000]
+    glb = write_glb(tmp_path / "utm.glb", [("road", *quad_yup(-20, 20, -4, 4), t)])
+    (tmp_path / "utm.labels.yaml").write_text("crs: EPSG:32632\n")
+    out = tmp_path / "again.glb"
+    assert cli_main(["scene", "export", str(glb), "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "; local frame origin (500000, 5300000, 0) m in EPSG:32632" in text
+    back = load_scene(out)
+    assert back.origin == (500_000.0, 5_300_000.0, 0.0) and back.crs == "EPSG:32632"
+    assert np.allclose(back.bounds(), [[-20, -4, 0], [20, 4, 0]])
