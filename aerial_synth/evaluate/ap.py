@@ -15,9 +15,12 @@ Semantics (``dota_evaluation_task1.py``, ``voc_eval``), re-implemented and vecto
   IoU 0.50:0.05:0.95.
 
 IoU: shapely 2 array functions over candidate pairs (boxes whose axis-aligned extents meet,
-found with one STRtree query); no Python loop over pairs. A self-intersecting four-point
-polygon (corners out of order) is replaced by its convex hull. Two zero-area boxes get
-IoU (0 + 1) / (0 + 1) = 1 as in the devkit's ``iou_poly``.
+found with one STRtree query); no Python loop over pairs. Boxes are taken as the devkit's
+``polyiou`` takes them: any corner order of a simple quadrilateral is the same shape; a
+self-intersecting one (a "bow tie") counts its two lobes with opposite signs, the
+intersection being the integral of the product of winding numbers (see :class:`Quads`).
+IoU is 0 where the union is empty (the devkit divides 0 by 0 there, and such a detection
+is a false positive either way).
 """
 
 from __future__ import annotations
@@ -33,6 +36,9 @@ __all__ = [
     "ClassResult",
     "EvalResult",
     "to_polygons",
+    "Quads",
+    "quads",
+    "quad_pair_iou",
     "pairwise_iou",
     "pair_iou",
     "candidate_pairs",
@@ -74,7 +80,8 @@ def to_polygons(xy):
 
 
 def pair_iou(pa, pb, area_a=None, area_b=None) -> np.ndarray:
-    """IoU of polygon arrays ``pa[i]`` and ``pb[i]`` element-wise (shapely, vectorised)."""
+    """IoU of simple polygon arrays ``pa[i]`` and ``pb[i]`` element-wise (shapely,
+    vectorised); 0 where the union is empty."""
     import shapely
 
     if len(pa) == 0:
@@ -82,22 +89,111 @@ def pair_iou(pa, pb, area_a=None, area_b=None) -> np.ndarray:
     aa = shapely.area(pa) if area_a is None else area_a
     ab = shapely.area(pb) if area_b is None else area_b
     inter = shapely.area(shapely.intersection(pa, pb))
-    union = aa + ab - inter
-    with np.errstate(divide="ignore", invalid="ignore"):
-        iou = np.where(union > 0, inter / np.where(union > 0, union, 1.0), (inter + 1.0) / (union + 1.0))
-    return iou
+    return _ratio(inter, aa + ab - inter)
+
+
+def _ratio(inter: np.ndarray, union: np.ndarray) -> np.ndarray:
+    """inter / union, and 0 where union is 0. With bow ties both may be negative (the
+    devkit divides them as they are)."""
+    ok = union != 0
+    return np.where(ok, inter / np.where(ok, union, 1.0), 0.0)
+
+
+def _shoelace(p: np.ndarray) -> np.ndarray:
+    """Signed area of (..., k, 2) rings (positive: clockwise on screen, y down)."""
+    x, y = p[..., 0], p[..., 1]
+    return 0.5 * np.sum(x * np.roll(y, -1, axis=-1) - np.roll(x, -1, axis=-1) * y, axis=-1)
+
+
+def _crossing(a, b, c, d):
+    """Where segments ab and cd cross at an inner point of both: (mask, point)."""
+    r, s, q = b - a, d - c, c - a
+    den = r[:, 0] * s[:, 1] - r[:, 1] * s[:, 0]
+    safe = np.where(den != 0, den, 1.0)
+    t = (q[:, 0] * s[:, 1] - q[:, 1] * s[:, 0]) / safe
+    u = (q[:, 0] * r[:, 1] - q[:, 1] * r[:, 0]) / safe
+    ok = (den != 0) & (t > 0) & (t < 1) & (u > 0) & (u < 1)
+    return ok, a + t[:, None] * r
+
+
+@dataclass
+class Quads:
+    """Four-point boxes as the devkit's ``polyiou`` sees them: a quad's winding number
+    (+1 inside a simple quad, whatever its corner order; +1 and -1 in the two lobes of a
+    self-intersecting "bow tie", signs chosen so the signed area is >= 0) as one or two
+    simple pieces with signs. ``area``: |shoelace area|, as ``polyiou`` uses."""
+
+    lobe1: np.ndarray
+    sign1: np.ndarray
+    lobe2: np.ndarray
+    sign2: np.ndarray
+    area: np.ndarray
+    simple: np.ndarray
+
+
+def quads(xy) -> Quads:
+    """(n, 4, 2) corners -> :class:`Quads` (vectorised)."""
+    import shapely
+
+    P = np.asarray(xy, dtype=np.float64).reshape(-1, 4, 2)
+    n = len(P)
+    signed = _shoelace(P)
+    polys = shapely.polygons(P) if n else np.empty(0, dtype=object)
+    simple = shapely.is_valid(polys) if n else np.zeros(0, bool)
+    lobe1, sign1 = polys.copy(), np.ones(n)
+    lobe2, sign2 = np.full(n, None, dtype=object), np.zeros(n)
+    bad = np.nonzero(~simple)[0]
+    if len(bad):
+        p0, p1, p2, p3 = (P[bad, k] for k in range(4))
+        ok_a, x = _crossing(p0, p1, p2, p3)  # p0p1 crosses p2p3: loops x p1 p2 and p0 x p3
+        ok_b, y = _crossing(p1, p2, p3, p0)  # p1p2 crosses p3p0: loops y p2 p3 and p0 p1 y
+        t1 = np.where(ok_a[:, None, None], np.stack([x, p1, p2], 1), np.stack([y, p2, p3], 1))
+        t2 = np.where(ok_a[:, None, None], np.stack([p0, x, p3], 1), np.stack([p0, p1, y], 1))
+        flip = np.where(signed[bad] < 0, -1.0, 1.0)  # polyiou reverses a negative polygon
+        cross = ok_a | ok_b
+        b = bad[cross]
+        lobe1[b] = shapely.polygons(t1[cross])
+        sign1[b] = np.sign(_shoelace(t1[cross])) * flip[cross]
+        lobe2[b] = shapely.polygons(t2[cross])
+        sign2[b] = np.sign(_shoelace(t2[cross])) * flip[cross]
+        # other invalid quads (zero area, a corner on another edge): repaired by shapely
+        rest = bad[~cross]
+        if len(rest):
+            lobe1[rest] = shapely.make_valid(polys[rest])
+    return Quads(lobe1, sign1, lobe2, sign2, np.abs(signed), simple)
+
+
+def quad_pair_iou(a: Quads, ia, b: Quads, ib) -> np.ndarray:
+    """IoU of quads ``a[ia[k]]`` and ``b[ib[k]]``: the signed intersection of their pieces
+    (the integral of the product of the winding numbers, as ``polyiou`` computes it) over
+    |area a| + |area b| - intersection; 0 where that is 0."""
+    import shapely
+
+    ia, ib = np.asarray(ia), np.asarray(ib)
+    if len(ia) == 0:
+        return np.zeros(0)
+    inter = a.sign1[ia] * b.sign1[ib] * shapely.area(shapely.intersection(a.lobe1[ia], b.lobe1[ib]))
+    two_a, two_b = a.sign2[ia] != 0, b.sign2[ib] != 0
+    for ma, mb, la, sa, lb, sb in (
+        (two_a, None, a.lobe2, a.sign2, b.lobe1, b.sign1),
+        (None, two_b, a.lobe1, a.sign1, b.lobe2, b.sign2),
+        (two_a, two_b, a.lobe2, a.sign2, b.lobe2, b.sign2),
+    ):
+        m = (ma if ma is not None else True) & (mb if mb is not None else True)
+        m = np.broadcast_to(m, ia.shape)
+        if m.any():
+            ka, kb = ia[m], ib[m]
+            inter[m] += sa[ka] * sb[kb] * shapely.area(shapely.intersection(la[ka], lb[kb]))
+    return _ratio(inter, a.area[ia] + b.area[ib] - inter)
 
 
 def pairwise_iou(a_xy, b_xy) -> np.ndarray:
-    """(n, m) IoU table of two sets of four-point boxes (broadcast shapely calls)."""
-    pa = to_polygons(a_xy)
-    pb = to_polygons(b_xy)
-    n, m = len(pa), len(pb)
+    """(n, m) IoU table of two sets of four-point boxes, devkit semantics (vectorised)."""
+    qa, qb = quads(a_xy), quads(b_xy)
+    n, m = len(qa.area), len(qb.area)
     if n == 0 or m == 0:
         return np.zeros((n, m))
-    ia = np.repeat(np.arange(n), m)
-    ib = np.tile(np.arange(m), n)
-    return pair_iou(pa[ia], pb[ib]).reshape(n, m)
+    return quad_pair_iou(qa, np.repeat(np.arange(n), m), qb, np.tile(np.arange(m), n)).reshape(n, m)
 
 
 def candidate_pairs(a_xy, a_key, b_xy, b_key) -> tuple[np.ndarray, np.ndarray]:
@@ -240,7 +336,6 @@ def _best_overlaps(det_xy, det_img, det_cls, gt_xy, gt_img, gt_cls, min_threshol
     Pairs whose IoU cannot exceed ``min_threshold`` (an upper bound from projections on the
     two boxes' axes) are not intersected: they can never be a match, and a detection left
     without pairs is a false positive at every threshold >= ``min_threshold`` either way."""
-    import shapely
 
     nd = len(det_xy)
     ovmax = np.full(nd, -np.inf)
@@ -249,20 +344,20 @@ def _best_overlaps(det_xy, det_img, det_cls, gt_xy, gt_img, gt_cls, min_threshol
     di, gj = candidate_pairs(det_xy, det_img * ncls + det_cls, gt_xy, gt_img * ncls + gt_cls)
     if len(di) == 0:
         return ovmax, jmax
-    dp = to_polygons(det_xy)
-    gp = to_polygons(gt_xy)
-    da, ga = shapely.area(dp), shapely.area(gp)
+    dq, gq = quads(det_xy), quads(gt_xy)
+    da, ga = dq.area, gq.area
     if min_threshold > 0:
         a, b = det_xy[di], gt_xy[gj]
         m = np.minimum(np.minimum(da[di], ga[gj]),
                        np.minimum(_projection_bound(a, b, a), _projection_bound(a, b, b)))
         denom = da[di] + ga[gj] - m
         ub = np.where(denom > 0, m / np.where(denom > 0, denom, 1.0), 1.0)
-        keep = ub >= min_threshold - 1e-9
+        # the bound holds for simple quads; pairs with a bow tie are always computed
+        keep = (ub >= min_threshold - 1e-9) | ~dq.simple[di] | ~gq.simple[gj]
         di, gj = di[keep], gj[keep]
         if len(di) == 0:
             return ovmax, jmax
-    iou = pair_iou(dp[di], gp[gj], da[di], ga[gj])
+    iou = quad_pair_iou(dq, di, gq, gj)
     order = np.lexsort((gj, -iou, di))  # by detection, then IoU descending, then box index
     di, gj, iou = di[order], gj[order], iou[order]
     first = np.ones(len(di), dtype=bool)

@@ -44,15 +44,30 @@ def dets(rows):
 # -- reference: per-detection loop over shapely polygons, devkit semantics ------------------
 
 
+def _fan(p):
+    """Signed triangles (origin, p_i, p_i+1) of a ring oriented to a non-negative area:
+    summed, their indicators give the winding number at every point."""
+    p = [tuple(map(float, v)) for v in p]
+    area = sum(p[i][0] * p[(i + 1) % 4][1] - p[(i + 1) % 4][0] * p[i][1] for i in range(4)) / 2
+    if area < 0:
+        p = p[::-1]
+    out = []
+    for i in range(4):
+        a, b = p[i], p[(i + 1) % 4]
+        cross = a[0] * b[1] - b[0] * a[1]
+        if cross != 0:
+            out.append((1.0 if cross > 0 else -1.0, Polygon([(0.0, 0.0), a, b])))
+    return out, abs(area)
+
+
 def ref_iou(p, q):
-    a, b = Polygon(p), Polygon(q)
-    if not a.is_valid:
-        a = a.convex_hull
-    if not b.is_valid:
-        b = b.convex_hull
-    inter = a.intersection(b).area
-    union = a.area + b.area - inter
-    return inter / union if union > 0 else (inter + 1) / (union + 1)
+    """The devkit's polygon IoU written plainly: intersection = the sum of signed
+    intersections of the two fans' triangles (any corner order, bow ties included)."""
+    fa, area_a = _fan(p)
+    fb, area_b = _fan(q)
+    inter = sum(sa * sb * ta.intersection(tb).area for sa, ta in fa for sb, tb in fb)
+    union = area_a + area_b - inter
+    return inter / union if union != 0 else 0.0
 
 
 def ref_voc_eval(gt, det, classname, ovthresh, use_07):
@@ -207,10 +222,17 @@ def test_rotated_iou_table_matches_shapely_polygons():
     d = rect(0, 0, 2, 2, 45)
     oct_area = 8 * (np.sqrt(2) - 1)
     assert pairwise_iou([s], [d])[0, 0] == pytest.approx(oct_area / (8 - oct_area), abs=1e-12)
-    # corners out of order (a bow tie) mean the same rectangle
+    # any corner order of a simple quad is the same shape
+    assert pairwise_iou([s[::-1]], [s])[0, 0] == pytest.approx(1.0)
+    # a bow tie counts its lobes with opposite winding, as the devkit's polyiou: this one's
+    # two halves cancel inside the square (IoU 0); a lopsided one keeps its bigger lobe
     bow = s[[0, 2, 1, 3]]
     assert not shapely.is_valid(shapely.polygons(bow))
-    assert pairwise_iou([bow], [s])[0, 0] == pytest.approx(1.0)
+    assert pairwise_iou([bow], [s])[0, 0] == pytest.approx(0.0, abs=1e-12)
+    lop = np.array([[0, 0], [4, 4], [4, 0], [0, 1]], float)
+    big = rect(2, 2, 4, 4)
+    assert pairwise_iou([lop], [big])[0, 0] == pytest.approx(ref_iou(lop, big), abs=1e-12)
+    assert pairwise_iou([lop], [big])[0, 0] > 0.2
 
 
 def test_ap_functions_on_known_curves():
@@ -232,8 +254,10 @@ def random_case(rng, n_img=6, n_cls=2):
         diff = rng.random(k) < 0.2
         gt.append(gt_image(f"img{i}", boxes, cls, diff))
         for b, c in zip(boxes, cls):
-            if rng.random() < 0.8:  # a jittered detection
+            if rng.random() < 0.8:  # a jittered detection, sometimes a bow tie
                 jit = b + rng.normal(0, 3, (4, 2))
+                if rng.random() < 0.1:
+                    jit = jit[[0, 2, 1, 3]]
                 rows.append((i, c, float(rng.random()), jit))
             if rng.random() < 0.3:  # a duplicate
                 rows.append((i, c, float(rng.random()), b + rng.normal(0, 6, (4, 2))))
