@@ -132,6 +132,71 @@ def _first_location(area):
     return None
 
 
+class _Collector:
+    """pyosmium handler: called from C++ only for objects that passed the key filters."""
+
+    def __init__(self, data: OsmData, bbox, lines: _Batch, areas: _Batch):
+        import osmium.geom
+
+        self.data, self.bbox, self.lines, self.areas = data, bbox, lines, areas
+        self.fab = osmium.geom.WKBFactory()
+        self.counts = {"nodes": 0, "ways": 0, "areas": 0}
+        if bbox is not None:
+            r = _BUILDING_REACH_DEG
+            self.reach = (bbox[0] - r, bbox[1] - r, bbox[2] + r, bbox[3] + r)
+
+    def node(self, obj) -> None:
+        self.counts["nodes"] += 1
+        if obj.tags.get("natural") != "tree":
+            return
+        loc = obj.location
+        if not loc.valid():
+            return
+        lon, lat = loc.lon, loc.lat
+        b = self.bbox
+        if b is not None and not (b[0] <= lon <= b[2] and b[1] <= lat <= b[3]):
+            return
+        self.data.trees.append((obj.id, lon, lat, dict(obj.tags)))
+
+    def way(self, obj) -> None:
+        self.counts["ways"] += 1
+        tags = obj.tags
+        kind = road_class(tags)
+        if kind is None:
+            if tags.get("natural") == "tree_row":
+                kind = "tree_row"
+            elif "waterway" in tags and waterway_width_m(tags) is not None:
+                kind = "waterway"
+            else:
+                return
+        wkb = _way_wkb(self.fab, obj)
+        if wkb is not None:
+            self.lines.add((kind, obj.id, dict(tags)), wkb)
+
+    def area(self, obj) -> None:
+        import osmium
+
+        self.counts["areas"] += 1
+        kind = area_kind(obj.tags)
+        if kind is None:
+            return
+        if kind == "building":
+            if self.bbox is not None:
+                loc = _first_location(obj)
+                r = self.reach
+                if loc is not None and not (r[0] <= loc[0] <= r[2] and r[1] <= loc[1] <= r[3]):
+                    return
+            tg = obj.tags
+            tags = {k: tg.get(k) for k in _BUILDING_TAGS if k in tg}
+        else:
+            tags = dict(obj.tags)
+        try:
+            wkb = self.fab.create_multipolygon(obj)
+        except (osmium.InvalidLocationError, RuntimeError):
+            return
+        self.areas.add((kind, obj.id, tags), wkb)
+
+
 def read_osm(path: str | Path, bbox: tuple | None = None) -> OsmData:
     """Read the scene features of an OSM file, keeping those that intersect ``bbox``.
 
@@ -139,10 +204,16 @@ def read_osm(path: str | Path, bbox: tuple | None = None) -> OsmData:
            own bounds, else the extent of what was read, become ``OsmData.bbox``)
     Raises :class:`SceneError` (one line) for a missing, unreadable, malformed or truncated
     file.
+
+    Two passes with ``osmium.apply``: relations (multipolygon candidates), then everything
+    with a node-location index; areas are handed on as the assembler completes them, so
+    nothing piles up in a buffer. C++ filters let only tree nodes, road/path/tree-row/river
+    ways and areas with a key we use reach Python (building ways come once, as areas).
     """
     import osmium
+    import osmium.area
     import osmium.filter
-    import osmium.geom
+    import osmium.index
     import shapely
 
     path = Path(path)
@@ -155,74 +226,35 @@ def read_osm(path: str | Path, bbox: tuple | None = None) -> OsmData:
     data = OsmData(bbox=tuple(bbox) if bbox is not None else None)
     lines = _Batch(bbox_poly, data.lines)
     areas = _Batch(bbox_poly, data.areas)
-    fab = osmium.geom.WKBFactory()
-    counts = {"nodes": 0, "ways": 0, "areas": 0}
+    col = _Collector(data, bbox, lines, areas)
     header_box = None
-    if bbox is not None:
-        x0, y0, x1, y1 = bbox
+    osm, flt = osmium.osm, osmium.filter
     try:
-        # C++ filters: only tree nodes, road/path/tree-row/river ways and areas with a key
-        # we use ever reach Python (building ways come once, as areas)
-        osm = osmium.osm
-        fp = osmium.FileProcessor(str(path)).with_areas(osmium.filter.KeyFilter(*_AREA_KEYS))
-        fp = (fp.with_filter(osmium.filter.EntityFilter(osm.NODE | osm.WAY | osm.AREA))
-                .with_filter(osmium.filter.KeyFilter("natural").enable_for(osm.NODE))
-                .with_filter(osmium.filter.KeyFilter(*_WAY_KEYS).enable_for(osm.WAY))
-                .with_filter(osmium.filter.KeyFilter(*_AREA_KEYS).enable_for(osm.AREA)))
-        if bbox is not None:
-            r = _BUILDING_REACH_DEG
-            fx0, fy0, fx1, fy1 = x0 - r, y0 - r, x1 + r, y1 + r
-        hb = fp.header.box()
+        rd = osmium.io.Reader(str(path), osm.NOTHING)
+        try:
+            hb = rd.header().box()
+        finally:
+            rd.close()
         if hb.valid():
             header_box = (hb.bottom_left.lon, hb.bottom_left.lat, hb.top_right.lon,
                           hb.top_right.lat)
-        for obj in fp:
-            t = obj.type_str()
-            if t == "n":
-                counts["nodes"] += 1
-                if obj.tags.get("natural") != "tree":
-                    continue
-                loc = obj.location
-                if not loc.valid():
-                    continue
-                lon, lat = loc.lon, loc.lat
-                if bbox is not None and not (x0 <= lon <= x1 and y0 <= lat <= y1):
-                    continue
-                data.trees.append((obj.id, lon, lat, dict(obj.tags)))
-            elif t == "w":
-                counts["ways"] += 1
-                tags = obj.tags
-                kind = road_class(tags)
-                if kind is None:
-                    if tags.get("natural") == "tree_row":
-                        kind = "tree_row"
-                    elif "waterway" in tags and waterway_width_m(tags) is not None:
-                        kind = "waterway"
-                    else:
-                        continue
-                wkb = _way_wkb(fab, obj)
-                if wkb is not None:
-                    lines.add((kind, obj.id, dict(tags)), wkb)
-            elif t == "a":
-                counts["areas"] += 1
-                kind = area_kind(obj.tags)
-                if kind is None:
-                    continue
-                if kind == "building":
-                    if bbox is not None:
-                        loc = _first_location(obj)
-                        if loc is not None and not (fx0 <= loc[0] <= fx1
-                                                    and fy0 <= loc[1] <= fy1):
-                            continue
-                    tg = obj.tags
-                    tags = {k: tg.get(k) for k in _BUILDING_TAGS if k in tg}
-                else:
-                    tags = dict(obj.tags)
-                try:
-                    wkb = fab.create_multipolygon(obj)
-                except (osmium.InvalidLocationError, RuntimeError):
-                    continue
-                areas.add((kind, obj.id, tags), wkb)
+        am = osmium.area.AreaManager()
+        rd = osmium.io.Reader(str(path), osm.RELATION)
+        try:
+            osmium.apply(rd, flt.KeyFilter(*_AREA_KEYS), am.first_pass_handler())
+        finally:
+            rd.close()
+        lh = osmium.NodeLocationsForWays(osmium.index.create_map("flex_mem"))
+        lh.ignore_errors()
+        osmium.apply(
+            str(path),
+            lh,
+            am.second_pass_handler(flt.KeyFilter(*_AREA_KEYS), col),
+            flt.EntityFilter(osm.NODE | osm.WAY),
+            flt.KeyFilter("natural").enable_for(osm.NODE),
+            flt.KeyFilter(*_WAY_KEYS).enable_for(osm.WAY),
+            col,
+        )
         lines.flush()
         areas.flush()
     except SceneError:
@@ -230,6 +262,7 @@ def read_osm(path: str | Path, bbox: tuple | None = None) -> OsmData:
     except Exception as exc:  # osmium reports malformed/truncated input as RuntimeError etc.
         msg = " ".join(str(exc).split())[:200] or type(exc).__name__
         raise SceneError(f"OSM file {path}: cannot read as {fmt} ({msg})") from None
+    counts = col.counts
     data.counts = counts
     if data.bbox is None:
         if header_box is not None:
