@@ -259,8 +259,11 @@ def main(argv=None) -> int:
     size_mb = large.stat().st_size / 1e6
     bb = bbox_of(1000, 1000, 1500, 1500)
     r = child(large, bb)
+    base = child(small, bbox_of(100, 100, 600, 600))
     print(f"{size_mb:.1f} MB pbf, --bbox {bb} (500 m x 500 m): {r['seconds']:.2f} s, peak RSS "
-          f"{r['max_rss_mb']:.0f} MB; {r['roads']} roads, {r['buildings']} buildings")
+          f"{r['max_rss_mb']:.0f} MB ({base['max_rss_mb']:.0f} MB for the same bbox size cut "
+          f"from the {small.stat().st_size / 1e3:.0f} kB file); {r['roads']} roads, "
+          f"{r['buildings']} buildings")
     print("command: .venv/bin/python tools/bench_osm.py")
     return 0
 
