@@ -114,9 +114,10 @@ def get(name: str) -> LabelFormat:
         return _LOADED[name]
     if name not in BUILTIN:
         raise ExportError(f"--format: unknown format {name!r}; expected one of {', '.join(names())}")
-    fmt = importlib.import_module(BUILTIN[name]).FORMAT
+    fmt = getattr(importlib.import_module(BUILTIN[name]), "FORMAT", None)
     if not isinstance(fmt, LabelFormat) or fmt.name != name:
-        raise ExportError(f"format module {BUILTIN[name]}: FORMAT must be a LabelFormat named {name!r}")
+        raise ExportError(f"format module {BUILTIN[name]}: expected FORMAT = a LabelFormat named {name!r}, "
+                          f"got {fmt!r}")
     _LOADED[name] = fmt
     return fmt
 

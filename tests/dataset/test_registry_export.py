@@ -107,3 +107,25 @@ def test_export_config_paths_and_order():
     c = ExportConfig(scene=Path("/x/scene.obj"), formats="coco,dota")
     assert c.scene == "/x/scene.obj" and c.formats == ("dota", "coco")
     assert ExportConfig.from_dict(c.to_dict()) == c
+
+
+def test_one_module_plus_one_registry_line(monkeypatch, tiny_scene, tmp_path):
+    """The documented way to add a format: a module defining FORMAT, and its line in
+    registry.BUILTIN (imported lazily on first use)."""
+    monkeypatch.setitem(registry.BUILTIN, "count", "tests.dataset.tiny_format")
+    monkeypatch.setattr(registry, "_LOADED", dict(registry._LOADED))
+    assert "count" in registry.names()
+    assert isinstance(registry.get("count"), CountFormat)
+    cfg = ExportConfig(scene=tiny_scene, images=1, formats="count", seed=1, n_vehicles=6, width_px=96,
+                       height_px=96, simple_vehicles=True)
+    out = tmp_path / "ds"
+    export_dataset(cfg, out, progress=False)
+    assert sorted(p.name for p in out.iterdir()) == ["count", "manifest.json", "meta", "summary.json"]
+    assert (out / "count" / "total.txt").read_text().startswith("images 1 vehicles ")
+
+
+def test_builtin_module_must_define_its_format(monkeypatch):
+    monkeypatch.setitem(registry.BUILTIN, "broken", "aerial_synth.formats._common")
+    monkeypatch.setattr(registry, "_LOADED", dict(registry._LOADED))
+    with pytest.raises(ExportError, match="expected FORMAT = a LabelFormat named 'broken', got None"):
+        registry.get("broken")

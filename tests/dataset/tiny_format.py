@@ -23,3 +23,6 @@ class CountFormat(LabelFormat):
     def aggregate_files(self, records, info):
         n = sum(1 for r in records for a in r.annotations if a.kept)
         return {f"{self.folder}/total.txt": f"images {len(records)} vehicles {n}\n"}
+
+
+FORMAT = CountFormat()
