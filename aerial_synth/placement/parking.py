@@ -158,9 +158,54 @@ def find_lots(rayscene, cfg: ParkingConfig | None = None) -> list[Lot]:
 
 
 def _refine(rs, fr):
-    """Edges of the lot rectangle by 0.05 m marches outward (median of 7 per side)."""
-    from ..scene.procedural.parking import LotFrame
+    """Edges and direction of the lot rectangle by 0.05 m marches outward from seven points
+    along each side: the slope of the edge distances along the long sides turns the
+    rectangle (Theil-Sen, robust to an entrance), then the median distance per side places
+    each edge."""
+    for _ in range(2):
+        res = _side_marches(rs, fr)
+        if res is None:
+            return None
+        dist, offs = res
+        from scipy.stats import theilslopes
 
+        slopes = []
+        for i, sgn in ((2, 1.0), (3, -1.0)):  # the +v and -v sides
+            di, oi = dist[7 * i:7 * i + 7], offs[7 * i:7 * i + 7]
+            ok = np.isfinite(di)
+            if ok.sum() >= 4:
+                slopes.append(sgn * theilslopes(di[ok], oi[ok])[0])
+        if not slopes:
+            break
+        delta = float(np.arctan(np.median(slopes)))
+        if abs(delta) < 1e-5:
+            break
+        fr = dataclasses.replace(fr, u_rad=float(np.mod(fr.u_rad + delta, np.pi)))
+    res = _side_marches(rs, fr)
+    if res is None:
+        return None
+    dist, _ = res
+    med = []
+    for i in range(4):
+        di = dist[7 * i:7 * i + 7]
+        di = di[np.isfinite(di)]
+        if len(di) < 3:
+            return None
+        med.append(float(np.median(di)))
+    u = np.array([np.cos(fr.u_rad), np.sin(fr.u_rad)])
+    v = np.array([-u[1], u[0]])
+    c = np.array([fr.cx, fr.cy])
+    cc = c + u * (med[0] - med[1]) / 2 + v * (med[2] - med[3]) / 2
+    L, S = med[0] + med[1], med[2] + med[3]
+    if S > L:  # rows follow the long side
+        return dataclasses.replace(fr, cx=float(cc[0]), cy=float(cc[1]),
+                                   u_rad=float(np.mod(fr.u_rad + np.pi / 2, np.pi)), long_m=S, short_m=L)
+    return dataclasses.replace(fr, cx=float(cc[0]), cy=float(cc[1]), long_m=L, short_m=S)
+
+
+def _side_marches(rs, fr):
+    """Distances from the rectangle's centre line to each side's edge, 7 marches per side
+    (+u, -u, +v, -v), and the marches' offsets along the side (metres)."""
     u = np.array([np.cos(fr.u_rad), np.sin(fr.u_rad)])
     v = np.array([-u[1], u[0]])
     c = np.array([fr.cx, fr.cy])
@@ -169,27 +214,15 @@ def _refine(rs, fr):
     across = [v, v, u, u]
     spans = [fr.short_m, fr.short_m, fr.long_m, fr.long_m]
     t = np.linspace(-0.35, 0.35, 7)
-    origins, ds, starts = [], [], []
+    origins, ds, starts, offs = [], [], [], []
     for h, d, a, sp in zip(halves, dirs, across, spans):
         for ti in t:
             origins.append(c + a * ti * sp)
             ds.append(d)
-            starts.append(max(h - 2.0, 0.0))
-    dist = _march_edges(rs, np.array(origins), np.array(ds), np.array(starts), 4.0)
-    med = []
-    for i in range(4):
-        di = dist[7 * i:7 * i + 7]
-        di = di[np.isfinite(di)]
-        if len(di) < 3:
-            return None
-        med.append(float(np.median(di)))
-    du = (med[0] - med[1]) / 2
-    dv = (med[2] - med[3]) / 2
-    cc = c + u * du + v * dv
-    L, S = med[0] + med[1], med[2] + med[3]
-    if S > L:  # rows follow the long side
-        return LotFrame(float(cc[0]), float(cc[1]), float(np.mod(fr.u_rad + np.pi / 2, np.pi)), S, L)
-    return LotFrame(float(cc[0]), float(cc[1]), fr.u_rad, L, S)
+            starts.append(max(h - 3.0, 0.0))
+            offs.append(ti * sp)
+    dist = _march_edges(rs, np.array(origins), np.array(ds), np.array(starts), 6.0)
+    return dist, np.array(offs)
 
 
 def _bays_on_lot(rs, bays, inset_m: float = 0.15) -> np.ndarray:
@@ -375,8 +408,12 @@ class _Site:
 
 
 def fill_bays(sites: list, cfg: ParkingConfig, catalog, rng: np.random.Generator,
-              obstacles=None, first_id: int = 1, z_of=None) -> tuple[list, dict]:
-    """Fill the bays of every site (lots and kerb lines). Returns (vehicles, stats)."""
+              obstacles=None, first_id: int = 1, z_of=None, surface_ok=None) -> tuple[list, dict]:
+    """Fill the bays of every site (lots and kerb lines). Returns (vehicles, stats).
+
+    ``surface_ok(points (n, k, 2), is_kerb (n,)) -> (n,) bool`` checks that footprint
+    samples lie on the site's surface (a lot edge or the kerb); a jittered vehicle that
+    fails loses its jitter, and one that still fails leaves its bay empty."""
     import shapely
     from scipy import stats as st
 
@@ -398,7 +435,7 @@ def fill_bays(sites: list, cfg: ParkingConfig, catalog, rng: np.random.Generator
     N = len(rows)
     if N == 0:
         return [], {"targets": targets, "filled": [0] * len(sites), "bays": [len(s.bays) for s in sites],
-                    "no_fit": 0, "reset": 0, "dropped": 0}
+                    "no_fit": 0, "reset": 0, "dropped": 0, "off_surface": 0}
     si = np.array([r[0] for r in rows])
     bi = np.array([r[1] for r in rows])
     cx = np.empty(N)
@@ -473,6 +510,23 @@ def fill_bays(sites: list, cfg: ParkingConfig, catalog, rng: np.random.Generator
     valid = model_idx >= 0
     jit = np.ones(N)
     x, y, h = poses(jit)
+    off_surface = 0
+    if surface_ok is not None:
+        kerb_row = np.array([sites[k].kind == "kerb" for k in si])
+        for rnd in range(2):
+            live = np.flatnonzero(valid)
+            if not len(live):
+                break
+            pts = _outline(x[live], y[live], h[live], L[live], W[live])
+            bad = live[~surface_ok(pts, kerb_row[live])]
+            if not len(bad):
+                break
+            if rnd == 0:
+                jit[bad] = 0.0
+                x, y, h = poses(jit)
+            else:
+                valid[bad] = False
+                off_surface = len(bad)
     obs = [] if obstacles is None else list(obstacles)
     n_reset = 0
     for rnd in range(2):  # 0: clashing vehicles lose their jitter; 1: still clashing, dropped
@@ -516,8 +570,23 @@ def fill_bays(sites: list, cfg: ParkingConfig, catalog, rng: np.random.Generator
         ))
         nid += 1
     stats = {"targets": targets, "filled": filled, "bays": [len(s.bays) for s in sites],
-             "no_fit": int((model_idx < 0).sum()), "reset": n_reset, "dropped": dropped}
+             "no_fit": int((model_idx < 0).sum()), "reset": n_reset, "dropped": dropped,
+             "off_surface": off_surface}
     return vehicles, stats
+
+
+def _outline(x, y, h, L, W, n_l: int = 5, n_w: int = 3) -> np.ndarray:
+    """(n, 2 n_l + 2 n_w - 4 + 1, 2) points on each footprint's outline (1 cm inside) and
+    its centre."""
+    fl = np.linspace(-0.5, 0.5, n_l)
+    fw = np.linspace(-0.5, 0.5, n_w)
+    rim = [(a, -0.5) for a in fl] + [(a, 0.5) for a in fl] + [(-0.5, b) for b in fw[1:-1]] + [
+        (0.5, b) for b in fw[1:-1]] + [(0.0, 0.0)]
+    r = np.array(rim)
+    lx = r[None, :, 0] * (L[:, None] - 0.02)
+    ly = r[None, :, 1] * (W[:, None] - 0.02)
+    c, s = np.cos(h)[:, None], np.sin(h)[:, None]
+    return np.stack([x[:, None] + c * lx - s * ly, y[:, None] + s * lx + c * ly], axis=-1)
 
 
 # ------------------------------------------------------------------------- scenario
@@ -554,7 +623,15 @@ def place_parking(rayscene, cfg, rng: np.random.Generator, catalog, seed=None, s
         tr = rs.trace_down(xy)
         return np.where(np.isfinite(tr.z), tr.z, 0.0)
 
-    parked, fstats = fill_bays(sites, pc, catalog, rng, obstacles, first_id=len(moving) + 1, z_of=z_of)
+    lot_ids = _lot_ids()
+    kerb_ids = np.array([LABEL_IDS["road"], LABEL_IDS["lane_marking"]])
+
+    def surface_ok(pts, is_kerb):
+        lab = _trace_labels(rs, pts.reshape(-1, 2)).reshape(pts.shape[:2])
+        return np.where(is_kerb, np.isin(lab, kerb_ids).all(axis=1), np.isin(lab, lot_ids).all(axis=1))
+
+    parked, fstats = fill_bays(sites, pc, catalog, rng, obstacles, first_id=len(moving) + 1, z_of=z_of,
+                               surface_ok=surface_ok)
     vehicles = moving + parked
     vehicles = [dataclasses.replace(v, **_original(rs, v)) for v in vehicles]
     elapsed = time.perf_counter() - t0
@@ -576,6 +653,7 @@ def place_parking(rayscene, cfg, rng: np.random.Generator, catalog, seed=None, s
         "no_fit": fstats["no_fit"],
         "jitter_reset": fstats["reset"],
         "dropped_overlap": fstats["dropped"],
+        "dropped_off_surface": fstats["off_surface"],
     }
     if traffic_on:
         stats["traffic"] = {k: tstats[k] for k in ("lines", "opposite_lanes", "line_end_reasons") if k in tstats}
