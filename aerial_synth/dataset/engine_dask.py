@@ -35,7 +35,8 @@ from pathlib import Path
 
 from ..errors import ExportError
 
-__all__ = ["DaskEngine", "plan_tasks", "threads_per_worker", "limit_threads", "parse_dask_address"]
+__all__ = ["DaskEngine", "plan_tasks", "threads_per_worker", "limit_threads", "parse_dask_address",
+           "probe_scheduler"]
 
 #: An unreachable scheduler is reported within this many seconds (the CLI promises 10).
 CONNECT_TIMEOUT_S = 6.0
@@ -109,6 +110,30 @@ def parse_dask_address(text: str) -> tuple[str, object]:
     if _TCP.match(s):
         return "tcp", s if re.search(r":\d+$", s) else s + ":8786"
     raise ExportError(f"--dask: expected tcp://HOST:PORT (a running dask scheduler) or local:K, got {text!r}")
+
+
+def probe_scheduler(spec: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
+    """Check ``--dask`` before any slow work: the address parses, Dask is installed, and a
+    ``tcp://`` scheduler accepts a TCP connection within ``timeout_s``. One-line
+    ExportError otherwise (the export then writes nothing)."""
+    import socket
+
+    kind, arg = parse_dask_address(spec)
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        raise ExportError("--dask: needs Dask distributed; install it with pip install 'aerial-synth[dask]'") from None
+    if kind != "tcp":
+        return
+    host, port = str(arg).split("://", 1)[1].rsplit(":", 1)
+    t0 = time.perf_counter()
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout_s).close()
+    except OSError as exc:
+        raise ExportError(
+            f"--dask {arg}: cannot reach a Dask scheduler there within {time.perf_counter() - t0:.0f} s "
+            f"({exc.strerror or type(exc).__name__}); start one with 'dask scheduler' or check the address"
+        ) from None
 
 
 # ------------------------------------------------------------------ worker side

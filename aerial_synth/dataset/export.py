@@ -117,6 +117,7 @@ def export_dataset(
     t0 = time.perf_counter()
     workers = v.integer("--workers", workers, 1, error=ExportError)
     plan = plan_output(cfg, out_dir, resume, force)
+    _check_dask(dask, workers)  # a bad or unreachable --dask is reported before the slow checks
     scene, catalog = validate_inputs(cfg)
     geo = _georeference(scene)
     engine = _dask_engine(dask, workers)  # before any write: an unreachable scheduler writes nothing
@@ -165,11 +166,19 @@ def export_dataset(
     return ExportResult(Path(out_dir), summary, time.perf_counter() - t0, len(todo), skipped)
 
 
+def _check_dask(dask, workers):
+    if dask is None:
+        return
+    if workers != 1:
+        raise ExportError(f"--dask and --workers: choose one engine (Dask workers are the cluster's), got --workers {workers}")
+    from .engine_dask import probe_scheduler
+
+    probe_scheduler(dask)
+
+
 def _dask_engine(dask, workers):
     if dask is None:
         return None
-    if workers != 1:
-        raise ExportError(f"--dask and --workers: choose one engine (Dask workers are the cluster's), got --workers {workers}")
     from .engine_dask import DaskEngine
 
     return DaskEngine.connect(dask)

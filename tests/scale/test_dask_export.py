@@ -127,6 +127,12 @@ def test_unreachable_scheduler_one_line_within_10s(cross_scene, tmp_path):
         DaskEngine.connect("tcp://127.0.0.1:9")
     assert time.monotonic() - t0 < 10.0
     assert "--dask tcp://127.0.0.1:9" in str(e.value) and "\n" not in str(e.value)
+    from aerial_synth.dataset.engine_dask import probe_scheduler
+
+    t0 = time.monotonic()
+    with pytest.raises(ExportError, match="cannot reach a Dask scheduler"):
+        probe_scheduler("tcp://127.0.0.1:9")
+    assert time.monotonic() - t0 < 10.0
     out = tmp_path / "never"
     r = run_cli("export", "--scene", cross_scene, "--images", 2, "--out", out, "--dask", "tcp://127.0.0.1:9")
     assert r.returncode == 2
