@@ -479,3 +479,17 @@ def test_show_out_inside_dataset_refused(exported, tmp_path, where):
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "inside" in r.stderr, r.stderr
     assert tree_bytes(ds) == before
     assert sorted(p.name for p in ds.iterdir()) == sorted({k.split("/")[0] for k in before})
+
+
+def test_show_jpeg_dataset_and_truncated_jpeg(tiny_scene, tmp_path):
+    ds = tmp_path / "ds"
+    export_dataset(_cfg(tiny_scene, images=1, formats="dota", image_ext="jpg", width_px=96, height_px=96),
+                   ds, progress=False)
+    r = run_cli("show", ds, "--out", tmp_path / "prev")
+    assert r.returncode == 0, r.stderr
+    assert sorted(p.name for p in (tmp_path / "prev").iterdir()) == ["000000.jpg", "contact_sheet.jpg"]
+    img = ds / "dota" / "train" / "images" / "000000.jpg"
+    img.write_bytes(img.read_bytes()[:-300])
+    r = run_cli("show", ds, "--out", tmp_path / "prev2")
+    assert r.returncode == 2 and "truncated or damaged JPEG" in r.stderr and len(r.stderr.splitlines()) == 1
+    assert not (tmp_path / "prev2").exists()
