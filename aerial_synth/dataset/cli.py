@@ -129,6 +129,8 @@ def config_from_args(args):
         scene=args.scene,
         labels=args.labels,
         scene_seed=getattr(args, "scene_seed", None),
+        bbox=getattr(args, "bbox", None),
+        crs=getattr(args, "crs", None),
         scenario=args.scenario,
         images=args.images,
         formats=args.format,

@@ -28,6 +28,7 @@ class ExportConfig:
     """Every parameter that affects the exported bytes (all go into the manifest).
 
     scene / labels / scene_seed : as ``load_scene`` takes them
+    bbox / crs          : OSM extracts only, as ``load_scene`` takes them (text)
     scenario            : traffic scenario name or YAML path
     images              : number of images (>= 1)
     formats             : registered format names (``formats.registry``), any order; stored
@@ -46,6 +47,8 @@ class ExportConfig:
     scene: str = "city_park"
     labels: str | None = None
     scene_seed: int | None = None
+    bbox: str | None = None
+    crs: str | None = None
     scenario: str = "jam"
     images: int = 10
     formats: tuple[str, ...] = ("dota",)

@@ -74,7 +74,8 @@ def _check_parent() -> None:
 def _load_scene(cfg: ExportConfig):
     from ..scene import load_scene
 
-    return load_scene(cfg.scene, labels=cfg.labels, seed=cfg.scene_seed)
+    return load_scene(cfg.scene, labels=cfg.labels, seed=cfg.scene_seed, bbox=cfg.bbox,
+                      crs=cfg.crs)
 
 
 class ImageWorker:
