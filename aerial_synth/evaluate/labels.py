@@ -476,7 +476,12 @@ def read_dataset(path, option: str = "DIR") -> tuple[str, list[ImageLabels]]:
             items.append(ImageLabels(stem, polys, classes, diff, None, None,
                                      lab if lab.is_file() else None, img))
     else:
-        for img in _all_images(path):
+        imgs = _all_images(path)
+        names = {p.with_suffix("").as_posix() for p in imgs}
+        for img in imgs:
+            stem = img.with_suffix("").as_posix()
+            if stem.endswith("_ir") and stem[:-3] + "_co" in names:
+                continue  # VEDAI's near-infrared twin of a colour image
             items.append(ImageLabels(img.stem, np.zeros((0, 4, 2)), [], np.zeros(0, bool),
                                      None, None, None, img, extra={"unlabelled": True}))
     if not items:

@@ -150,3 +150,27 @@ def test_report_synthetic_export_vs_dota_folder(tiny_export, real_like, tmp_path
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and msg in err, err
         assert not (tmp_path / "r2").exists()
+
+
+def test_vedai_folder_with_and_without_annotations(tmp_path):
+    root = tmp_path / "vedai"
+    (root / "images").mkdir(parents=True)
+    (root / "annotations512").mkdir()
+    co = np.full((64, 64, 3), 120, np.uint8)
+    cv2.imwrite(str(root / "images/00000001_co.png"), co)
+    cv2.imwrite(str(root / "images/00000001_ir.png"), np.zeros((64, 64), np.uint8))
+    # xc yc angle class contained occluded x1..x4 y1..y4: a car (1) and a truck (2, occluded)
+    (root / "annotations512/00000001.txt").write_text(
+        "20 20 0.0 1 1 0 14 26 26 14 17 17 23 23\n"
+        "40 40 0.0 2 1 1 30 50 50 30 36 36 44 44\n")
+    s, dist, _ = dataset_stats(root, gsd=0.25)
+    assert s["layout"] == "vedai" and s["classes"] == {"large-vehicle": 1, "small-vehicle": 1}
+    assert s["difficult_fraction"] == 0.5
+    np.testing.assert_allclose(np.sort(dist["length_m"]), [12 * 0.25, 20 * 0.25])
+    # the same images without annotations: pixel statistics of the colour images only
+    import shutil
+
+    shutil.rmtree(root / "annotations512")
+    s2, dist2, _ = dataset_stats(root)
+    assert s2["layout"] == "images" and s2["images"] == 1
+    np.testing.assert_allclose(dist2["image_gray_mean"], [120.0])
