@@ -53,6 +53,7 @@ def place_tiled(
     catalog=None,
     overrides: dict | None = None,
     progress=None,
+    workers: int = 1,
 ) -> Placement:
     """Place vehicles tile by tile on ``world`` (a :class:`~aerial_synth.scene.tiles.TiledWorld`)
     over ``grid`` (its :class:`~aerial_synth.scene.tiles.TileGrid`).
@@ -60,11 +61,11 @@ def place_tiled(
     seed : an int or a numpy SeedSequence (per-tile seeds: :func:`tile_seed`)
     n_vehicles : vehicles for the whole world (approximate when tiled), or None
     progress : optional callable(done_tiles, n_tiles, kept_so_far)
+    workers : place tiles in this many processes (spawn); the result does not depend on it
+              (tiles are independent; the merge runs in raster order here)
     Raises PlacementError when the grid's tiles are smaller than the longest vehicle.
     """
-    from ..scene.raycast import RayScene
     from ..scene.tiles import min_tile_m
-    from . import place
     from .config import load_scenario
     from .footprints import FootprintIndex
     from .traffic import PlacementWarning
@@ -92,39 +93,27 @@ def place_tiled(
     single_stats = None
     t_scene = t_place = 0.0
     t0 = time.perf_counter()
-    for k, tile in enumerate(tiles):
-        ts = time.perf_counter()
-        scene = world.scene_for(tile.window)
-        rs = RayScene(scene, nthreads=0)
-        t_scene += time.perf_counter() - ts
+    wants = []
+    for tile in tiles:
         want = None
         if n_vehicles is not None:
             x0, y0, x1, y1 = tile.window
             want = n_vehicles if n_tiles == 1 else max(1, int(round(n_vehicles * (x1 - x0) * (y1 - y0) / world_area)))
-        rng = np.random.default_rng(tile_seed(seed, tile.i, tile.j, n_tiles))
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", PlacementWarning)
-            try:
-                pl = place(rs, cfg, rng, n_vehicles=want, catalog=catalog, scene_name=world.name)
-            except PlacementError as exc:
-                if "found no road" not in str(exc):
-                    raise
-                pl = None  # a tile without roads (a park, a lake) holds no vehicles
-        warned += [str(w.message) for w in caught]
-        t_place += pl.timing.get("seconds", 0.0) if pl is not None else 0.0
-        del rs, scene
-        if pl is None:
-            per_tile.append({"tile": [tile.i, tile.j], "placed": 0, "kept": 0})
-            continue
-        xy = np.array([[v.x_m, v.y_m] for v in pl.vehicles]).reshape(-1, 2)
-        own = grid.owns(tile, xy) if len(xy) else np.zeros(0, bool)
+        wants.append(want)
+    jobs = [(world, grid, tile, cfg, tile_seed(seed, tile.i, tile.j, n_tiles), want, catalog, 0)
+            for tile, want in zip(tiles, wants)]
+    if workers > 1 and n_tiles > 1:
+        results = _pool_map(jobs, workers)
+    else:
+        results = map(_place_tile, jobs)
+    for k, (tile, res) in enumerate(zip(tiles, results)):
+        warned += res["warnings"]
+        t_scene += res["scene_s"]
+        t_place += res["place_s"]
         x0, y0, x1, y1 = tile.core
         n_kept = 0
-        max_line = -1
-        for v, o, (x, y) in zip(pl.vehicles, own, xy):
-            max_line = max(max_line, v.line_id)
-            if not o:
-                continue
+        for v in res["owned"]:
+            x, y = v.x_m, v.y_m
             near = n_tiles > 1 and min(x - x0, x1 - x, y - y0, y1 - y) < reach
             if near:
                 poly = index.polygon(x, y, v.heading_rad, v.length_m, v.width_m)
@@ -136,12 +125,12 @@ def place_tiled(
                 v, id=len(kept) + 1, line_id=v.line_id + line_base if v.line_id >= 0 else -1,
             ))
             n_kept += 1
-        line_base += max_line + 1
-        per_tile.append({"tile": [tile.i, tile.j], "placed": len(pl.vehicles), "kept": n_kept})
+        line_base += res["max_line"] + 1
+        per_tile.append({"tile": [tile.i, tile.j], "placed": res["placed"], "kept": n_kept})
         if progress is not None:
             progress(k + 1, n_tiles, len(kept))
-        if n_tiles == 1:
-            single_stats = dict(pl.stats)
+        if n_tiles == 1 and res["stats"] is not None:
+            single_stats = dict(res["stats"])
     elapsed = time.perf_counter() - t0
     if single_stats is not None:
         stats = single_stats
@@ -169,3 +158,59 @@ def place_tiled(
     if warned and n_tiles == 1:
         warnings.warn(warned[0], PlacementWarning, stacklevel=2)
     return out
+
+
+def _place_tile(job) -> dict:
+    """Place one tile: its window's scene, ``place()`` with the tile's seed, and the vehicles
+    its core owns. Runs in the caller's process or in a pool worker."""
+    from ..scene.raycast import RayScene
+    from . import place
+    from .traffic import PlacementWarning
+
+    world, grid, tile, cfg, seed, want, catalog, nthreads = job
+    ts = time.perf_counter()
+    scene = world.scene_for(tile.window)
+    rs = RayScene(scene, nthreads=nthreads)
+    scene_s = time.perf_counter() - ts
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", PlacementWarning)
+        try:
+            pl = place(rs, cfg, np.random.default_rng(seed), n_vehicles=want, catalog=catalog,
+                       scene_name=world.name)
+        except PlacementError as exc:
+            if "found no road" not in str(exc):
+                raise
+            pl = None  # a tile without roads (a park, a lake) holds no vehicles
+    out = {"warnings": [str(w.message) for w in caught], "scene_s": scene_s, "place_s": 0.0,
+           "owned": [], "placed": 0, "max_line": -1, "stats": None}
+    if pl is None:
+        return out
+    xy = np.array([[v.x_m, v.y_m] for v in pl.vehicles]).reshape(-1, 2)
+    own = grid.owns(tile, xy) if len(xy) else np.zeros(0, bool)
+    out.update(place_s=pl.timing.get("seconds", 0.0), placed=len(pl.vehicles), stats=pl.stats,
+               owned=[v for v, o in zip(pl.vehicles, own) if o],
+               max_line=max([v.line_id for v in pl.vehicles], default=-1))
+    return out
+
+
+def _pool_init(nthreads: int) -> None:
+    """Share the cores among the pool's processes (numba; Embree gets ``nthreads`` per RayScene)."""
+    import os
+
+    os.environ["OMP_NUM_THREADS"] = str(nthreads)
+    import numba
+
+    numba.set_num_threads(max(1, min(nthreads, numba.config.NUMBA_NUM_THREADS)))
+
+
+def _pool_map(jobs, workers: int):
+    """Tiles on a spawn process pool, results in tile order (streamed)."""
+    import multiprocessing as mp
+    import os
+    from concurrent.futures import ProcessPoolExecutor
+
+    n = max(1, (os.cpu_count() or 1) // int(workers))
+    jobs = [j[:-1] + (n,) for j in jobs]
+    with ProcessPoolExecutor(int(workers), mp_context=mp.get_context("spawn"), initializer=_pool_init,
+                             initargs=(n,)) as ex:
+        yield from ex.map(_place_tile, jobs)

@@ -33,6 +33,8 @@ def register(sub) -> None:
                    help="tile edge in metres, at least the longest vehicle (500)")
     p.add_argument("--margin-m", type=arg_float("--margin-m", 0.0), default=60.0, metavar="M",
                    help="how far each tile's window reaches past its core (60)")
+    p.add_argument("--workers", type=arg_int("--workers", 1, 1024), default=1, metavar="K",
+                   help="place tiles in K processes; the result does not depend on K (1)")
     p.add_argument("--out", default="out/place-tiled", metavar="DIR", help="output folder")
     p.set_defaults(func=run)
 
@@ -65,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", PlacementWarning)
         pl = place_tiled(world, grid, cfg, seed=args.seed, n_vehicles=args.vehicles,
-                         progress=progress if sys.stderr.isatty() else None)
+                         progress=progress if sys.stderr.isatty() else None, workers=args.workers)
     wall = time.perf_counter() - t0
     if sys.stderr.isatty():
         print(file=sys.stderr)

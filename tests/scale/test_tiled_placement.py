@@ -127,3 +127,13 @@ def test_cli_writes_the_tiled_placement(tmp_path):
     d = json.loads((out / "placement.json").read_text())
     assert d["stats"]["tiles"]["grid"] == [2, 2] and len(d["vehicles"]) > 20
     assert [v["id"] for v in d["vehicles"]] == list(range(1, len(d["vehicles"]) + 1))
+
+
+@pytest.mark.slow  # spawns 2 processes that import open3d and build tiles: 30-60 s here
+def test_two_processes_same_result(world, tiled):
+    g, pl = tiled
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        par = place_tiled(world, g, "jam", seed=7, n_vehicles=N, workers=2)
+    assert _dicts(par) == _dicts(pl)
+    assert par.stats["tiles"] == pl.stats["tiles"]
