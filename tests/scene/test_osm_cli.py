@@ -187,3 +187,17 @@ def test_bad_input_one_line_exit_2_nothing_written(case, cli_main, town_files, t
     assert expect in line, line
     assert list(outdir.iterdir()) == []
     assert not cache.exists() or not list(cache.rglob("*.pkl"))
+
+
+def test_stale_cache_object_is_rebuilt(town_files, tmp_path):
+    import pickle
+
+    from aerial_synth.scene.osm import load_osm_scene
+
+    c = tmp_path / "c"
+    a = load_osm_scene(town_files["osm"], cache=c)
+    (entry,) = c.glob("*.pkl")
+    entry.write_bytes(pickle.dumps({"not": "a scene"}))
+    b = load_osm_scene(town_files["osm"], cache=c)
+    assert b.vertex_hash() == a.vertex_hash()
+    assert isinstance(pickle.loads(entry.read_bytes()), type(a))

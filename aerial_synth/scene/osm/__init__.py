@@ -166,6 +166,15 @@ def cache_key(path, bbox=None, crs=None, seed: int = 0) -> str:
     return hashlib.sha256(json.dumps(opts, sort_keys=True).encode()).hexdigest()[:32]
 
 
+def _current(scene) -> bool:
+    """A cached object is a Scene with every field the current Scene class has."""
+    from dataclasses import fields
+
+    from ..model import Scene
+
+    return isinstance(scene, Scene) and all(f.name in vars(scene) for f in fields(Scene))
+
+
 def load_osm_scene(path, bbox=None, crs=None, seed: int = 0, cache: Path | str | None = None,
                    use_cache: bool = True):
     """:func:`build_osm_scene` with a cache keyed by the file hash and the options.
@@ -192,8 +201,9 @@ def load_osm_scene(path, bbox=None, crs=None, seed: int = 0, cache: Path | str |
         try:
             with open(f, "rb") as fh:
                 scene = pickle.load(fh)
-            scene.meta["cache"] = str(f)
-            return scene
+            if _current(scene):
+                scene.meta["cache"] = str(f)
+                return scene
         except Exception:  # a stale or damaged cache entry: rebuild it
             pass
     scene = build_osm_scene(path, bb, crs, seed)
