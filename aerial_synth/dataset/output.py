@@ -10,7 +10,8 @@ is complete, so
   ``--resume`` finishes (and a rerun without ``--resume`` refuses to silently discard);
 - an export that fails before finishing any image removes its partial folder again.
 
-The swap: ``--out`` missing or empty -> one rename. ``--out`` holding a dataset -> it is
+The swap: ``--out`` missing -> one rename; ``--out`` an empty folder -> the entries are
+moved into it (the manifest last). ``--out`` holding a dataset -> it is
 renamed to ``.<name>.aerial-synth-old``, the build is renamed to ``--out``, the user's own
 files in the old dataset (anything that is not a dataset file or a format folder) are moved
 across, and the old dataset is deleted. A kill between the two renames leaves the complete
@@ -195,17 +196,19 @@ def finish_output(plan: OutputPlan) -> None:
     out, build = plan.out, plan.build
     old = out.parent / f".{out.name}{OLD_SUFFIX}"
     state = _dir_state(out)
-    if state == "foreign":
-        for entry in sorted(os.listdir(build)):
+    if state in ("empty", "foreign"):
+        # Keep the user's folder itself (its inode, mode, owner; it may be the shell's working
+        # folder): move the entries in, the manifest last, so it is a dataset only when whole.
+        entries = sorted(os.listdir(build), key=lambda e: (e == "manifest.json", e))
+        for entry in entries:
             os.rename(build / entry, out / entry)
         build.rmdir()
+        _retire_old(old, out)
         return
     if state == "dataset":
         if old.exists():  # left by a replacement interrupted after its first rename
             _retire_old(old, out)
         os.rename(out, old)  # from here until the next rename, --out is missing (< 1 ms)
-    elif state == "empty":
-        out.rmdir()
     os.rename(build, out)
     _retire_old(old, out)
 

@@ -493,3 +493,17 @@ def test_show_jpeg_dataset_and_truncated_jpeg(tiny_scene, tmp_path):
     r = run_cli("show", ds, "--out", tmp_path / "prev2")
     assert r.returncode == 2 and "truncated or damaged JPEG" in r.stderr and len(r.stderr.splitlines()) == 1
     assert not (tmp_path / "prev2").exists()
+
+
+def test_export_into_empty_working_folder_keeps_the_folder(tiny_scene, tmp_path):
+    """--out . in an empty folder: the folder itself (inode, mode) stays, the dataset moves in."""
+    out = tmp_path / "here"
+    out.mkdir()
+    out.chmod(0o750)
+    ino = out.stat().st_ino
+    r = run_cli("export", "--scene", tiny_scene, "--size", 64, "--images", 1, "--vehicles", 4,
+                "--simple-vehicles", "--no-progress", "--out", ".", cwd=out)
+    assert r.returncode == 0, r.stderr
+    assert out.stat().st_ino == ino and (out.stat().st_mode & 0o777) == 0o750
+    assert sorted(p.name for p in out.iterdir()) == ["dota", "manifest.json", "meta", "summary.json"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["here"]
