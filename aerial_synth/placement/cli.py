@@ -142,6 +142,13 @@ def run(args: argparse.Namespace) -> int:
         f"corners on drivable {100 * val['corners_drivable']:.1f} %"
         + (f"  heading error median {he['median']:.2f} deg p99 {he['p99']:.2f} deg" if he else "")
     )
+    pv = st.get("parking_validation")  # parked vehicles (placement/parking.py)
+    if pv and pv.get("parked"):
+        al = pv["alignment_deg"] or {}
+        lines.append(f"parked {pv['parked']} (lots {len(st.get('lots', []))}, kerb lines {st.get('kerbs', 0)}): "
+                     f"in bay {100 * (pv['in_bay_fraction'] or 0):.1f} %  overlaps {pv['overlaps']}  "
+                     f"on lot/road {100 * pv.get('on_surface_fraction', 0):.1f} %  "
+                     f"alignment to bay mean {al.get('mean', float('nan')):.2f} max {al.get('max', float('nan')):.2f} deg")
     lines.append(
         f"time: scene {t_scene:.2f} s, placement {t_place:.2f} s "
         f"({placement.timing['vehicles_per_s']:.0f} vehicles/s, {placement.timing['rays_per_s'] / 1e6:.1f} M rays/s)"

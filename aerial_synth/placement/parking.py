@@ -408,7 +408,8 @@ class _Site:
 
 
 def fill_bays(sites: list, cfg: ParkingConfig, catalog, rng: np.random.Generator,
-              obstacles=None, first_id: int = 1, z_of=None, surface_ok=None) -> tuple[list, dict]:
+              obstacles=None, first_id: int = 1, z_of=None, surface_ok=None,
+              to_original=None) -> tuple[list, dict]:
     """Fill the bays of every site (lots and kerb lines). Returns (vehicles, stats).
 
     ``surface_ok(points (n, k, 2), is_kerb (n,)) -> (n,) bool`` checks that footprint
@@ -553,6 +554,7 @@ def fill_bays(sites: list, cfg: ParkingConfig, catalog, rng: np.random.Generator
             valid &= ~clash
     dropped = int(((model_idx >= 0) & ~valid).sum())
     z = np.zeros(N) if z_of is None else z_of(np.stack([x, y], 1))
+    orig = np.full((N, 3), np.nan) if to_original is None else to_original(np.stack([x, y, z], 1))
     vehicles = []
     filled = [0] * len(sites)
     nid = first_id
@@ -566,7 +568,7 @@ def fill_bays(sites: list, cfg: ParkingConfig, catalog, rng: np.random.Generator
             x_m=float(x[i]), y_m=float(y[i]), z_m=float(z[i]), heading_rad=float(h[i]),
             direction="back-in" if back[i] else "nose-in", state="parked",
             lot=site.id if site.kind == "lot" else -1, kerb=site.id if site.kind == "kerb" else -1,
-            bay=int(bi[i]),
+            bay=int(bi[i]), x_orig_m=float(orig[i, 0]), y_orig_m=float(orig[i, 1]), z_orig_m=float(orig[i, 2]),
         ))
         nid += 1
     stats = {"targets": targets, "filled": filled, "bays": [len(s.bays) for s in sites],
@@ -631,9 +633,8 @@ def place_parking(rayscene, cfg, rng: np.random.Generator, catalog, seed=None, s
         return np.where(is_kerb, np.isin(lab, kerb_ids).all(axis=1), np.isin(lab, lot_ids).all(axis=1))
 
     parked, fstats = fill_bays(sites, pc, catalog, rng, obstacles, first_id=len(moving) + 1, z_of=z_of,
-                               surface_ok=surface_ok)
-    vehicles = moving + parked
-    vehicles = [dataclasses.replace(v, **_original(rs, v)) for v in vehicles]
+                               surface_ok=surface_ok, to_original=rs.scene.to_original)
+    vehicles = moving + parked  # moving ones carry their original coordinates already
     elapsed = time.perf_counter() - t0
     nl = len(lots)
     stats = {
@@ -655,8 +656,12 @@ def place_parking(rayscene, cfg, rng: np.random.Generator, catalog, seed=None, s
         "dropped_overlap": fstats["dropped"],
         "dropped_off_surface": fstats["off_surface"],
     }
-    if traffic_on:
-        stats["traffic"] = {k: tstats[k] for k in ("lines", "opposite_lanes", "line_end_reasons") if k in tstats}
+    # the traffic figures every placement has (zero without traffic lines)
+    for k, default in (("lines", 0), ("opposite_lanes", 0), ("line_end_reasons", {}),
+                       ("spacing_m", {"n": 0, "mean": None, "sd": None, "min": None, "max": None})):
+        stats[k] = tstats.get(k, default)
+    kept = Placement(scene="", scenario="", seed=None, vehicles=vehicles)
+    stats["parking_validation"] = parking_report(kept, lots, kerbs, rs)
     if lots_on and not lots and not kerbs_on:
         raise PlacementError(
             f"scene {rs.scene.name!r}: vertical traces found no parking lot (labels "
@@ -668,14 +673,10 @@ def place_parking(rayscene, cfg, rng: np.random.Generator, catalog, seed=None, s
         parameters=cfg.to_dict(),
         vehicles=with_lonlat(vehicles, rs.scene.crs),
         stats=stats,
-        timing={"seconds": elapsed, "vehicles_per_s": len(vehicles) / elapsed if elapsed else 0.0},
+        timing={"seconds": elapsed, "vehicles_per_s": len(vehicles) / elapsed if elapsed else 0.0,
+                "rays_per_s": 0.0},
         georeference=rs.scene.georeference(),
     )
-
-
-def _original(rs, v) -> dict:
-    o = rs.scene.to_original(np.array([v.x_m, v.y_m, v.z_m], dtype=np.float64))
-    return {"x_orig_m": float(o[0]), "y_orig_m": float(o[1]), "z_orig_m": float(o[2])}
 
 
 # ------------------------------------------------------------------------- validator
@@ -684,61 +685,60 @@ def parking_report(placement: Placement, lots: list[Lot] | None = None, kerbs: l
     """Parked-vehicle figures: in-bay fraction (share of vehicles whose footprint stays
     within its bay grown by STICK_OUT_M), overlaps between parked footprints, alignment
     (degrees between the vehicle axis and its bay axis, modulo 180), and, with a rayscene,
-    the share of parked footprints wholly on lot or road surface (3 x 5 traces).
+    the share of parked footprints wholly on lot or road surface (3 x 5 traces each).
 
-    Without ``lots``/``kerbs`` the bays are found again from ``rayscene``'s traces
-    (lots only)."""
+    Without ``lots``/``kerbs`` the lots are found again from ``rayscene``'s traces (kerb
+    vehicles then count as unmatched)."""
     import shapely
 
     parked = [v for v in placement.vehicles if v.state == "parked"]
     if not parked:
         return {"parked": 0}
     if lots is None and rayscene is not None:
-        from .parking_config import ParkingConfig as _PC
-
         pc = placement.parameters.get("parking") or {}
-        known = {f.name for f in dataclasses.fields(_PC)}
-        cfg = _PC(**{k: (tuple(v) if k == "kerb_road_width_m" else v) for k, v in pc.items() if k in known})
+        known = {f.name for f in dataclasses.fields(ParkingConfig)}
+        cfg = ParkingConfig(**{k: (tuple(v) if k == "kerb_road_width_m" else v) for k, v in pc.items()
+                               if k in known})
         lots = find_lots(rayscene, cfg)
-    lot_by = {lt.id: lt for lt in lots or []}
-    kerb_by = {k.id: k for k in kerbs or []}
-    in_bay, align = [], []
-    for v in parked:
-        site = lot_by.get(v.lot) if v.lot >= 0 else kerb_by.get(v.kerb)
-        if site is None or not (0 <= v.bay < len(site.bays)):
-            in_bay.append(np.nan)
-            align.append(np.nan)
-            continue
-        bb = site.bays
-        bay_poly = shapely.Polygon(bb.corners()[v.bay]).buffer(STICK_OUT_M + 1e-6, join_style="mitre")
-        in_bay.append(float(bay_poly.contains(shapely.Polygon(v.corners_xy()))))
-        d = np.degrees(np.angle(np.exp(1j * (v.heading_rad - bb.axis_rad[v.bay]))))
-        align.append(float(min(abs(d), 180 - abs(d))))
-    polys = shapely.polygons(np.array([v.corners_xy() for v in parked]))
-    tree = shapely.STRtree(polys)
-    a, b = tree.query(polys, predicate="intersects")
+    n = len(parked)
+    x = np.array([v.x_m for v in parked])
+    y = np.array([v.y_m for v in parked])
+    h = np.array([v.heading_rad for v in parked])
+    L = np.array([v.length_m for v in parked])
+    W = np.array([v.width_m for v in parked])
+    bx, by, ba = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+    bl, bw = np.full(n, np.nan), np.full(n, np.nan)
+    sites = {("lot", lt.id): lt.bays for lt in lots or []}
+    sites.update({("kerb", k.id): k.bays for k in kerbs or []})
+    for i, v in enumerate(parked):
+        bb = sites.get(("lot", v.lot) if v.lot >= 0 else ("kerb", v.kerb))
+        if bb is not None and 0 <= v.bay < len(bb):
+            bx[i], by[i] = bb.centre_xy[v.bay]
+            ba[i], bl[i], bw[i] = bb.axis_rad[v.bay], bb.length_m, bb.width_m
+    matched = np.isfinite(ba)
+    corners = footprint_corners_xy(x, y, h, L, W)  # (n, 4, 2)
+    dx, dy = corners[..., 0] - bx[:, None], corners[..., 1] - by[:, None]
+    along = np.abs(np.cos(ba)[:, None] * dx + np.sin(ba)[:, None] * dy)
+    across = np.abs(-np.sin(ba)[:, None] * dx + np.cos(ba)[:, None] * dy)
+    tol = STICK_OUT_M + 1e-6
+    inside = ((along <= bl[:, None] / 2 + tol) & (across <= bw[:, None] / 2 + tol)).all(axis=1)
+    d = np.degrees(np.abs(np.angle(np.exp(1j * (h - ba)))))
+    align = np.minimum(d, 180.0 - d)
+    polys = shapely.polygons(corners)
+    a, b = shapely.STRtree(polys).query(polys, predicate="intersects")
     k = a < b
     overlaps = int((shapely.area(shapely.intersection(polys[a[k]], polys[b[k]])) > 1e-6).sum())
-    ib = np.array(in_bay)
-    al = np.array(align)
     out = {
-        "parked": len(parked),
-        "in_bay_fraction": round(float(np.nanmean(ib)), 6) if np.isfinite(ib).any() else None,
-        "unmatched": int((~np.isfinite(ib)).sum()),
+        "parked": n,
+        "in_bay_fraction": round(float(inside[matched].mean()), 6) if matched.any() else None,
+        "unmatched": int((~matched).sum()),
         "overlaps": overlaps,
-        "alignment_deg": {"mean": round(float(np.nanmean(al)), 4), "max": round(float(np.nanmax(al)), 4)}
-        if np.isfinite(al).any() else None,
+        "alignment_deg": {"mean": round(float(align[matched].mean()), 4),
+                          "max": round(float(align[matched].max()), 4)} if matched.any() else None,
     }
     if rayscene is not None:
-        f = np.array([-0.5, -0.25, 0.0, 0.25, 0.5])
-        g = np.array([-0.5, 0.0, 0.5])
-        out_pts = []
-        for v in parked:
-            gu, gv = np.meshgrid(f * (v.length_m - 0.02), g * (v.width_m - 0.02))
-            c, s = np.cos(v.heading_rad), np.sin(v.heading_rad)
-            out_pts.append(np.stack([v.x_m + c * gu.ravel() - s * gv.ravel(),
-                                     v.y_m + s * gu.ravel() + c * gv.ravel()], 1))
-        lab = _trace_labels(rayscene, np.concatenate(out_pts)).reshape(len(parked), -1)
-        surf = [LABEL_IDS[n] for n in ("parking", "parking_marking", "road", "lane_marking")]
+        pts = _outline(x, y, h, L, W, n_l=5, n_w=3)
+        lab = _trace_labels(rayscene, pts.reshape(-1, 2)).reshape(n, -1)
+        surf = [LABEL_IDS[s] for s in ("parking", "parking_marking", "road", "lane_marking")]
         out["on_surface_fraction"] = round(float(np.isin(lab, surf).all(axis=1).mean()), 6)
     return out
