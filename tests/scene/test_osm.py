@@ -239,10 +239,14 @@ def test_oneway_minus_one_reverses_and_motorway_implies_oneway():
 
 
 # ---------------------------------------------------------------------------- placement
-def _road_of(scene, v):
+def _road_of(scene, v, junction_m: float = 4.0):
+    """The one road a vehicle stands on, or None inside or near a junction (within
+    ``junction_m`` of another road's carriageway)."""
     p = shapely.Point(v.x_m, v.y_m)
-    inside = [r for r in scene.truth.roads if r.centerline.distance(p) <= r.width_m / 2]
-    return inside[0] if len(inside) == 1 else None
+    d = [r.centerline.distance(p) - r.width_m / 2 for r in scene.truth.roads]
+    inside = [k for k, x in enumerate(d) if x <= 0]
+    near = [k for k, x in enumerate(d) if x <= junction_m]
+    return scene.truth.roads[inside[0]] if len(inside) == 1 and len(near) == 1 else None
 
 
 def _deviation_deg(road, v):
@@ -270,9 +274,9 @@ def test_placement_on_osm_scene(scene, rs, scenario, kw):
     assert rep["footprint_on_road_min"] == 1.0
     along = {}
     for v in p.vehicles:
-        road = _road_of(scene, v)
+        road = _road_of(scene, v, junction_m=0.0)
         if road is None:
-            continue  # in a junction
+            continue  # in a junction (inside two carriageways)
         along.setdefault(road.name, []).append(_deviation_deg(road, v))
     for name in ("Oneway Lane", "Dual East", "Dual West", "Avenue"):
         dev = np.array(along[name])
@@ -462,3 +466,50 @@ def test_hints_shift_with_the_frame():
     assert got.roads[0].coords_xy[0].tolist() == [10.0, 0.0]
     with pytest.raises(SceneError, match="expected a mapping"):
         RoadHints.from_dict([1, 2], "glb")
+
+
+# ---------------------------------------------------------------------------- odd data
+def test_oneway_minus_one_and_missing_nodes(tmp_path):
+    """oneway=-1 runs against the node order; a way with a node missing from the extract is
+    built from the nodes that are there; a multipolygon with a missing member is skipped."""
+    from aerial_synth.scene.hints import road_hints
+    from aerial_synth.scene.osm import build_osm_scene
+
+    from .osm_town import Town
+
+    t = Town()
+    t.way([(-150, 0), (0, 0), (150, 0)], {"highway": "residential", "oneway": "-1"})
+    w = t.way([(0, -150), (0, -50), (0, 150)], {"highway": "tertiary", "name": "Cut"})
+    t.ways[w][0].insert(2, 99999)  # a node the extract does not hold
+    a = t.way([(50, 50), (90, 50), (90, 90), (50, 90)], {}, close=True)
+    t.relation([("w", a, "outer"), ("w", 88888, "inner")],
+               {"type": "multipolygon", "building": "yes"})
+    s = build_osm_scene(t.write(tmp_path / "odd.osm"))
+    h = road_hints(s)
+    d = h.direction_at(local(s, [(-100, 0), (0, 100)]))
+    assert d[0, 0] < -0.99  # westbound: against the node order
+    assert np.isnan(d[1]).all()
+    cut = next(r for r in s.truth.roads if r.name == "Cut")
+    assert cut.centerline.length == pytest.approx(300, rel=0.02)
+
+
+def test_left_hand_traffic_keeps_legal_directions(scene, rs):
+    from aerial_synth.placement.footprints import validate_placement
+    from aerial_synth.placement.traffic import place
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        p = place(rs, "normal", seed=3, overrides={"traffic": "left"})
+    rep = validate_placement(rs, p, scene.truth, traffic="left").summary()
+    assert rep["overlaps"] == 0 and rep["corners_drivable"] == 1.0
+    for v in p.vehicles:
+        road = _road_of(scene, v, junction_m=0.0)
+        if road is None:
+            continue
+        dev = _deviation_deg(road, v)
+        if road.oneway:
+            assert dev <= 10, road.name
+        elif _road_of(scene, v) is road:  # two-way, away from junctions: keeps left
+            assert dev <= 10 or dev >= 170, (road.name, dev, v.x_m, v.y_m)
+            side = _left_offset(road, v) * (1 if dev <= 10 else -1)
+            assert side > -0.25, road.name
