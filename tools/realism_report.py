@@ -39,12 +39,13 @@ YOLO_VEHICLES = {9, 10}
 VEDAI_NOT_VEHICLES = {23, 31}
 
 
-def _dota_boxes(txt: Path) -> list[np.ndarray]:
+def _dota_boxes(txt: Path) -> list[tuple[np.ndarray, bool]]:
     out = []
     for line in txt.read_text().splitlines():
         parts = line.split()
         if len(parts) >= 9 and parts[8] in DOTA_VEHICLES:
-            out.append(np.array(parts[:8], float).reshape(4, 2))
+            hard = len(parts) >= 10 and parts[9] == "1"
+            out.append((np.array(parts[:8], float).reshape(4, 2), hard))
     return out
 
 
@@ -53,7 +54,7 @@ def _yolo_boxes(txt: Path, w: int, h: int) -> list[np.ndarray]:
     for line in txt.read_text().splitlines():
         parts = line.split()
         if len(parts) >= 9 and int(parts[0]) in YOLO_VEHICLES:
-            out.append(np.array(parts[1:9], float).reshape(4, 2) * [w, h])
+            out.append((np.array(parts[1:9], float).reshape(4, 2) * [w, h], False))
     return out
 
 
@@ -64,7 +65,7 @@ def _vedai_boxes(txt: Path) -> list[np.ndarray]:
         if len(parts) >= 14 and int(parts[3]) not in VEDAI_NOT_VEHICLES:
             xs = np.array(parts[6:10], float)
             ys = np.array(parts[10:14], float)
-            out.append(np.stack([xs, ys], 1))
+            out.append((np.stack([xs, ys], 1), parts[5] == "1"))  # occluded flag
     return out
 
 
@@ -78,12 +79,12 @@ def _instance_boxes(inst_png: Path) -> list[np.ndarray]:
         if len(xs) < 30:
             continue
         pts = np.stack([xs, ys], 1).astype(np.float32) + 0.5
-        out.append(cv2.boxPoints(cv2.minAreaRect(pts)).astype(float))
+        out.append((cv2.boxPoints(cv2.minAreaRect(pts)).astype(float), False))
     return out
 
 
 def collect(root: Path) -> list[tuple[Path, list[np.ndarray] | None]]:
-    """[(image path, vehicle boxes (4, 2) pixel corners or None when unlabelled)]."""
+    """[(image path, [(box (4, 2) pixel corners, difficult)] or None when unlabelled)]."""
     items = []
     for img in sorted(root.rglob("*")):
         if img.suffix.lower() not in (".png", ".jpg", ".jpeg") or not img.is_file():
@@ -115,7 +116,7 @@ def collect(root: Path) -> list[tuple[Path, list[np.ndarray] | None]]:
 
 
 def measure(items) -> dict:
-    means, sds, contrast, colour = [], [], [], []
+    means, sds, contrast, colour, colourful, hard_flags = [], [], [], [], [], []
     for img, boxes in items:
         bgr = cv2.imread(str(img), cv2.IMREAD_COLOR)
         gray = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY).astype(np.float64)
@@ -123,8 +124,13 @@ def measure(items) -> dict:
         means.append(m)
         sds.append(s)
         colour.append(bgr.reshape(-1, 3).mean(0)[::-1].tolist())
+        f = bgr.astype(np.float64)
+        rg = f[..., 2] - f[..., 1]
+        yb = 0.5 * (f[..., 2] + f[..., 1]) - f[..., 0]
+        colourful.append(float(np.hypot(rg.std(), yb.std())
+                               + 0.3 * np.hypot(rg.mean(), yb.mean())))
         h, w = gray.shape
-        for b in boxes or []:
+        for b, hard in boxes or []:
             if (b[:, 0].min() < RING_PX or b[:, 1].min() < RING_PX
                     or b[:, 0].max() > w - RING_PX or b[:, 1].max() > h - RING_PX):
                 continue
@@ -142,16 +148,22 @@ def measure(items) -> dict:
             if ring.sum() < 4 or s <= 0:
                 continue
             contrast.append((crop[inside > 0].mean() - crop[ring > 0].mean()) / s)
+            hard_flags.append(hard)
     c = np.asarray(contrast)
+    clear = c[~np.asarray(hard_flags, bool)] if len(c) else c
     return {
         "images": len(means),
         "vehicles": int(len(c)),
         "gray_mean": means,
         "gray_sd": sds,
         "mean_rgb": colour,
+        "colourfulness": colourful,
         "contrast_median_abs": float(np.median(np.abs(c))) if len(c) else None,
         "contrast_median_signed": float(np.median(c)) if len(c) else None,
         "contrast_brighter_fraction": float((c > 0).mean()) if len(c) else None,
+        "vehicles_not_difficult": int(len(clear)),
+        "contrast_median_abs_not_difficult": float(np.median(np.abs(clear))) if len(clear)
+        else None,
     }
 
 
@@ -183,12 +195,23 @@ def main(argv=None) -> int:
               f"{_q(r['gray_sd'])}   {r['contrast_median_abs'] or float('nan'):8.2f}  "
               f"{r['contrast_median_signed'] or float('nan'):10.2f}  "
               f"{r['contrast_brighter_fraction'] or float('nan'):8.2f}")
+    for name, r in (("real", real), ("synthetic", synth)):
+        rgb = np.asarray(r["mean_rgb"]) + 1.0
+        print(f"{name:10s} colourfulness (Hasler-Suesstrunk) {_q(r['colourfulness'])}   "
+              f"median log(R/B) {np.median(np.log(rgb[:, 0] / rgb[:, 2])):+.3f}  "
+              f"log(G/(R+B)/2) {np.median(np.log(2 * rgb[:, 1] / (rgb[:, 0] + rgb[:, 2]))):+.3f}")
+    ks_c = ks_2samp(real["colourfulness"], synth["colourfulness"]).statistic
+    print(f"KS colourfulness {ks_c:.3f}")
     gap = (cs / cr - 1.0) if (cr and cs) else float("nan")
+    for name, r in (("real", real), ("synthetic", synth)):
+        print(f"{name:10s} not difficult / not occluded: {r['vehicles_not_difficult']} vehicles, "
+              f"median |contrast| {r['contrast_median_abs_not_difficult'] or float('nan'):.2f}")
     print(f"KS gray mean {ks_m:.3f} (target <= 0.3)   KS gray sd {ks_s:.3f} (target <= 0.3)   "
           f"contrast ours/real - 1 = {gap:+.0%} (target within 30 %)")
     if a.json:
         a.json.write_text(json.dumps({"real": real, "synthetic": synth, "ks_gray_mean": ks_m,
-                                      "ks_gray_sd": ks_s, "contrast_gap": gap}, indent=1))
+                                      "ks_gray_sd": ks_s, "ks_colourfulness": ks_c,
+                                      "contrast_gap": gap}, indent=1))
     return 0
 
 

@@ -2,9 +2,12 @@
 
 Per image i the generator is ``default_rng(SeedSequence([seed, i]))`` (camera pose, factors,
 noise); the placement uses ``SeedSequence([seed, PLACEMENT_KEY])`` (once per run, or per
-image with ``--placement-per-image``: ``SeedSequence([seed, i, PLACEMENT_KEY])``). Output::
+image with ``--placement-per-image``: ``SeedSequence([seed, i, PLACEMENT_KEY])``);
+distractors (``--distractors``, per hectare) use ``SeedSequence([seed, DISTRACTOR_KEY])``
+once per run. Output::
 
     OUT/placement.json                (once per run)
+    OUT/distractors.json              (once per run: every drawn distractor)
     OUT/000000/rgb.png instance.png instance_color.png semantic.png depth.npy meta.json
 """
 
@@ -17,6 +20,7 @@ import time
 __all__ = ["register", "add_camera_args", "camera_config_from_args", "run"]
 
 PLACEMENT_KEY = 0x504C  # "PL"
+DISTRACTOR_KEY = 0x4453  # "DS"
 MAX_IMAGE_PX = 16384
 
 
@@ -94,6 +98,10 @@ def register(sub) -> None:
                    default="none",
                    help="domain randomisation: textures = random material, sun and sky "
                    "colours (Tobin et al. 2017), a style to mix with realistic frames (none)")
+    p.add_argument("--distractors", type=arg_float("--distractors", 0.0, 1000.0), default=6.0,
+                   metavar="PER_HA",
+                   help="manholes, containers, dumpsters, road signs and benches per hectare, "
+                   "never labelled (6; 0 = none)")
     p.add_argument("--no-shadows", action="store_true", help="skip shadow rays")
     p.add_argument("--jpeg-probability", type=arg_float("--jpeg-probability", 0.0, 1.0),
                    default=None, metavar="P",
@@ -113,7 +121,7 @@ def run(args) -> int:
     import numpy as np
 
     from ..camera import grid_poses, sample_pose_targeted
-    from ..io_utils import atomic_write_text, check_output_dir
+    from ..io_utils import atomic_write_json, atomic_write_text, check_output_dir
     from ..placement import place
     from ..scene.cli import scene_from_args
     from ..scene.raycast import RayScene
@@ -143,6 +151,13 @@ def run(args) -> int:
         lows = [o.vertices[:, 2].min() for o in scene.objects if len(o.vertices)]
         gz = float(np.median(lows)) if lows else 0.0
         grid = grid_poses(cam_cfg, b[:, :2], overlap=args.overlap, ground_z=gz)
+    distractors = []
+    if args.distractors > 0:
+        from .distractors import add_distractors
+
+        scene, distractors = add_distractors(
+            scene, np.random.default_rng(np.random.SeedSequence([args.seed, DISTRACTOR_KEY])),
+            per_hectare=args.distractors)
     rs = RayScene(scene)
 
     def make_placement(key):
@@ -157,6 +172,8 @@ def run(args) -> int:
     if not args.placement_per_image:
         placement = make_placement([args.seed, PLACEMENT_KEY])
         atomic_write_text(out / "placement.json", placement.to_json())
+    atomic_write_json(out / "distractors.json", {"per_hectare": args.distractors,
+                                                 "distractors": distractors})
     n_veh = 0
     for i in range(args.images):
         if args.placement_per_image:
@@ -172,6 +189,7 @@ def run(args) -> int:
             "seed": args.seed, "image_index": i, "scene": scene.name,
             "scenario": placement.scenario, "sampler": args.sampler,
             "render_config": rcfg.to_dict(),
+            "distractors": {"per_hectare": args.distractors, "count": len(distractors)},
         })
         n_veh += len(frame.visibility)
     dt = time.perf_counter() - t0

@@ -35,7 +35,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..errors import ConfigError
-from ..scene.model import MATERIAL_IDS, MATERIALS
+from ..scene.model import DEFAULT_COLOR_FOR_MATERIAL, MATERIAL_IDS, MATERIALS
 from ..validators import boolean, in_range, integer, known_keys, one_of, probability
 
 __all__ = ["RenderConfig", "PRESETS", "sample_factors", "shade", "sun_direction",
@@ -71,7 +71,8 @@ _PAIRS = {  # name: (lowest, highest) allowed
     "tint": (-0.5, 0.5), "saturation": (0, 3), "blur_sigma_px": (0, 10),
     "chromatic_blur": (0, 2), "noise_sigma": (0, 0.5), "shot_noise": (0, 0.5),
     "jpeg_quality": (1, 100), "vignetting": (0, 0.9), "asphalt_albedo": (0.05, 4),
-    "concrete_albedo": (0.05, 4), "ground_albedo": (0.05, 4),
+    "concrete_albedo": (0.05, 4), "ground_albedo": (0.05, 4), "sky_light": (0.1, 5),
+    "vegetation_dryness": (0, 1),
 }
 #: ``randomise`` modes: "none" (realistic), "textures" (domain randomisation after Tobin et
 #: al. 2017: every material's colour, the light's colour and the sky's drawn at random)
@@ -110,7 +111,7 @@ class RenderConfig:
     tone_shoulder: tuple[float, float] = (0.0, 0.6)
     white_balance: tuple[float, float] = (-0.15, 0.15)
     tint: tuple[float, float] = (-0.04, 0.04)
-    saturation: tuple[float, float] = (0.55, 1.1)
+    saturation: tuple[float, float] = (0.4, 0.9)
     grayscale_probability: float = 0.1
     blur_sigma_px: tuple[float, float] = (0.4, 0.9)
     chromatic_blur: tuple[float, float] = (0.0, 0.35)
@@ -122,6 +123,8 @@ class RenderConfig:
     asphalt_albedo: tuple[float, float] = (0.35, 1.3)
     concrete_albedo: tuple[float, float] = (0.8, 1.15)
     ground_albedo: tuple[float, float] = (0.75, 1.2)
+    vegetation_dryness: tuple[float, float] = (0.0, 0.6)
+    sky_light: tuple[float, float] = (1.0, 1.6)
     randomise: str = "none"
     shadows: bool = True
     soft_shadows: bool = True
@@ -221,6 +224,8 @@ def sample_factors(cfg: RenderConfig, rng: np.random.Generator) -> dict:
     f["asphalt_albedo"] = float(u(*cfg.asphalt_albedo))
     f["concrete_albedo"] = float(u(*cfg.concrete_albedo))
     f["ground_albedo"] = float(u(*cfg.ground_albedo))
+    f["vegetation_dryness"] = float(u(*cfg.vegetation_dryness))
+    f["sky_light"] = float(u(*cfg.sky_light))
     f["randomise"] = cfg.randomise
     if cfg.randomise == "textures":  # a random colour gain per material, sun and sky
         f["material_rgb_gain"] = np.exp(rng.normal(0.0, 0.6, (len(MATERIALS), 3))).round(
@@ -232,6 +237,7 @@ def sample_factors(cfg: RenderConfig, rng: np.random.Generator) -> dict:
 
 
 _ASPHALT = [MATERIAL_IDS["asphalt"]]
+_DRY_RGB = np.array([0.40, 0.36, 0.24], np.float32)  # dry grass / straw albedo
 _CONCRETE = [MATERIAL_IDS[k] for k in ("concrete", "paving")]
 _GROUND = [MATERIAL_IDS[k] for k in ("grass", "soil")]
 
@@ -243,6 +249,10 @@ def material_gains(factors: dict) -> np.ndarray:
     g[_ASPHALT] *= np.float32(factors.get("asphalt_albedo", 1.0))
     g[_CONCRETE] *= np.float32(factors.get("concrete_albedo", 1.0))
     g[_GROUND] *= np.float32(factors.get("ground_albedo", 1.0))
+    dry = float(factors.get("vegetation_dryness", 0.0))
+    for name, k in (("grass", 1.0), ("foliage", 0.4)):  # towards dry straw / autumn leaves
+        base = np.asarray(DEFAULT_COLOR_FOR_MATERIAL[name], np.float32)
+        g[MATERIAL_IDS[name]] *= 1.0 + k * dry * (_DRY_RGB / base - 1.0)
     if factors.get("material_rgb_gain") is not None:
         g *= np.asarray(factors["material_rgb_gain"], np.float32)
     return g
@@ -494,7 +504,9 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
         sky_col = np.asarray(factors["sky_rgb"], np.float32)
     sky_col = sky_col + np.float32(oc) * (np.array([0.85, 0.86, 0.88], np.float32) - sky_col)
     e_sun = np.float32(1.15 * (1.0 - 0.85 * oc))
-    e_sky = np.float32(0.30 + 0.45 * oc)
+    # sky light (diffuse share of the irradiance: turbidity, bounce light from the
+    # surroundings); a clear-sky shadow keeps ~25 % (x1) to ~45 % (x2) of the sunlit level
+    e_sky = np.float32((0.30 + 0.45 * oc) * float(factors.get("sky_light", 1.0)))
     veil = _haze_colour(float(factors.get("haze_tint", 0.0)), float(e_sky))
     alt = max(float(camera.altitude_m), 1.0)
     lin = np.empty((h, w, 3), np.float32)
