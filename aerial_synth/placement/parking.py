@@ -18,8 +18,8 @@ nearest edge (the thesis's fewest-road-hits rule) and the line then steps ``kerb
 a time along the edge, re-locating it with the two-direction probe and stopping where the
 edge jumps or turns (a junction, a road end). A kerb bay is dropped when, beside it or
 within ``kerb_clear_m`` before or after it, the trace just beyond the kerb hits road (a
-junction's crossing street) or parking (a driveway or lot entrance) or a lane marking
-crosses the bay.
+junction's crossing street) or parking (a driveway or lot entrance), or when the bay is
+not all road (or lines painted on it).
 
 Filling. Per lot and per kerb line the occupancy is drawn from Beta(mean c, (1 - mean) c)
 (scipy.stats) and that share of the bays (rounded) is filled, bays chosen uniformly. The
@@ -360,14 +360,14 @@ def _kerb_free(rs, road_lut, bays, n_out, cfg) -> np.ndarray:
            + n_out[:, None, None, :] * outs[None, None, :, None])
     lab = _trace_labels(rs, pts.reshape(-1, 2)).reshape(n, len(s), len(outs))
     bad_out = road_lut[lab].any(axis=(1, 2)) | (lab == LABEL_IDS["parking"]).any(axis=(1, 2))
-    # the bay itself: road only (a crossing or marking across it keeps it free)
+    # the bay itself: road or painted lines on it (edge lines) only
     f = np.array([-0.45, -0.15, 0.15, 0.45])
     gu, gv = np.meshgrid(f * L, np.array([-0.35, 0.0, 0.35]) * bays.width_m)
     c, sn = np.cos(bays.axis_rad)[:, None], np.sin(bays.axis_rad)[:, None]
     px = bays.centre_xy[:, :1] + c * gu.ravel() - sn * gv.ravel()
     py = bays.centre_xy[:, 1:] + sn * gu.ravel() + c * gv.ravel()
     lab_in = _trace_labels(rs, np.stack([px.ravel(), py.ravel()], 1)).reshape(n, -1)
-    bad_in = ~(lab_in == LABEL_IDS["road"]).all(axis=1)
+    bad_in = ~road_lut[lab_in].all(axis=1)
     # the edge must run straight along the bay (no bend)
     return ~(bad_out | bad_in)
 
