@@ -12,6 +12,7 @@ Coordinates stay WGS84 longitude/latitude here; :mod:`.build` projects them.
 
 from __future__ import annotations
 
+import struct
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -123,13 +124,15 @@ def _way_wkb(fab, way) -> bytes | None:
         return shapely.to_wkb(shapely.linestrings(pts))
 
 
-def _first_location(area):
-    """(lon, lat) of an area's first node, or None."""
-    for ring in area.outer_rings():
-        for nd in ring:
-            loc = nd.location
-            return (loc.lon, loc.lat) if loc.valid() else None
-    return None
+def _first_point(wkb_hex: str) -> tuple[float, float]:
+    """(lon, lat) of the first point of osmium's hex WKB MultiPolygon (little endian:
+    byte order, type, polygon count, byte order, type, ring count, point count, then x, y)."""
+    if wkb_hex[:2] == "01" and wkb_hex[18:20] == "01":
+        return struct.unpack("<dd", bytes.fromhex(wkb_hex[44:76]))
+    import shapely  # any other layout: let shapely read it
+
+    x, y = shapely.get_coordinates(shapely.from_wkb(wkb_hex))[0]
+    return float(x), float(y)
 
 
 class _Collector:
@@ -180,20 +183,20 @@ class _Collector:
         kind = area_kind(obj.tags)
         if kind is None:
             return
+        try:
+            wkb = self.fab.create_multipolygon(obj)
+        except (osmium.InvalidLocationError, RuntimeError):
+            return
         if kind == "building":
             if self.bbox is not None:
-                loc = _first_location(obj)
+                lon, lat = _first_point(wkb)
                 r = self.reach
-                if loc is not None and not (r[0] <= loc[0] <= r[2] and r[1] <= loc[1] <= r[3]):
+                if not (r[0] <= lon <= r[2] and r[1] <= lat <= r[3]):
                     return
             tg = obj.tags
             tags = {k: tg.get(k) for k in _BUILDING_TAGS if k in tg}
         else:
             tags = dict(obj.tags)
-        try:
-            wkb = self.fab.create_multipolygon(obj)
-        except (osmium.InvalidLocationError, RuntimeError):
-            return
         self.areas.add((kind, obj.id, tags), wkb)
 
 
