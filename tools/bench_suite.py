@@ -105,12 +105,21 @@ import json, resource, sys, time, warnings
 warnings.simplefilter("ignore")
 from aerial_synth.scene.tiles import TiledWorld
 from aerial_synth.placement.tiled import place_tiled
-tile_m, n = float(sys.argv[1]), int(sys.argv[2])
-w = TiledWorld.load("city_2km")
+tile_m, n, km = float(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3])
+if km == 2.0:
+    w = TiledWorld.load("city_2km")
+else:  # the same city, larger: only tile (0, 0) is placed
+    import yaml
+    from aerial_synth.scene.io import SCENES_DIR
+    spec = yaml.safe_load((SCENES_DIR / "city_2km.yaml").read_text())
+    spec.pop("size_m", None)
+    w = TiledWorld.from_spec({**spec, "name": f"city_{km:g}km", "size_km": km})
+only = None if km == 2.0 else [(0, 0)]
 t0 = time.perf_counter()
-pl = place_tiled(w, w.grid(tile_m, 60.0), "jam", seed=0, n_vehicles=n)
+pl = place_tiled(w, w.grid(tile_m, 60.0), "jam", seed=0, n_vehicles=n, only=only)
 wall = time.perf_counter() - t0
-print(json.dumps({"tiles": len(w.grid(tile_m, 60.0)), "tile_m": tile_m, "vehicles": len(pl.vehicles),
+print(json.dumps({"world_km": km, "tiles": len(w.grid(tile_m, 60.0)), "tiles_placed": 1 if only else len(w.grid(tile_m, 60.0)),
+                  "tile_m": tile_m, "vehicles": len(pl.vehicles),
                   "requested": n, "seconds": round(wall, 2),
                   "vehicles_per_s": round(len(pl.vehicles) / wall, 1),
                   "scene_seconds": round(pl.timing["scene_seconds"], 2),
@@ -123,8 +132,11 @@ print(json.dumps({"tiles": len(w.grid(tile_m, 60.0)), "tile_m": tile_m, "vehicle
 def bench_tiles(a) -> dict:
     res = {"world": "city_2km (2 km x 2 km = 4 km^2, scenes/city_2km.yaml)", "margin_m": 60.0,
            "vehicles_requested": a.tile_vehicles}
-    for label, tile_m in (("one_tile", 2000.0), ("sixteen_tiles", 500.0)):
-        cmd = [PY, "-c", _TILES_CHILD, str(tile_m), str(a.tile_vehicles)]
+    runs = (("one_tile", 2000.0, a.tile_vehicles, 2.0), ("sixteen_tiles", 500.0, a.tile_vehicles, 2.0),
+            # memory does not grow with the world: one 500 m tile of a 50 km x 50 km city
+            ("one_tile_of_50km_world", 500.0, a.tile_vehicles * 2500 // 16, 50.0))
+    for label, tile_m, n, km in runs:
+        cmd = [PY, "-c", _TILES_CHILD, str(tile_m), str(n), str(km)]
         out, wall = _run(cmd)
         d = json.loads(out.strip().splitlines()[-1])
         d["wall_s_with_imports"] = round(wall, 1)
@@ -185,6 +197,7 @@ def main(argv=None) -> int:
     ap.add_argument("--tile-vehicles", type=int, default=20000)
     ap.add_argument("--only", default=",".join(SECTIONS), help=f"comma list of {', '.join(SECTIONS)}")
     ap.add_argument("--quick", action="store_true", help="small runs (8 images, 1 repeat) to check the suite")
+    ap.add_argument("--merge", action="store_true", help="keep the other sections of an existing --out file")
     a = ap.parse_args(argv)
     if a.quick:
         a.images, a.repeat, a.place_vehicles, a.tile_vehicles = 8, 1, 300, 3000
@@ -210,6 +223,10 @@ def main(argv=None) -> int:
         "sections": {},
     }
     out = Path(a.out)
+    if a.merge and out.is_file():
+        old = json.loads(out.read_text())
+        doc["sections"] = old.get("sections", {})
+        doc["merged_into"] = {k: old.get(k) for k in ("command", "date_utc", "git_commit")}
     for name in [s for s in SECTIONS if s in only]:
         print(f"[bench] {name} ...", flush=True)
         before = _load()

@@ -54,6 +54,7 @@ def place_tiled(
     overrides: dict | None = None,
     progress=None,
     workers: int = 1,
+    only=None,
 ) -> Placement:
     """Place vehicles tile by tile on ``world`` (a :class:`~aerial_synth.scene.tiles.TiledWorld`)
     over ``grid`` (its :class:`~aerial_synth.scene.tiles.TileGrid`).
@@ -63,6 +64,8 @@ def place_tiled(
     progress : optional callable(done_tiles, n_tiles, kept_so_far)
     workers : place tiles in this many processes (spawn); the result does not depend on it
               (tiles are independent; the merge runs in raster order here)
+    only : optional (i, j) tile indices to place (the others stay empty): a part of a huge
+           world, or one machine's share of it (seeds are those of the whole grid)
     Raises PlacementError when the grid's tiles are smaller than the longest vehicle.
     """
     from ..scene.tiles import min_tile_m
@@ -82,6 +85,9 @@ def place_tiled(
     cfg = load_scenario(scenario, overrides)
     tiles = grid.tiles()
     n_tiles = len(tiles)
+    if only is not None:
+        keys = {(int(i), int(j)) for i, j in only}
+        tiles = [t for t in tiles if t.key in keys]
     world_area = float(np.prod(grid.bounds[1] - grid.bounds[0]))
     index = FootprintIndex(cfg.gap_m, cfg.min_center_distance_m)
     reach = longest + max(cfg.gap_m, 0.0) + float(cfg.min_center_distance_m or 0.0)

@@ -137,3 +137,15 @@ def test_two_processes_same_result(world, tiled):
         par = place_tiled(world, g, "jam", seed=7, n_vehicles=N, workers=2)
     assert _dicts(par) == _dicts(pl)
     assert par.stats["tiles"] == pl.stats["tiles"]
+
+
+def test_only_some_tiles(world, tiled):
+    """A part of the world (one machine's share) gives the same vehicles for its tiles."""
+    g, pl = tiled
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        part = place_tiled(world, g, "jam", seed=7, n_vehicles=N, only=[(0, 0)])
+    owner = g.owner(np.array([[v.x_m, v.y_m] for v in pl.vehicles]))
+    first = [v for v, o in zip(pl.vehicles, owner) if tuple(o) == (0, 0)]  # merged first: nothing dropped
+    assert len(part.vehicles) == len(first) > 10
+    assert _dicts(part) == _dicts(type(pl)(**{**pl.__dict__, "vehicles": first}))
