@@ -172,7 +172,7 @@ def compose(
     face_albedo, mat_gain, tiles, textured, fine_t, coarse_t, dry_t, wetk_t, spec_t, shine_t,
     f0_t, wet,
     light, sun_rgb, sky_rgb, miss_rgb, veil_rgb, e_sun, e_sky, spec_dim, haze, inv_alt,
-    vignetting, out,
+    vignetting, wear, wear_ids, out,
 ):  # pragma: no cover - compiled
     """Albedo (per-face, times the frame's per-material RGB gain ``mat_gain`` (m, 3)) with
     procedural texture and wetness, light (sun x shadow, sky x ambient occlusion), specular + sky reflection, haze and vignetting -> ``out`` (h, w, 3) float32
@@ -227,6 +227,9 @@ def compose(
                     ar *= gain
                     ag *= gain
                     ab *= gain
+                    if wear > 0:
+                        ar, ag, ab = _wear(m, wear, wear_ids, qx, qy, nf, t0, t1, t2, ar, ag,
+                                           ab)
                     dk = dry_t[m]
                     if dk > 0:  # grass / foliage drift towards dry yellow-brown
                         nd = _bilinear(t1, (qx + np.float32(57.0)) / np.float32(6.0),
@@ -287,6 +290,60 @@ def compose(
             out[r, c, 0] = cr * vig
             out[r, c, 1] = cg * vig
             out[r, c, 2] = cb * vig
+
+
+@njit(inline="always")
+def _smooth(x):  # pragma: no cover - compiled
+    x = min(max(x, np.float32(0.0)), np.float32(1.0))
+    return x * x * (np.float32(3.0) - np.float32(2.0) * x)
+
+
+@njit(inline="always")
+def _wear(m, wear, ids, qx, qy, nf, t0, t1, t2, ar, ag, ab):  # pragma: no cover - compiled
+    """Surface wear by world position, ``wear`` in [0, 1] (the frame's road age):
+    asphalt (ids[0]): repair patches (4 m field, sharp edged, darker or lighter), a crack
+    network (zero crossings of a 1.5 m fractal field), oil stains (0.8 m blobs);
+    markings (ids[1]): faded towards the asphalt grey; grass (ids[2]): bare soil patches at
+    3 m and 12 m scales."""
+    one = np.float32(1.0)
+    if m == ids[0]:
+        p = _bilinear(t1, qx * np.float32(0.25) + np.float32(11.0),
+                      qy * np.float32(0.25) + np.float32(5.0))
+        if p > np.float32(1.5) - np.float32(0.6) * wear:
+            g = np.float32(0.82) if p < np.float32(2.1) else np.float32(1.12)
+            ar *= g
+            ag *= g
+            ab *= g
+        c = _bilinear(t0, qx * np.float32(0.66) + np.float32(31.0),
+                      qy * np.float32(0.66) + np.float32(17.0))
+        cw = np.float32(0.05) * wear
+        if abs(c) < cw:
+            g = np.float32(0.55) + np.float32(0.45) * abs(c) / cw
+            ar *= g
+            ag *= g
+            ab *= g
+        o = _bilinear(t2, qx * np.float32(1.25) + np.float32(91.0),
+                      qy * np.float32(1.25) + np.float32(53.0))
+        st = _smooth((o - (np.float32(2.4) - np.float32(0.6) * wear)) * np.float32(2.0))
+        g = one - np.float32(0.45) * st
+        ar *= g
+        ag *= g
+        ab *= g
+    elif m == ids[1]:
+        f = _bilinear(t1, qx + np.float32(7.0), qy + np.float32(3.0)) + np.float32(0.5) * nf
+        k = np.float32(0.85) * wear * _smooth((f + np.float32(0.6)) * np.float32(0.7))
+        ar += k * (np.float32(0.2) - ar)
+        ag += k * (np.float32(0.2) - ag)
+        ab += k * (np.float32(0.21) - ab)
+    elif m == ids[2]:
+        b = _bilinear(t2, qx / np.float32(3.0) + np.float32(13.0),
+                      qy / np.float32(3.0) + np.float32(7.0)) + np.float32(0.6) * _bilinear(
+            t1, qx / np.float32(12.0) + np.float32(3.0), qy / np.float32(12.0))
+        k = _smooth((b - np.float32(1.7) + np.float32(0.6) * wear) * np.float32(1.5) + np.float32(0.3) * nf)
+        ar += k * (np.float32(0.40) - ar)
+        ag += k * (np.float32(0.33) - ag)
+        ab += k * (np.float32(0.23) - ab)
+    return ar, ag, ab
 
 
 @njit(parallel=True, **_OPTS)

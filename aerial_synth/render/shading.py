@@ -72,7 +72,7 @@ _PAIRS = {  # name: (lowest, highest) allowed
     "chromatic_blur": (0, 2), "noise_sigma": (0, 0.5), "shot_noise": (0, 0.5),
     "jpeg_quality": (1, 100), "vignetting": (0, 0.9), "asphalt_albedo": (0.05, 4),
     "concrete_albedo": (0.05, 4), "ground_albedo": (0.05, 4), "sky_light": (0.1, 5),
-    "vegetation_dryness": (0, 1),
+    "vegetation_dryness": (0, 1), "road_wear": (0, 1),
 }
 #: ``randomise`` modes: "none" (realistic), "textures" (domain randomisation after Tobin et
 #: al. 2017: every material's colour, the light's colour and the sky's drawn at random)
@@ -109,9 +109,9 @@ class RenderConfig:
     contrast_sd_max: tuple[float, float] = (32.0, 50.0)
     exposure: tuple[float, float] = (0.9, 1.1)
     tone_shoulder: tuple[float, float] = (0.0, 0.6)
-    white_balance: tuple[float, float] = (-0.15, 0.15)
+    white_balance: tuple[float, float] = (-0.2, 0.1)
     tint: tuple[float, float] = (-0.04, 0.04)
-    saturation: tuple[float, float] = (0.4, 0.9)
+    saturation: tuple[float, float] = (0.3, 0.85)
     grayscale_probability: float = 0.1
     blur_sigma_px: tuple[float, float] = (0.4, 0.9)
     chromatic_blur: tuple[float, float] = (0.0, 0.35)
@@ -123,7 +123,8 @@ class RenderConfig:
     asphalt_albedo: tuple[float, float] = (0.35, 1.3)
     concrete_albedo: tuple[float, float] = (0.8, 1.15)
     ground_albedo: tuple[float, float] = (0.75, 1.2)
-    vegetation_dryness: tuple[float, float] = (0.0, 0.6)
+    vegetation_dryness: tuple[float, float] = (0.0, 0.8)
+    road_wear: tuple[float, float] = (0.2, 1.0)
     sky_light: tuple[float, float] = (1.0, 1.6)
     randomise: str = "none"
     shadows: bool = True
@@ -225,6 +226,7 @@ def sample_factors(cfg: RenderConfig, rng: np.random.Generator) -> dict:
     f["concrete_albedo"] = float(u(*cfg.concrete_albedo))
     f["ground_albedo"] = float(u(*cfg.ground_albedo))
     f["vegetation_dryness"] = float(u(*cfg.vegetation_dryness))
+    f["road_wear"] = float(u(*cfg.road_wear)) if cfg.texture else 0.0
     f["sky_light"] = float(u(*cfg.sky_light))
     f["randomise"] = cfg.randomise
     if cfg.randomise == "textures":  # a random colour gain per material, sun and sky
@@ -237,6 +239,7 @@ def sample_factors(cfg: RenderConfig, rng: np.random.Generator) -> dict:
 
 
 _ASPHALT = [MATERIAL_IDS["asphalt"]]
+_WEAR_IDS = np.array([MATERIAL_IDS[k] for k in ("asphalt", "marking", "grass")], np.int64)
 _DRY_RGB = np.array([0.40, 0.36, 0.24], np.float32)  # dry grass / straw albedo
 _CONCRETE = [MATERIAL_IDS[k] for k in ("concrete", "paving")]
 _GROUND = [MATERIAL_IDS[k] for k in ("grass", "soil")]
@@ -515,7 +518,8 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
               material_gains(factors), tiles, textured, _FINE, _COARSE, _DRY, _WETK, _SPEC,
               _SHINE, _F0, wet, L, sun_col, sky_col, (sky_col * np.float32(0.25)).astype(np.float32), veil, e_sun, e_sky,
               np.float32(1.0 - 0.9 * oc), np.float32(factors["haze"]), np.float32(1.0 / alt),
-              np.float32(factors.get("vignetting", 0.0)), lin)
+              np.float32(factors.get("vignetting", 0.0)),
+              np.float32(factors.get("road_wear", 0.0)), _WEAR_IDS, lin)
     mark("compose")
 
     # ---------------------------------------------------------------- camera

@@ -79,7 +79,8 @@ def test_full_frame_is_identical_for_any_thread_count_and_records_every_factor(w
                 "white_balance", "tint", "saturation", "grayscale", "chromatic_blur",
                 "noise_sigma", "shot_noise", "jpeg_quality", "vignetting", "sun_radius_deg",
                 "haze", "haze_tint", "asphalt_albedo", "ground_albedo", "concrete_albedo",
-                "ambient_occlusion", "pixel_seed", "randomise"):
+                "ambient_occlusion", "pixel_seed", "randomise", "vegetation_dryness",
+                "sky_light"):
         assert key in f, key
     json.dumps(a.to_meta())  # JSON-ready
     c = render_frame(rs, cam, pl, np.random.default_rng(10), cfg)
@@ -230,3 +231,21 @@ def test_factor_draws_are_seeded():
     keys = [sample_factors(RenderConfig(), np.random.default_rng(i))["key_gray"]
             for i in range(200)]
     assert min(keys) < 60 and max(keys) > 170
+
+
+def test_road_wear_darkens_parts_of_the_asphalt_only():
+    from aerial_synth.scene.model import LABEL_IDS
+
+    rs, pl = make_world([], building=False)
+    cam = Camera.look_at_ground(CameraConfig(width_px=512, height_px=128, gsd_m=0.12),
+                                (0.0, 0.0, 0.0))
+    base = {**PLAIN, "texture": True, "shadows": False, "ambient_occlusion": False}
+    worn = render_frame(rs, cam, pl, np.random.default_rng(0),
+                        RenderConfig(**base, road_wear=(1, 1)))
+    new = render_frame(rs, cam, pl, np.random.default_rng(0),
+                       RenderConfig(**base, road_wear=(0, 0)))
+    road = worn.semantic == LABEL_IDS["road"]
+    a, b = worn.rgb[..., 1][road].astype(int), new.rgb[..., 1][road].astype(int)
+    assert (a < b - 8).mean() > 0.01  # cracks, patches, stains
+    assert (a == b).mean() > 0.3  # most of the surface untouched
+    assert worn.factors["road_wear"] == 1.0 and new.factors["road_wear"] == 0.0
