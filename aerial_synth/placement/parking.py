@@ -4,11 +4,12 @@
 Lots. Vertical traces on a grid over the scene find the ``parking`` surface (painted bay
 lines, ``parking_marking``, count as lot). An opening removes driveways and entrances
 narrower than ``min_lot_m``; each remaining piece is a lot candidate. Its minimum rotated
-rectangle gives the row direction (the long side); each of its four edges is then found
-exactly by marching traces outward in 0.05 m steps (the thesis's step) from seven points
-along the side, taking the median. The bay layout is the scene's lot hint when the scene
-carries one for that lot (``Scene.meta["parking_lots"]``: a procedural lot's painted
-layout), else the scenario's default (2.5 x 5.0 m bays, 6 m aisles, rows parallel to the
+rectangle gives the row direction (the long side); marching traces outward in 0.05 m steps
+(the thesis's step) from seven points along each side then turn the rectangle (Theil-Sen
+slope of the edge distances) and place each edge (median). The bay layout is the scene's
+lot hint when the scene carries one for that lot (``Scene.meta["parking_lots"]``: a
+procedural lot's painted layout), else it is read from the painted lines
+(:func:`_layout_from_markings`), else the scenario's default (2.5 x 5.0 m bays, 6 m aisles, rows parallel to the
 rectangle), laid out by :func:`aerial_synth.scene.procedural.parking.layout_bays`, the
 function that painted the lines. A bay is kept only when traces over a 3 x 3 grid inside it
 all land on the lot.
@@ -99,6 +100,12 @@ def _march_edges(rs, origins, dirs, start_m, reach_m, step_m=0.05):
     first_off = np.argmax(~on, axis=1)
     ok = on[:, 0] & (~on).any(axis=1)
     d = ks[np.arange(len(ks)), np.maximum(first_off - 1, 0)]
+    # refine between the last lot step and the first off step (5 mm, like the prober)
+    sub = (np.arange(1, 10) / 10.0) * step_m
+    pts = origins[:, None, :] + dirs[:, None, :] * (d[:, None] + sub[None, :])[..., None]
+    on2 = np.isin(_trace_labels(rs, pts.reshape(-1, 2)), _lot_ids()).reshape(len(d), -1)
+    last = np.where(on2.all(axis=1), len(sub), np.argmax(~on2, axis=1))  # sub-steps still on
+    d = d + np.where(last > 0, sub[np.maximum(last - 1, 0)], 0.0) + 0.0025
     return np.where(ok, d, np.nan)
 
 
@@ -151,6 +158,10 @@ def find_lots(rayscene, cfg: ParkingConfig | None = None) -> list[Lot]:
                 fr = LotFrame(float(hc[0]), float(hc[1]), float(np.radians(hnt["row_deg"])),
                               float(hnt["long_m"]), float(hnt["short_m"]))
                 break
+        if src == "default":
+            read = _layout_from_markings(rs, fr)
+            if read is not None:
+                lay, src = read, "markings"
         bays = layout_bays(fr, lay)
         keep = _bays_on_lot(rs, bays)
         lots.append(Lot(len(lots), fr, lay, bays.take(keep), src, int((~keep).sum())))
@@ -201,6 +212,109 @@ def _refine(rs, fr):
         return dataclasses.replace(fr, cx=float(cc[0]), cy=float(cc[1]),
                                    u_rad=float(np.mod(fr.u_rad + np.pi / 2, np.pi)), long_m=S, short_m=L)
     return dataclasses.replace(fr, cx=float(cc[0]), cy=float(cc[1]), long_m=L, short_m=S)
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, end) index pairs of the True runs of a 1-D mask."""
+    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
+
+
+def _layout_from_markings(rs, fr, res: float = 0.1):
+    """Read a lot's bay layout from its painted lines (``parking_marking``), for lots that
+    carry no hint: traces on a ``res`` grid in the lot frame; the marking density across the
+    rows gives the bay rows and aisles, the line crossings along a row the pitch, their
+    drift across the row the bay angle. Returns a LotLayout, or None when the lot has no
+    (readable) markings. The layout is accepted only when its predicted lines cover the
+    traced ones (both ways, 60 %)."""
+    from ..errors import SceneError
+    from ..scene.procedural.parking import BAY_ANGLES_DEG, LotLayout, bay_markings, layout_bays
+
+    nu, nv = int(fr.long_m / res), int(fr.short_m / res)
+    if nu < 10 or nv < 10 or nu * nv > 4_000_000:
+        return None
+    us = (np.arange(nu) + 0.5) * res - fr.long_m / 2
+    vs = (np.arange(nv) + 0.5) * res - fr.short_m / 2
+    U, Vv = np.meshgrid(us, vs)  # (nv, nu): rows across v
+    xy = fr.to_world(np.stack([U, Vv], -1))
+    mark = (_trace_labels(rs, xy.reshape(-1, 2)) == LABEL_IDS["parking_marking"]).reshape(nv, nu)
+    if mark.sum() < 200:
+        return None
+    # bay rows: v-bands whose u-profile shows markings (allow 2 px gaps)
+    dens = mark.mean(axis=1) > 0.01
+    bands = [(a, b) for a, b in _runs(dens) if (b - a) * res >= 1.5]
+    if not bands:
+        return None
+    depths = np.array([(b - a) * res for a, b in bands])
+    dr = float(depths.min())
+    n_rows = int(sum(round(d / dr) for d in depths))
+    gaps = [(bands[i + 1][0] - bands[i][1]) * res for i in range(len(bands) - 1)]
+    # the thinnest band gives one row: crossings along u near its two edges
+    a, b = bands[int(np.argmin(depths))]
+    mid = mark[(a + b) // 2]
+    cross_mid = np.array([(s0 + s1) / 2 for s0, s1 in _runs(mid)]) * res
+    if len(cross_mid) < 2:
+        return None
+    pitch = float(np.median(np.diff(cross_mid)))
+    # drift of the crossings over 1 m across the row (less than half a pitch for 45-90 deg)
+    step_px = max(1, int(round(1.0 / res)))
+    r0 = max(a, (a + b) // 2 - step_px // 2)
+    r1 = min(b - 1, r0 + step_px)
+    c_lo = np.array([(s0 + s1) / 2 for s0, s1 in _runs(mark[r0])]) * res
+    c_hi = np.array([(s0 + s1) / 2 for s0, s1 in _runs(mark[r1])]) * res
+    dv = (r1 - r0) * res
+    if len(c_lo) and len(c_hi) and dv > 0:
+        near = c_hi[np.abs(c_hi[None, :] - c_lo[:, None]).argmin(axis=1)]
+        du = float(np.median(near - c_lo))
+    else:
+        du = 0.0
+    alpha = float(np.degrees(np.arctan2(dv, abs(du))))
+    # the exact length of the painted lines: 0.01 m marches along them (thesis-style traces)
+    d_uv = np.array([du, dv]) / max(np.hypot(du, dv), 1e-9)
+    v_mid = ((a + b) / 2 + 0.5) * res - fr.short_m / 2
+    starts = np.column_stack([cross_mid[:5] - fr.long_m / 2, np.full(min(5, len(cross_mid)), v_mid)])
+    steps = np.arange(0, int(40.0 / 0.01)) * 0.01
+    ext = []
+    for sgn in (1.0, -1.0):
+        pts = starts[:, None, :] + sgn * d_uv[None, None, :] * steps[None, :, None]
+        lab = _trace_labels(rs, fr.to_world(pts).reshape(-1, 2)).reshape(len(starts), -1)
+        on = lab == LABEL_IDS["parking_marking"]
+        ext.append((np.argmax(~on, axis=1) - 0.5) * 0.01)
+    line_len = float(np.median(ext[0] + ext[1]))
+    aisle = float(np.round(np.median(gaps) * 10) / 10) if gaps else 6.0
+    # candidate layouts: the bay angle snapped to 90/60/45 (or parallel), the width snapped to
+    # 5 cm; the length from the painted line (perpendicular, parallel) or from the row depth
+    # (angled; searched +-0.2 m); the one whose lines agree best with the traced ones wins
+    cands = []
+    if alpha > 75.0 and pitch > dr:  # short lines across the row, far apart: parallel bays
+        cands.append(dict(bay_width_m=round(line_len, 2), bay_length_m=round(pitch, 2), angle_deg=0.0))
+    else:
+        ang = min((x for x in BAY_ANGLES_DEG if x > 0), key=lambda x: abs(x - alpha))
+        sa, ca = np.sin(np.radians(ang)), np.cos(np.radians(ang))
+        w = float(np.round(pitch * sa * 20) / 20)
+        if ang == 90.0:
+            cands.append(dict(bay_width_m=w, bay_length_m=round(line_len, 2), angle_deg=ang))
+        else:
+            l0 = float(np.round((dr - w * ca) / sa * 10) / 10)
+            cands += [dict(bay_width_m=w, bay_length_m=round(l0 + k * 0.1, 2), angle_deg=ang)
+                      for k in (-2, -1, 0, 1, 2)]
+    import shapely
+
+    best, best_score = None, 0.0
+    for c in cands:
+        try:
+            lay = LotLayout(aisle_m=aisle, rows=n_rows, **c)
+        except (SceneError, ConfigError):
+            continue
+        pred = bay_markings(layout_bays(fr, lay), lay).buffer(res)
+        if pred.is_empty:
+            continue
+        hit = shapely.contains_xy(pred, xy[..., 0], xy[..., 1])
+        covered = (hit & mark).sum() / max(mark.sum(), 1)
+        explained = (hit & mark).sum() / max(hit.sum(), 1)
+        if covered >= 0.6 and explained >= 0.3 and covered * explained > best_score:
+            best, best_score = lay, covered * explained
+    return best
 
 
 def _side_marches(rs, fr):

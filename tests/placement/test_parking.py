@@ -275,3 +275,36 @@ def test_bay_larger_than_a_scene_lot_is_refused():
     with pytest.raises(SceneError) as e:
         generate(spec, source="t.yaml")
     assert "\n" not in str(e.value) and "yards[0].layout" in str(e.value)
+
+
+@pytest.mark.parametrize("name", ["suburb", "depot"])
+def test_bays_read_from_the_markings_without_hints(name):
+    """A scene without lot hints (as after a glTF round trip): the layout is read from the
+    painted lines and the bays coincide with the hinted ones within 1 cm."""
+    s = load_scene(name)
+    bare = find_lots(RayScene(Scene(s.name, s.objects)))
+    hinted = find_lots(RayScene(s))
+    assert len(bare) == len(hinted) == len(s.meta["parking_lots"])
+    for a, b in zip(sorted(bare, key=lambda x: x.frame.cx), sorted(hinted, key=lambda x: x.frame.cx)):
+        assert a.layout_source == "markings" and b.layout_source == "scene"
+        assert (a.layout.bay_width_m, a.layout.bay_length_m, a.layout.angle_deg) == (
+            b.layout.bay_width_m, b.layout.bay_length_m, b.layout.angle_deg)
+        assert len(a.bays) == len(b.bays)
+        assert np.abs(a.bays.centre_xy - b.bays.centre_xy).max() < 0.01
+
+
+@pytest.mark.parametrize("angle, tol_m", [(60, 0.25), (45, 0.25), (0, 0.01)])
+def test_angled_and_parallel_bays_read_from_the_markings(angle, tol_m):
+    from aerial_synth.scene.procedural import generate
+
+    spec = {"name": "t", "generator": "depot", "seed": 1, "size_m": [240, 200], "trees": {"count": 0},
+            "yards": [{"center": [-62, -20], "size_m": [80, 60], "rotation_deg": 20,
+                       "layout": {"angle_deg": angle, "bay_length_m": 5.0 if angle else 6.0}}]}
+    s = generate(spec)
+    a, = find_lots(RayScene(Scene(s.name, s.objects)))
+    b, = find_lots(RayScene(s))
+    assert a.layout_source == "markings" and a.layout.angle_deg == angle
+    assert len(a.bays) == len(b.bays)
+    assert np.abs(a.bays.centre_xy - b.bays.centre_xy).max() < tol_m
+    d = np.abs(np.angle(np.exp(1j * (a.bays.axis_rad - b.bays.axis_rad))))
+    assert np.degrees(d).max() < 0.5
