@@ -191,3 +191,21 @@ def test_evaluation_is_vectorised_enough(tmp_path):
     r = res.per_threshold[0.5]["car"]
     # overlapping random boxes can steal each other's best match; nearly all still match
     assert r.tp + r.fp == 10000 and r.tp > 9900
+
+
+@pytest.mark.parametrize("cmd", ["eval", "mix", "stats"])
+@pytest.mark.parametrize("out_kind", ["device", "below-a-file", "a-file"])
+def test_hostile_outputs_for_every_command(case, capsys, cmd, out_kind):
+    tmp, gt, pred = case
+    afile = tmp / "afile"
+    afile.write_text("x")
+    out = {"device": "/dev/null", "below-a-file": str(afile / "out"), "a-file": str(afile)}[out_kind]
+    argv = {
+        "eval": ["eval", "--gt", str(gt), "--pred", str(pred)],
+        "mix": ["mix", "--real", str(gt), "--synthetic", str(gt), "--real-images", "1"],
+        "stats": ["stats", str(gt)],
+    }[cmd] + ["--out", out]
+    before = sorted(p.name for p in tmp.iterdir())
+    rc, err = _run(capsys, argv)
+    assert rc == 2 and err.count("\n") == 1 and "--out" in err, err
+    assert sorted(p.name for p in tmp.iterdir()) == before and afile.read_text() == "x"
