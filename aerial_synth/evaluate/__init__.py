@@ -6,10 +6,11 @@ from __future__ import annotations
 import importlib
 
 __all__ = ["evaluate", "run_eval", "Detections", "EvalResult", "make_mix", "MixConfig",
-           "dataset_stats", "compare_stats"]
+           "dataset_stats", "compare_stats", "run_stats"]
 
 _LAZY = {"evaluate": "ap", "Detections": "ap", "EvalResult": "ap", "run_eval": "evaluation",
-         "make_mix": "mix", "MixConfig": "mix", "dataset_stats": "stats", "compare_stats": "stats"}
+         "make_mix": "mix", "MixConfig": "mix", "dataset_stats": "stats", "compare_stats": "stats",
+         "run_stats": "stats"}
 
 
 def __getattr__(name: str):

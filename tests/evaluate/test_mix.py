@@ -50,6 +50,11 @@ def test_ratio_is_exact_and_deterministic(tmp_path):
     man2 = make_mix(MixConfig(real=tmp_path / "real", synthetic=tmp_path / "syn",
                               out=tmp_path / "mix2", real_fraction=0.25, seed=7))
     assert [e["image"] for e in man2["images"]] == [e["image"] for e in man["images"]]
+
+    def tree(root):
+        return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+    assert tree(tmp_path / "mix2") == tree(tmp_path / "mix")  # byte-identical, manifest included
     man3 = make_mix(MixConfig(real=tmp_path / "real", synthetic=tmp_path / "syn",
                               out=tmp_path / "mix3", real_fraction=0.25, seed=8))
     assert {e["image"] for e in man3["images"]} != {e["image"] for e in man["images"]}
