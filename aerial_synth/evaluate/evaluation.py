@@ -198,7 +198,9 @@ def summary_table(res: EvalResult) -> str:
     lines.append(f"{'mAP':<22} {'-' if res.map is None else f'{res.map:.4f}':>7}")
     if res.metric == "coco":
         d = res.to_dict()
-        lines.append(f"mAP50 {d.get('map50')}  mAP75 {d.get('map75')}  (TP/FP columns at IoU > {t0:.2f})")
+        f4 = lambda v: "-" if v is None else f"{v:.4f}"
+        lines.append(f"mAP50 {f4(d.get('map50'))}  mAP75 {f4(d.get('map75'))}  "
+                     f"(TP/FP columns at IoU > {t0:.2f})")
     return "\n".join(lines)
 
 
