@@ -175,7 +175,7 @@ def test_bad_input_one_line_exit_2_nothing_written(case, capsys):
     assert rc == 0 and (out / "eval.json").is_file()
 
 
-def test_evaluation_is_vectorised_enough(tmp_path):
+def test_ten_thousand_boxes_match_themselves(tmp_path):
     """Sanity (not a timing): 200 images x 50 boxes evaluate and match themselves."""
     from aerial_synth.evaluate.ap import Detections, evaluate
     from aerial_synth.evaluate.labels import ImageLabels
