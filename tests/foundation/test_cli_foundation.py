@@ -48,7 +48,7 @@ def _snapshot(folder):
     [
         (["export", "--images", "abc", "--out", "x"],
          "aerial-synth export: --images: expected an integer, got 'abc'"),
-        (["place", "--seed", "1.5"], "aerial-synth place: --seed: expected an integer, got '1.5'"),
+        (["place", "--seed", "1.5"], "aerial-synth place: --seed: expected a non-negative integer, got '1.5'"),
         (["export"], "aerial-synth export: missing required --out"),
         (["place", "--traffic", "up"],
          "aerial-synth place: --traffic: expected one of right, left, got 'up'"),
