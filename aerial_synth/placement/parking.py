@@ -158,7 +158,7 @@ def find_lots(rayscene, cfg: ParkingConfig | None = None) -> list[Lot]:
                 fr = LotFrame(float(hc[0]), float(hc[1]), float(np.radians(hnt["row_deg"])),
                               float(hnt["long_m"]), float(hnt["short_m"]))
                 break
-        if src == "default":
+        if src == "default" and _has_markings(rs, fr):
             read = _layout_from_markings(rs, fr)
             if read is not None:
                 lay, src = read, "markings"
@@ -212,6 +212,16 @@ def _refine(rs, fr):
         return dataclasses.replace(fr, cx=float(cc[0]), cy=float(cc[1]),
                                    u_rad=float(np.mod(fr.u_rad + np.pi / 2, np.pi)), long_m=S, short_m=L)
     return dataclasses.replace(fr, cx=float(cc[0]), cy=float(cc[1]), long_m=L, short_m=S)
+
+
+def _has_markings(rs, fr, step_m: float = 0.03) -> bool:
+    """Traces along the rectangle's two diagonals (they cross any painted line that is not
+    parallel to them) meet ``parking_marking`` at least twice."""
+    t = np.arange(-0.5, 0.5, step_m / np.hypot(fr.long_m, fr.short_m))
+    uv = np.concatenate([np.stack([t * fr.long_m, t * fr.short_m], 1),
+                         np.stack([t * fr.long_m, -t * fr.short_m], 1)])
+    lab = _trace_labels(rs, fr.to_world(uv))
+    return int((lab == LABEL_IDS["parking_marking"]).sum()) >= 2
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
