@@ -51,7 +51,8 @@ def register(sub) -> None:
         "synthetic GSD and cut into tiles as the DOTA devkit's splitter does. The validation "
         "split is real images only by default. See docs/evaluate.md.",
     )
-    m.add_argument("--real", required=True, metavar="DIR", help="real images, DOTA layout")
+    m.add_argument("--real", required=True, metavar="DIR",
+                   help="real images: DOTA layout, or a YOLO-OBB folder (images/, labels/, data.yaml)")
     m.add_argument("--synthetic", required=True, metavar="DIR", help="an aerial-synth export or DOTA folder")
     g = m.add_mutually_exclusive_group(required=True)
     g.add_argument("--real-fraction", type=arg_float("--real-fraction", 0.0, 1.0), metavar="F",
@@ -78,6 +79,8 @@ def register(sub) -> None:
                    help="keep a cut box when this share of its area is inside the tile (0.7)")
     m.add_argument("--gsd", type=arg_float("--gsd", 0.0, lo_open=True), default=None, metavar="M",
                    help="rescale real images to M metres per pixel first (their gsd: header)")
+    m.add_argument("--real-gsd", type=arg_float("--real-gsd", 0.0, lo_open=True), default=None,
+                   metavar="M", help="GSD of real images whose labels carry none (YOLO-OBB folders)")
     m.add_argument("--gsd-missing", type=arg_choice("--gsd-missing", ("error", "keep", "skip")),
                    default="error", metavar="error|keep|skip",
                    help="a real image without a gsd: header with --gsd (error)")
@@ -149,6 +152,7 @@ def _cmd_mix(args) -> int:
         synthetic_images=args.synthetic_images, format=args.format, seed=args.seed,
         val=args.val, val_fraction=args.val_fraction, tile=args.tile, overlap=args.overlap,
         keep_threshold=args.keep_threshold, gsd=args.gsd, gsd_missing=args.gsd_missing,
+        real_gsd=args.real_gsd,
         classes=classes, force=args.force,
     )
     res = make_mix(cfg)

@@ -32,6 +32,7 @@ __all__ = [
     "parse_names",
     "image_size",
     "find_image",
+    "find_data_yaml",
     "resolve_dota_folder",
     "read_dota_folder",
     "detect_layout",
@@ -394,7 +395,8 @@ def read_dota_folder(labels_dir: Path, images_dir: Path | None, option: str = "-
     return out
 
 
-def _yolo_root_yaml(path: Path) -> Path | None:
+def find_data_yaml(path: Path) -> Path | None:
+    """The data YAML of a YOLO folder: data.yaml / dataset.yaml, else the only YAML there."""
     cands = sorted(p for p in path.glob("*.y*ml") if p.is_file())
     for p in cands:
         if p.name in ("data.yaml", "dataset.yaml"):
@@ -448,7 +450,7 @@ def read_dataset(path, option: str = "DIR") -> tuple[str, list[ImageLabels]]:
                 items += read_dota_folder(lab, img if img.is_dir() else None, option)
     elif layout == "yolo-obb":
         root = path / "yolo-obb" if (path / "yolo-obb").is_dir() else path
-        y = _yolo_root_yaml(root)
+        y = find_data_yaml(root)
         if y is None:
             raise EvaluationError(f"{option} {root}: expected a data YAML (data.yaml) with class names")
         names = parse_names(str(y), option=f"{option} {y.name}")

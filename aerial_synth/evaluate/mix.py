@@ -40,7 +40,17 @@ import numpy as np
 
 from ..errors import EvaluationError
 from ..io_utils import check_output_dir, dumps_json, is_inside
-from .labels import ImageLabels, dota_lines, image_size, read_dota_folder
+from .labels import (
+    IMAGE_EXTS,
+    ImageLabels,
+    dota_lines,
+    find_data_yaml,
+    image_size,
+    parse_names,
+    parse_yolo_obb_lines,
+    read_dota_folder,
+    read_lines,
+)
 
 __all__ = ["MixConfig", "make_mix", "tile_origins", "clip_to_tile", "rescale_polygons",
            "mix_counts"]
@@ -65,6 +75,7 @@ class MixConfig:
     keep_threshold: float = 0.7
     gsd: float | None = None
     gsd_missing: str = "error"
+    real_gsd: float | None = None
     classes: list[str] | None = ("small-vehicle", "large-vehicle")  # type: ignore[assignment]
     force: bool = False
     formats: tuple[str, ...] = ()  # derived from ``format`` (a comma list)
@@ -92,6 +103,8 @@ class MixConfig:
             raise EvaluationError(f"--keep-threshold: expected a number in (0, 1], got {self.keep_threshold!r}")
         if self.gsd is not None and not (self.gsd > 0 and np.isfinite(self.gsd)):
             raise EvaluationError(f"--gsd: expected a number > 0, got {self.gsd!r}")
+        if self.real_gsd is not None and not (self.real_gsd > 0 and np.isfinite(self.real_gsd)):
+            raise EvaluationError(f"--real-gsd: expected a number > 0, got {self.real_gsd!r}")
         if self.gsd_missing not in ("error", "keep", "skip"):
             raise EvaluationError(f"--gsd-missing: expected error, keep or skip, got {self.gsd_missing!r}")
 
@@ -217,28 +230,56 @@ def mix_counts(n_syn_avail: int, n_real_avail: int, real_fraction: float | None,
 # -- sources ----------------------------------------------------------------------------------
 
 
-def _dota_splits(root: Path, option: str) -> dict[str, tuple[Path, Path]]:
-    """split -> (labelTxt, images) of a DOTA root, an export, or one split folder."""
+def _dota_splits(root: Path, option: str) -> dict[str, tuple]:
+    """split -> a reader spec: ("dota", labelTxt, images) of a DOTA root, an export or one
+    split folder, or ("yolo", labels, images, names) of a YOLO-OBB folder (images/,
+    labels/ and a data YAML, like Ultralytics' DOTA8)."""
     if not root.exists():
         raise EvaluationError(f"{option} {root}: no such folder")
     if not root.is_dir():
         raise EvaluationError(f"{option} {root}: expected a folder, found a file")
     for base in (root / "dota", root):
         if (base / "labelTxt").is_dir():
-            return {"train": (base / "labelTxt", base / "images")}
-        found = {s.name: (s / "labelTxt", s / "images")
+            return {"train": ("dota", base / "labelTxt", base / "images")}
+        found = {s.name: ("dota", s / "labelTxt", s / "images")
                  for s in sorted(p for p in base.iterdir() if p.is_dir()) if (s / "labelTxt").is_dir()} \
             if base.is_dir() else {}
         if found:
             return found
+    for base in (root / "yolo-obb", root):
+        if (base / "images").is_dir() and (base / "labels").is_dir():
+            yaml_path = find_data_yaml(base)
+            if yaml_path is None:
+                raise EvaluationError(f"{option} {base}: expected a data YAML (data.yaml) with class names")
+            names = parse_names(str(yaml_path), option=f"{option} {yaml_path.name}")
+            subs = sorted(p.name for p in (base / "images").iterdir() if p.is_dir())
+            if subs:
+                return {s: ("yolo", base / "labels" / s, base / "images" / s, names) for s in subs}
+            return {"train": ("yolo", base / "labels", base / "images", names)}
     raise EvaluationError(f"{option} {root}: expected a DOTA folder (labelTxt/ and images/, "
-                          f"<split>/labelTxt/, or an export with dota/), found none")
+                          f"<split>/labelTxt/, an export with dota/) or a YOLO-OBB folder "
+                          f"(images/, labels/, data.yaml), found none")
 
 
-def _read_split(lab: Path, img: Path, option: str) -> list[ImageLabels]:
+def _read_split(spec: tuple, option: str) -> list[ImageLabels]:
+    kind, lab, img = spec[:3]
     if not img.is_dir():
-        raise EvaluationError(f"{option} {lab.parent}: expected an images/ folder beside labelTxt/")
-    items = read_dota_folder(lab, img, option=option, need_images=True)
+        raise EvaluationError(f"{option} {lab.parent}: expected an images/ folder beside {lab.name}/")
+    if kind == "dota":
+        return read_dota_folder(lab, img, option=option, need_images=True)
+    names = spec[3]
+    items = []
+    for p in sorted(q for q in img.iterdir() if q.suffix.lower() in IMAGE_EXTS and q.is_file()):
+        size = image_size(p)
+        lp = lab / (p.stem + ".txt")
+        if lp.is_file():
+            polys, classes, _ = parse_yolo_obb_lines(read_lines(lp), str(lp), names, size, with_conf=False)
+        else:
+            polys, classes = np.zeros((0, 4, 2)), []
+        items.append(ImageLabels(p.stem, polys, classes, np.zeros(len(classes), bool), None, None,
+                                 lp if lp.is_file() else None, p, size))
+    if not items:
+        raise EvaluationError(f"{option} {img}: no images found")
     return items
 
 
@@ -260,12 +301,15 @@ def _plan_real(items: list[ImageLabels], cfg: MixConfig) -> list[list[_Item]]:
     for it in items:
         w, h = image_size(it.image_path)
         sx = sy = 1.0
+        if it.gsd_m is None and cfg.real_gsd is not None:
+            it.gsd_m = cfg.real_gsd
         gsd = it.gsd_m
         if cfg.gsd is not None:
             if it.gsd_m is None:
                 if cfg.gsd_missing == "error":
-                    raise EvaluationError(f"{it.label_path}: expected a 'gsd:' header to rescale to "
-                                          f"--gsd {cfg.gsd:g}, found none (see --gsd-missing)")
+                    raise EvaluationError(f"{it.label_path or it.image_path}: expected a 'gsd:' header to "
+                                          f"rescale to --gsd {cfg.gsd:g}, found none (see "
+                                          f"--real-gsd and --gsd-missing)")
                 if cfg.gsd_missing == "skip":
                     plans.append([])
                     continue
@@ -428,17 +472,17 @@ def make_mix(cfg: MixConfig) -> dict:
     train_keys = ["train"] if "train" in real_splits else [s for s in real_splits if s not in val_names]
     if not train_keys:  # only a validation split: it is the source, and val is held out of it
         train_keys, real_val_src = real_val_src[:1], []
-    real_train = _read_split(*real_splits[train_keys[0]], "--real")
+    real_train = _read_split(real_splits[train_keys[0]], "--real")
     if real_val_src:
-        real_val = _read_split(*real_splits[real_val_src[0]], "--real")
+        real_val = _read_split(real_splits[real_val_src[0]], "--real")
         real_train = _shuffle(real_train, rng)
     else:
         real_train = _shuffle(real_train, rng)
         n_val = int(round(cfg.val_fraction * len(real_train))) if cfg.val in ("real", "both") else 0
         real_val, real_train = real_train[:n_val], real_train[n_val:]
     syn_key = "train" if "train" in syn_splits else next(iter(syn_splits))
-    syn_train = _shuffle(_read_split(*syn_splits[syn_key], "--synthetic"), rng)
-    syn_val = _read_split(*syn_splits["val"], "--synthetic") if ("val" in syn_splits and cfg.val != "real") else []
+    syn_train = _shuffle(_read_split(syn_splits[syn_key], "--synthetic"), rng)
+    syn_val = _read_split(syn_splits["val"], "--synthetic") if ("val" in syn_splits and cfg.val != "real") else []
 
     train_plans = [t for p in _plan_real(real_train, cfg) for t in p]
     n_syn, n_real = mix_counts(len(syn_train), len(train_plans), cfg.real_fraction, cfg.real_images,
@@ -501,7 +545,8 @@ def make_mix(cfg: MixConfig) -> dict:
                 "real_images": cfg.real_images, "synthetic_images": cfg.synthetic_images,
                 "format": cfg.format, "seed": cfg.seed, "val": cfg.val, "val_fraction": cfg.val_fraction,
                 "tile": cfg.tile, "overlap": cfg.overlap, "keep_threshold": cfg.keep_threshold,
-                "gsd": cfg.gsd, "gsd_missing": cfg.gsd_missing, "classes": classes,
+                "gsd": cfg.gsd, "gsd_missing": cfg.gsd_missing, "real_gsd": cfg.real_gsd,
+                "classes": classes,
             },
             "counts": counts,
             "available": {"real_train_images": len(real_train), "real_val_images": len(real_val),

@@ -245,3 +245,34 @@ def test_without_a_real_val_split_whole_images_are_held_out(tmp_path):
         make_mix(MixConfig(real=tmp_path / "real", synthetic=tmp_path / "syn", out=tmp_path / "m2",
                            real_images=33, tile=160, overlap=20, seed=3))
     assert not (tmp_path / "m2").exists()
+
+
+def test_real_yolo_obb_folder_with_a_given_gsd(tmp_path):
+    real = tmp_path / "dota8like"
+    for split in ("train", "val"):
+        (real / "images" / split).mkdir(parents=True)
+        (real / "labels" / split).mkdir(parents=True)
+    boxes = [rect(40, 30, 24, 10, 20), rect(100, 60, 30, 12, -30)]
+    for split, name in (("train", "t0"), ("train", "t1"), ("val", "v0")):
+        img = np.full((100, 160, 3), 20, np.uint8)
+        for b in boxes:
+            cv2.fillPoly(img, [np.round(b * 16).astype(np.int32)], (230, 230, 230), cv2.LINE_8, shift=4)
+        cv2.imwrite(str(real / "images" / split / f"{name}.jpg"), img)
+        lines = [f"{k} " + " ".join(f"{v:.6f}" for v in (b / (160, 100)).reshape(-1))
+                 for k, b in zip((1, 0), boxes)]
+        (real / "labels" / split / f"{name}.txt").write_text("\n".join(lines) + "\n")
+    (real / "data.yaml").write_text("names:\n  0: large vehicle\n  1: small vehicle\n  2: plane\n")
+    make_dota(tmp_path / "syn/dota/train", 2, "s")
+    man = make_mix(MixConfig(real=real, synthetic=tmp_path / "syn", out=tmp_path / "mix",
+                             real_images=2, gsd=0.12, real_gsd=0.24))
+    assert man["counts"]["train_real"] == 2 and man["counts"]["val_real"] == 1
+    lab = tmp_path / "mix/dota/train/labelTxt/real-t0__2.txt"
+    polys, cls, diff, gsd, _ = parse_dota_lines(lab.read_text().splitlines(), str(lab))
+    assert cls == ["small-vehicle", "large-vehicle"] and gsd == 0.12  # names from the YAML
+    np.testing.assert_allclose(polys, np.array(boxes) * 2, atol=0.01)
+    img = cv2.imread(str(tmp_path / "mix/dota/train/images/real-t0__2.png"))
+    assert img.shape == (200, 320, 3)
+    # without --real-gsd, rescaling a YOLO folder (no gsd: headers) is refused, naming a file
+    with pytest.raises(EvaluationError, match="expected a 'gsd:' header .* --real-gsd"):
+        make_mix(MixConfig(real=real, synthetic=tmp_path / "syn", out=tmp_path / "m2",
+                           real_images=2, gsd=0.12))
