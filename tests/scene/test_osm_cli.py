@@ -132,6 +132,9 @@ def _bad_cases(tmp, files):
     nothing = tmp / "nothing.osm"
     nothing.write_text("<?xml version='1.0'?><osm version='0.6'></osm>\n")
     park = _bbox(-270, 180, -140, 270)  # the park and its trees: data, but no road
+    negative = tmp / "unsaved.osm"  # JOSM's ids for objects never uploaded
+    negative.write_text(files["osm"].read_text().replace('id="', 'id="-')
+                        .replace('ref="', 'ref="-'))
     return {
         "malformed_xml": (["scene", "from-osm", str(bad_xml)], "cannot read as OSM XML"),
         "truncated_pbf": (["scene", "from-osm", str(trunc)], "cannot read as PBF"),
@@ -159,6 +162,7 @@ def _bad_cases(tmp, files):
                                   "apply to OSM extracts"),
         "labels_with_osm": (["scene", "show", good, "--labels", str(tmp / "l.yaml")],
                             "label rules apply to mesh files"),
+        "negative_ids": (["scene", "from-osm", str(negative)], "negative node ids"),
     }
 
 
@@ -166,7 +170,7 @@ CASES = ["malformed_xml", "truncated_pbf", "truncated_bz2", "empty_file", "no_da
          "bbox_no_data", "bbox_no_road", "unknown_crs", "crs_garbage", "geographic_crs",
          "bbox_min_gt_max", "bbox_out_of_range", "bbox_lat_range", "bbox_not_numbers",
          "bbox_three_numbers", "bbox_nan", "missing_file", "not_glb", "bbox_on_bundled_scene",
-         "labels_with_osm"]
+         "labels_with_osm", "negative_ids"]
 
 
 @pytest.mark.parametrize("case", CASES)

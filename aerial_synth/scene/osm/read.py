@@ -144,6 +144,7 @@ class _Collector:
         self.data, self.bbox, self.lines, self.areas = data, bbox, lines, areas
         self.fab = osmium.geom.WKBFactory()
         self.counts = {"nodes": 0, "ways": 0, "areas": 0}
+        self.negative = 0  # ways left without geometry whose node ids are negative
         if bbox is not None:
             r = _BUILDING_REACH_DEG
             self.reach = (bbox[0] - r, bbox[1] - r, bbox[2] + r, bbox[3] + r)
@@ -175,6 +176,8 @@ class _Collector:
         wkb = _way_wkb(self.fab, obj)
         if wkb is not None:
             self.lines.add((kind, obj.id, dict(tags)), wkb)
+        elif len(obj.nodes) and obj.nodes[0].ref < 0:
+            self.negative += 1
 
     def area(self, obj) -> None:
         import osmium
@@ -266,6 +269,12 @@ def read_osm(path: str | Path, bbox: tuple | None = None) -> OsmData:
         msg = " ".join(str(exc).split())[:200] or type(exc).__name__
         raise SceneError(f"OSM file {path}: cannot read as {fmt} ({msg})") from None
     counts = col.counts
+    if col.negative and not data.lines:
+        raise SceneError(
+            f"OSM file {path}: its ways use negative node ids (unsaved JOSM/iD data), which "
+            f"the node-location index cannot hold; expected positive ids (upload or renumber "
+            f"the data first, e.g. with 'osmium renumber')"
+        )
     data.counts = counts
     if data.bbox is None:
         if header_box is not None:
