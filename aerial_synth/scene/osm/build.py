@@ -145,22 +145,19 @@ def _markings(roads: list[_Road], road_area, junctions):
         p = r.p
         w, n = p.width_m, p.marking_lanes
         if p.cls not in UNMARKED_CLASSES and n >= 2:
-            if p.oneway:
-                kc = -1
-            else:
-                kc = p.lanes_backward if p.lanes_backward > 0 else n // 2
-                if w < MIN_CENTRE_LINE_WIDTH_M:
-                    kc = -1
+            # lane boundaries k = 1 .. n-1 counted from the left edge (line direction); on a
+            # two-way road boundary kc (after the backward lanes) is the centre line
+            kc = -1 if p.oneway else (p.lanes_backward if p.lanes_backward > 0 else n // 2)
             for k in range(1, n):
                 off = w / 2 - k * w / n  # > 0: left of the line's direction
-                if k == kc or (not p.oneway and kc == -1 and k == n // 2):
-                    if kc == -1:
-                        continue
-                    dashed[CENTRE_DASH][0].append(r.line)
-                    dashed[CENTRE_DASH][1].append(off)
+                if k == kc:
+                    if w < MIN_CENTRE_LINE_WIDTH_M:
+                        continue  # a narrow two-way street: no centre line
+                    style = CENTRE_DASH
                 else:
-                    dashed[DIVIDER_DASH][0].append(r.line)
-                    dashed[DIVIDER_DASH][1].append(off)
+                    style = DIVIDER_DASH
+                dashed[style][0].append(r.line)
+                dashed[style][1].append(off)
         if p.cls in EDGE_LINE_CLASSES and w > 2 * EDGE_INSET_M + 1.0:
             for off in (w / 2 - EDGE_INSET_M, -(w / 2 - EDGE_INSET_M)):
                 solid_l.append(r.line)
