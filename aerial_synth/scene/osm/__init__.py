@@ -139,10 +139,13 @@ def build_osm_scene(path, bbox=None, crs=None, seed: int = 0):
 
 
 def cache_dir() -> Path:
-    """Where built OSM scenes are cached: $AERIAL_SYNTH_CACHE, else ~/.cache/aerial-synth."""
+    """Where built OSM scenes are cached: $AERIAL_SYNTH_CACHE/osm, else
+    $XDG_CACHE_HOME/aerial-synth/osm, else ~/.cache/aerial-synth/osm."""
     env = os.environ.get("AERIAL_SYNTH_CACHE")
-    base = Path(env) if env else Path.home() / ".cache" / "aerial-synth"
-    return base / "osm"
+    if env:
+        return Path(env) / "osm"
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return (Path(xdg) if xdg else Path.home() / ".cache") / "aerial-synth" / "osm"
 
 
 def _file_hash(path: Path) -> str:
