@@ -246,11 +246,10 @@ class _Labels:
     def wrap(self, path: str, exc: ConfigError) -> ConfigError:
         """Re-label an error raised by a dataclass (whose message starts with the bare field)."""
         msg = str(exc)
-        head = msg.split(":", 1)[0]
-        label = self(head) if head.startswith(path) else self(path) + ":"
-        if head.startswith(path):
-            return ConfigError(label + msg[len(head):])
-        return ConfigError(f"{label} {msg}")
+        head, sep, rest = msg.partition(":")
+        if sep and head.startswith(path):
+            return ConfigError(self(head) + ":" + rest)
+        return ConfigError(f"{self(path)}: {msg}")
 
 
 def _block(labels: _Labels, path: str, value: Any, keys: tuple[str, ...],
