@@ -151,12 +151,13 @@ def gather_shadow_rays(own, rays, t, normal, light, peel, disk, seed):  # pragma
 
 
 @njit(parallel=True, **_OPTS)
-def spread_shadow(h, w, step, own, ndl, idx, occ, lit):  # pragma: no cover - compiled
-    """``lit`` (n,) float32, all ones on entry: 0 where a shadow ray was blocked; pixels
+def spread_shadow(h, w, step, own, ndl, idx, vis, lit):  # pragma: no cover - compiled
+    """``lit`` (n,) float32, all ones on entry: the sun visibility ``vis`` (k,) float32 of
+    each shadow ray (0 blocked, 1 clear, in between through a tree crown's gaps); pixels
     without their own ray copy their block's first pixel (when they face the sun)."""
     k = idx.shape[0]
     for j in prange(k):
-        lit[idx[j]] = np.float32(0.0) if occ[j] else np.float32(1.0)
+        lit[idx[j]] = vis[j]
     if step > 1:
         for r in prange(h):
             rb = (r // step) * step

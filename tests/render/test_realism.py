@@ -249,3 +249,17 @@ def test_road_wear_darkens_parts_of_the_asphalt_only():
     assert (a < b - 8).mean() > 0.01  # cracks, patches, stains
     assert (a == b).mean() > 0.3  # most of the surface untouched
     assert worn.factors["road_wear"] == 1.0 and new.factors["road_wear"] == 0.0
+
+
+def test_crown_gaps_let_some_sun_through_deterministically():
+    from aerial_synth.render.shading import _crown_gaps, _noise_tiles
+
+    rng = np.random.default_rng(0)
+    rays = np.zeros((5000, 6), np.float32)
+    rays[:, :2] = rng.uniform(-50, 50, (5000, 2))
+    rays[:, 3:] = [0.3, 0.2, 0.93]
+    v = _crown_gaps(rays, _noise_tiles(0))
+    assert v.dtype == np.float32 and v.shape == (5000,)
+    assert 0.0 <= v.min() and v.max() <= 0.85
+    assert 0.2 < (v > 0).mean() < 0.5 and 0.05 < v.mean() < 0.3
+    assert np.array_equal(v, _crown_gaps(rays.copy(), _noise_tiles(0)))
