@@ -721,26 +721,11 @@ def place_parking(rayscene, cfg, rng: np.random.Generator, catalog, seed=None, s
     """Run a ``parking``, ``street-parking`` or ``mixed`` scenario (a ScenarioConfig)."""
     import warnings
 
-    import shapely
-
     pc: ParkingConfig = cfg.parking
     lots_on, kerbs_on, traffic_on = PARKING_KINDS[cfg.kind]
     check_mix(catalog, pc)
     t0 = time.perf_counter()
     rs = rayscene
-    moving: list[PlacedVehicle] = []
-    tstats: dict = {}
-    if traffic_on:
-        from .traffic import place as place_traffic
-
-        tcfg = dataclasses.replace(cfg, kind="lines", parking=None)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            tp = place_traffic(rs, tcfg, rng=rng, n_vehicles=n_vehicles, n_lines=n_lines, catalog=catalog,
-                               seed=seed, scene_name=scene_name)
-        moving = [dataclasses.replace(v, state="moving") for v in tp.vehicles]
-        tstats = tp.stats
-    obstacles = [shapely.Polygon(v.corners_xy(cfg.gap_m)) for v in moving]
     lots = find_lots(rs, pc) if lots_on else []
     kerbs = find_kerbs(rs, pc, rng, cfg.probe, cfg.traffic) if kerbs_on else []
     sites = [_Site("lot", lt.id, lt.bays) for lt in lots] + [_Site("kerb", k.id, k.bays) for k in kerbs]
@@ -756,9 +741,28 @@ def place_parking(rayscene, cfg, rng: np.random.Generator, catalog, seed=None, s
         lab = _trace_labels(rs, pts.reshape(-1, 2)).reshape(pts.shape[:2])
         return np.where(is_kerb, np.isin(lab, kerb_ids).all(axis=1), np.isin(lab, lot_ids).all(axis=1))
 
-    parked, fstats = fill_bays(sites, pc, catalog, rng, obstacles, first_id=len(moving) + 1, z_of=z_of,
+    parked, fstats = fill_bays(sites, pc, catalog, rng, None, first_id=1, z_of=z_of,
                                surface_ok=surface_ok, to_original=rs.scene.to_original)
-    vehicles = moving + parked  # moving ones carry their original coordinates already
+    moving: list[PlacedVehicle] = []
+    tstats: dict = {}
+    if traffic_on:
+        # traffic lines after the parked cars, which they keep gap_m from; with kerb parking
+        # a line may also drive in the lane beside the parked cars (the lane offset plus the
+        # kerb lane); the line checks refuse that lane where it is past the road's middle
+        from .traffic import place as place_traffic
+
+        offs = cfg.lane_offsets_m
+        if kerbs and offs is None:
+            offs = (cfg.lane_offset_m, cfg.lane_offset_m + 2.0 * pc.kerb_offset_m)
+        tcfg = dataclasses.replace(cfg, kind="lines", parking=None, lane_offsets_m=offs)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            tp = place_traffic(rs, tcfg, rng=rng, n_vehicles=n_vehicles, n_lines=n_lines, catalog=catalog,
+                               seed=seed, scene_name=scene_name, obstacles=parked)
+        first = len(parked) + 1
+        moving = [dataclasses.replace(v, id=first + k, state="moving") for k, v in enumerate(tp.vehicles)]
+        tstats = tp.stats
+    vehicles = parked + moving  # moving ones carry their original coordinates already
     elapsed = time.perf_counter() - t0
     nl = len(lots)
     stats = {

@@ -570,6 +570,7 @@ def place(
     overrides: dict | None = None,
     seed: int | None = None,
     scene_name: str | None = None,
+    obstacles=None,
 ) -> Placement:
     """Place vehicles on the roads of ``rayscene`` for one traffic scenario.
 
@@ -578,6 +579,8 @@ def place(
     n_vehicles / n_lines : how much to place (at most one; default from the scenario).
                 For lines scenarios n_lines counts seeded lines; opposite lanes come on top.
     catalog   : vehicle catalog (default: the bundled one)
+    obstacles : vehicles already standing (PlacedVehicle, e.g. parked ones): footprints keep
+                gap_m from them (the ``mixed`` scenario, placement/parking.py)
     Returns a :class:`Placement`. If the roads hold fewer vehicles than asked for, it places
     what fits, records the shortfall in ``stats`` and emits a :class:`PlacementWarning`.
     """
@@ -602,6 +605,8 @@ def place(
                              n_vehicles=n_vehicles, n_lines=n_lines)
     t0 = time.perf_counter()
     eng = _Engine(rayscene, cfg, rng, catalog)
+    for v in obstacles or ():
+        eng.index.add(eng.index.polygon(v.x_m, v.y_m, v.heading_rad, v.length_m, v.width_m), (v.x_m, v.y_m))
     if cfg.kind == "random":
         n = n_vehicles or cfg.vehicles or (n_lines * 30 if n_lines else 400)
         eng.run_random(int(n))
