@@ -1,6 +1,10 @@
 """Benchmark the bundled scenes: build time, triangles, RayScene build, trace throughput.
 
-Usage: python tools/bench_scenes.py [--rays 1000000] [SCENE ...]
+Usage: python tools/bench_scenes.py [--rays 1000000] [--georef] [SCENE ...]
+
+--georef also times loading each scene as GLB, unshifted and shifted by (+500,000,
++5,300,000) m in the node translation (UTM-like), and checks both recentre to the same
+local vertices.
 """
 
 from __future__ import annotations
@@ -53,10 +57,38 @@ def bench(name: str, n_rays: int) -> dict:
     }
 
 
+def bench_georef(name: str) -> dict:
+    import tempfile
+
+    import trimesh
+
+    from aerial_synth.scene import export_glb
+    from aerial_synth.scene.io import _zup_to_yup
+
+    with tempfile.TemporaryDirectory() as d:
+        glb = export_glb(load_scene(name), Path(d) / f"{name}.glb")
+        ts = trimesh.load(str(glb), force="scene", process=False, maintain_order=True)
+        T = np.eye(4)
+        T[:3, 3] = _zup_to_yup(np.array([[500_000.0, 5_300_000.0, 0.0]]))[0]
+        for node in ts.graph.nodes_geometry:
+            ts.graph.update(frame_to=node, matrix=T)
+        shifted = Path(d) / f"{name}_utm.glb"
+        shifted.write_bytes(ts.export(file_type="glb"))
+        t0 = time.perf_counter()
+        a = load_scene(glb)
+        t_a = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        b = load_scene(shifted)
+        t_b = time.perf_counter() - t0
+    return {"scene": name, "load_s": t_a, "load_shifted_s": t_b, "origin": b.origin,
+            "same_local": a.vertex_hash() == b.vertex_hash()}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("scenes", nargs="*", help="scene names (default: all bundled)")
     ap.add_argument("--rays", type=int, default=1_000_000)
+    ap.add_argument("--georef", action="store_true", help="also time georeferenced GLB loads")
     args = ap.parse_args(argv)
     names = args.scenes or list_scenes()
     print(
@@ -70,6 +102,12 @@ def main(argv=None) -> int:
             f"{r['rayscene_s']:10.3f} {r['rays_per_s'] / 1e6:12.2f} "
             f"{r['rays_per_s_noignore'] / 1e6:11.2f}"
         )
+    if args.georef:
+        print(f"\n{'scene':10s} {'GLB load s':>10s} {'shifted s':>10s}  origin, same local vertices")
+        for n in names:
+            r = bench_georef(n)
+            print(f"{r['scene']:10s} {r['load_s']:10.2f} {r['load_shifted_s']:10.2f}  "
+                  f"{r['origin']}, {r['same_local']}")
     return 0
 
 
