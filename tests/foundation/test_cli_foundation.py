@@ -47,7 +47,7 @@ def _snapshot(folder):
     "argv, expected",
     [
         (["export", "--images", "abc", "--out", "x"],
-         "aerial-synth export: --images: expected an integer, got 'abc'"),
+         "aerial-synth export: --images: expected a positive integer, got 'abc'"),
         (["place", "--seed", "1.5"], "aerial-synth place: --seed: expected a non-negative integer, got '1.5'"),
         (["export"], "aerial-synth export: missing required --out"),
         (["place", "--traffic", "up"],
