@@ -108,44 +108,69 @@ def _load_bgr(path: Path) -> np.ndarray | None:
     return img
 
 
+def _centres_inside(p: np.ndarray, x0: int, y0: int, w: int, h: int) -> np.ndarray:
+    """(h, w) bool: pixels of the window at (x0, y0) whose centres lie inside the polygon
+    ``p`` (k, 2), px, image frame (crossing-number test, so any quad works)."""
+    X = x0 + np.arange(w) + 0.5
+    Y = (y0 + np.arange(h) + 0.5)[:, None]
+    inside = np.zeros((h, w), bool)
+    k = len(p)
+    for i in range(k):
+        (xa, ya), (xb, yb) = p[i], p[(i + 1) % k]
+        if ya == yb:
+            continue
+        cond = (ya > Y) != (yb > Y)  # (h, 1): rows whose centre line crosses this edge
+        xint = xa + (Y - ya) * (xb - xa) / (yb - ya)
+        inside ^= cond & (X < xint)
+    return inside
+
+
 def vehicle_pixels(gray: np.ndarray, polygons_xy_px, ring_px: int = RING_PX):
-    """Per box: (mean gray inside, mean gray of the ring around it, inside mask count, ring
-    count), plus the union masks of all boxes and all rings. Polygons rasterised with
-    OpenCV at 1/16 px; the ring is the box dilated by a (2 r + 1) ellipse minus the box
-    and minus every box of the image."""
+    """Per box: mean gray inside and mean gray of the ring around it (NaN where empty),
+    plus the union masks of all boxes and of all rings.
+
+    Pixel (j, i) covers [j, j+1] x [i, i+1]; it is inside a box when its centre is. The ring
+    is the box's pixels dilated by a (2 r + 1) x (2 r + 1) ellipse, minus the box, minus
+    every box of the image."""
     import cv2
 
     h, w = gray.shape
     P = np.asarray(polygons_xy_px, float).reshape(-1, 4, 2)
-    union = np.zeros((h, w), np.uint8)
-    pts = [np.round(p * 16).astype(np.int32) for p in P]
-    if len(pts):
-        cv2.fillPoly(union, pts, 1, cv2.LINE_8, shift=4)
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * ring_px + 1, 2 * ring_px + 1))
-    ring_union = np.zeros((h, w), np.uint8)
-    m_in = np.full(len(P), np.nan)
-    m_ring = np.full(len(P), np.nan)
-    for i, p in enumerate(P):
+    union = np.zeros((h, w), bool)
+    crops = []
+    for p in P:
+        if not np.isfinite(p).all():
+            crops.append(None)
+            continue
         x0 = int(np.floor(p[:, 0].min())) - ring_px - 1
         y0 = int(np.floor(p[:, 1].min())) - ring_px - 1
         x1 = int(np.ceil(p[:, 0].max())) + ring_px + 2
         y1 = int(np.ceil(p[:, 1].max())) + ring_px + 2
         cx0, cy0, cx1, cy1 = max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
         if cx1 <= cx0 or cy1 <= cy0:
+            crops.append(None)
             continue
-        mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
-        cv2.fillPoly(mask, [np.round((p - (x0, y0)) * 16).astype(np.int32)], 1, cv2.LINE_8, shift=4)
-        ring = cv2.dilate(mask, kernel) & (1 - mask)
-        mask = mask[cy0 - y0:cy1 - y0, cx0 - x0:cx1 - x0].astype(bool)
-        ring = ring[cy0 - y0:cy1 - y0, cx0 - x0:cx1 - x0].astype(bool)
-        ring &= union[cy0:cy1, cx0:cx1] == 0
+        mask = _centres_inside(p, x0, y0, x1 - x0, y1 - y0)
+        crops.append((x0, y0, cx0, cy0, cx1, cy1, mask))
+        union[cy0:cy1, cx0:cx1] |= mask[cy0 - y0:cy1 - y0, cx0 - x0:cx1 - x0]
+    ring_union = np.zeros((h, w), bool)
+    m_in = np.full(len(P), np.nan)
+    m_ring = np.full(len(P), np.nan)
+    for i, c in enumerate(crops):
+        if c is None:
+            continue
+        x0, y0, cx0, cy0, cx1, cy1, mask = c
+        ring = cv2.dilate(mask.astype(np.uint8), kernel).astype(bool) & ~mask
+        sl = (slice(cy0 - y0, cy1 - y0), slice(cx0 - x0, cx1 - x0))
+        mask, ring = mask[sl], ring[sl] & ~union[cy0:cy1, cx0:cx1]
         crop = gray[cy0:cy1, cx0:cx1]
         if mask.any():
             m_in[i] = crop[mask].mean()
         if ring.any():
             m_ring[i] = crop[ring].mean()
-            ring_union[cy0:cy1, cx0:cx1][ring] = 1
-    return m_in, m_ring, union.astype(bool), ring_union.astype(bool)
+            ring_union[cy0:cy1, cx0:cx1] |= ring
+    return m_in, m_ring, union, ring_union
 
 
 def _hist(pixels_bgr: np.ndarray) -> np.ndarray:

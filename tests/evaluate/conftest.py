@@ -28,7 +28,12 @@ def write_dota_image(folder: Path, name: str, boxes, classes=None, difficult=Non
     boxes = [np.asarray(b, float) for b in boxes]
     if draw:
         for b in boxes:
-            cv2.fillPoly(img, [np.round(b * 16).astype(np.int32)], (230, 230, 230), cv2.LINE_8, shift=4)
+            lo, hi = b.min(0), b.max(0)
+            axis_aligned = np.all(np.isin(b[:, 0], (lo[0], hi[0])) & np.isin(b[:, 1], (lo[1], hi[1])))
+            if axis_aligned and np.all(b == np.round(b)):  # exactly the pixels inside
+                img[int(lo[1]):int(hi[1]), int(lo[0]):int(hi[0])] = 230
+            else:
+                cv2.fillPoly(img, [np.round(b * 16).astype(np.int32)], (230, 230, 230), cv2.LINE_8, shift=4)
     cv2.imwrite(str(folder / "images" / f"{name}{ext}"), img)
     lines = []
     if header:

@@ -174,3 +174,16 @@ def test_vedai_folder_with_and_without_annotations(tmp_path):
     s2, dist2, _ = dataset_stats(root)
     assert s2["layout"] == "images" and s2["images"] == 1
     np.testing.assert_allclose(dist2["image_gray_mean"], [120.0])
+
+
+def test_inside_means_pixel_centres_inside_the_box():
+    from aerial_synth.evaluate.stats import vehicle_pixels
+
+    gray = np.full((40, 40), 50, np.uint8)
+    gray[10:16, 10:20] = 230  # pixels (j, i) covering [10, 20] x [10, 16]
+    box = np.array([[10, 10], [20, 10], [20, 16], [10, 16]], float)
+    m_in, m_ring, inside, ring = vehicle_pixels(gray, [box])
+    assert inside.sum() == 60 and m_in[0] == 230.0  # exactly the 10 x 6 pixels
+    assert m_ring[0] == 50.0 and not (ring & inside).any()
+    # the ring reaches 4 px out: pixel columns 6..9 and 20..23 on the box's rows
+    assert ring[12, 6] and ring[12, 23] and not ring[12, 5] and not ring[12, 24]
