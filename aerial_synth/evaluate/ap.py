@@ -203,8 +203,10 @@ def candidate_pairs(a_xy, a_key, b_xy, b_key) -> tuple[np.ndarray, np.ndarray]:
     wider than all boxes together, so boxes of different keys never meet."""
     import shapely
 
-    a_xy = np.asarray(a_xy, dtype=np.float64).reshape(-1, 4, 2)
-    b_xy = np.asarray(b_xy, dtype=np.float64).reshape(-1, 4, 2)
+    # the query only needs which boxes meet: clipping far-out coordinates to +-1e7 px keeps
+    # that (for boxes within the range) and keeps the shifted x exact enough in float64
+    a_xy = np.clip(np.asarray(a_xy, dtype=np.float64).reshape(-1, 4, 2), -1e7, 1e7)
+    b_xy = np.clip(np.asarray(b_xy, dtype=np.float64).reshape(-1, 4, 2), -1e7, 1e7)
     if len(a_xy) == 0 or len(b_xy) == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     lo = min(a_xy[..., 0].min(), b_xy[..., 0].min())

@@ -11,6 +11,7 @@ from shapely.geometry import Polygon
 from aerial_synth.evaluate.ap import (
     Detections,
     all_point_ap,
+    candidate_pairs,
     evaluate,
     pairwise_iou,
     voc07_ap,
@@ -327,3 +328,19 @@ def test_ap_does_not_depend_on_detection_or_image_order(seed):
     res3 = evaluate([gt[i] for i in order], d3, metric="all-point")
     for c, v in base.ap.items():
         assert (v is None and res3.ap[c] is None) or res3.ap[c] == pytest.approx(v, abs=1e-12)
+
+
+def test_one_absurd_box_does_not_hide_the_others():
+    boxes = [rect(50, 50, 20, 10), rect(120, 80, 30, 12, 40)]
+    n = 200  # enough image keys that key x stride would overflow with 1e300 coordinates
+    gt = [gt_image(f"i{k}", boxes) for k in range(n)]
+    rows = [(k, "car", 0.5, b) for k in range(n) for b in boxes]
+    rows.append((0, "car", 0.9, np.array([[1e300, 1], [1e300, 5], [-1e300, 5], [-1e300, 1]])))
+    d = dets(rows)
+    r = evaluate(gt, d, metric="all-point").per_threshold[0.5]["car"]
+    assert (r.tp, r.fp) == (2 * n, 1)
+    # and the candidate search pairs each box with its own copy only (plus the absurd one)
+    gxy = np.concatenate([g.polygons_xy_px for g in gt])
+    gimg = np.repeat(np.arange(n), 2)
+    di, gj = candidate_pairs(d.polygons_xy_px, d.image, gxy, gimg)
+    assert len(di) <= 2 * n + 4
