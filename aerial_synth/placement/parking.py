@@ -717,8 +717,11 @@ def _outline(x, y, h, L, W, n_l: int = 5, n_w: int = 3) -> np.ndarray:
 
 # ------------------------------------------------------------------------- scenario
 def place_parking(rayscene, cfg, rng: np.random.Generator, catalog, seed=None, scene_name=None,
-                  n_vehicles=None, n_lines=None) -> Placement:
-    """Run a ``parking``, ``street-parking`` or ``mixed`` scenario (a ScenarioConfig)."""
+                  n_vehicles=None, n_lines=None, place_traffic=None) -> Placement:
+    """Run a ``parking``, ``street-parking`` or ``mixed`` scenario (a ScenarioConfig).
+
+    ``place_traffic`` is :func:`aerial_synth.placement.traffic.place` (passed in by it, so
+    this module does not import it back); ``mixed`` needs it."""
     import warnings
 
     pc: ParkingConfig = cfg.parking
@@ -749,8 +752,8 @@ def place_parking(rayscene, cfg, rng: np.random.Generator, catalog, seed=None, s
         # traffic lines after the parked cars, which they keep gap_m from; with kerb parking
         # a line may also drive in the lane beside the parked cars (the lane offset plus the
         # kerb lane); the line checks refuse that lane where it is past the road's middle
-        from .traffic import place as place_traffic
-
+        if place_traffic is None:
+            raise PlacementError("the mixed scenario needs the traffic engine (place_traffic)")
         offs = cfg.lane_offsets_m
         if kerbs and offs is None:
             offs = (cfg.lane_offset_m, cfg.lane_offset_m + 2.0 * pc.kerb_offset_m)

@@ -602,7 +602,7 @@ def place(
         from .parking import place_parking
 
         return place_parking(rayscene, cfg, rng, catalog, seed=seed, scene_name=scene_name,
-                             n_vehicles=n_vehicles, n_lines=n_lines)
+                             n_vehicles=n_vehicles, n_lines=n_lines, place_traffic=place)
     t0 = time.perf_counter()
     eng = _Engine(rayscene, cfg, rng, catalog)
     for v in obstacles or ():
