@@ -89,14 +89,32 @@ def _one_line(text: str) -> str:
     return " ".join(text.split())
 
 
+def _one_line_warning(message, category, filename, lineno, line=None) -> str:
+    """Warnings from the library print as one line, like errors (no source line)."""
+    return f"aerial-synth: warning: {_one_line(str(message))}\n"
+
+
 def main(argv: list[str] | None = None) -> int:
+    import warnings
+
+    warnings.formatwarning = _one_line_warning  # the CLI's own process (and forked workers)
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # usage error (one line, printed) or --help/--version
         return int(exc.code or 0) if not isinstance(exc.code, str) else 2
     try:
-        return int(args.func(args) or 0)
+        code = int(args.func(args) or 0)
+        sys.stdout.flush()
+        return code
+    except BrokenPipeError:
+        # the reader went away (`aerial-synth assets list | head`): stop quietly, as Unix
+        # tools do; point stdout at devnull so the interpreter's final flush is silent too
+        import os
+
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 141
     except AerialSynthError as exc:
         print(f"aerial-synth: error: {_one_line(str(exc))}", file=sys.stderr)
         return 2
