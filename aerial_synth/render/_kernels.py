@@ -383,9 +383,10 @@ def _qlut(x, m):  # pragma: no cover - compiled
 
 
 @njit(parallel=True, **_OPTS)
-def gather_ao_rays(h, w, step, rays, t, normal, face, n_dirs, peel, seed):  # pragma: no cover
-    """Ambient-occlusion probes: one sample pixel per step x step block (its centre) that
-    hit something casts ``n_dirs`` cosine-weighted rays over the hemisphere of its normal,
+def gather_ao_rays(h, w, step, rays, t, normal, face, need, n_dirs, peel, seed):  # pragma: no cover
+    """Ambient-occlusion probes: one sample pixel per step x step block (its centre) whose
+    block is marked in ``need`` (bh * bw,) and hit something casts ``n_dirs``
+    cosine-weighted rays over the hemisphere of its normal,
     stratified in azimuth with a per-block rotation from a hash of (seed, block index).
     Returns block index (k,) int64 of each sample and rays (k * n_dirs, 6) float32, in
     block order (rows of blocks in parallel, each written at its prefix-sum offset)."""
@@ -397,7 +398,7 @@ def gather_ao_rays(h, w, step, rays, t, normal, face, n_dirs, peel, seed):  # pr
         k = 0
         for bc in range(bw):
             c = min(bc * step + step // 2, w - 1)
-            if face[r * w + c] >= 0:
+            if face[r * w + c] >= 0 and need[br * bw + bc]:
                 k += 1
         per_row[br + 1] = k
     for br in range(bh):
@@ -414,9 +415,9 @@ def gather_ao_rays(h, w, step, rays, t, normal, face, n_dirs, peel, seed):  # pr
         for bc in range(bw):
             c = min(bc * step + step // 2, w - 1)
             i = r * w + c
-            if face[i] < 0:
-                continue
             b = br * bw + bc
+            if face[i] < 0 or not need[b]:
+                continue
             blocks[j] = b
             nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
             # tangent frame around the normal
@@ -457,19 +458,43 @@ def gather_ao_rays(h, w, step, rays, t, normal, face, n_dirs, peel, seed):  # pr
 
 
 @njit(parallel=True, **_OPTS)
-def spread_ao(h, w, step, blocks, occ, n_dirs, semantic, depth, ao):  # pragma: no cover
-    """``ao`` (n,) float32: unoccluded fraction of the sky hemisphere per pixel, bilinear
-    between the four nearest block samples that lie on the same surface (same label, depth
-    within 0.3 m + 5 %), else the pixel's own block sample; 1 where none applies."""
+def ao_blocks(h, w, step, rays, t, face):  # pragma: no cover - compiled
+    """Per step x step block: the highest world z of its hits (-inf if none), the z of its
+    sample pixel (the block centre) and whether that sample hit something."""
     bh = (h + step - 1) // step
     bw = (w + step - 1) // step
-    low = np.full(bh * bw, np.float32(-1.0))
-    for j in prange(blocks.shape[0]):
-        cnt = 0
-        for d in range(n_dirs):
-            if occ[j * n_dirs + d]:
-                cnt += 1
-        low[blocks[j]] = np.float32(1.0) - np.float32(cnt) / np.float32(n_dirs)
+    zmax = np.full(bh * bw, -np.inf, np.float32)
+    zs = np.zeros(bh * bw, np.float32)
+    hit = np.zeros(bh * bw, np.bool_)
+    for br in prange(bh):
+        for bc in range(bw):
+            b = br * bw + bc
+            m = np.float32(-np.inf)
+            for r in range(br * step, min(br * step + step, h)):
+                for c in range(bc * step, min(bc * step + step, w)):
+                    i = r * w + c
+                    if face[i] >= 0:
+                        z = rays[i, 2] + t[i] * rays[i, 5]
+                        if z > m:
+                            m = z
+            zmax[b] = m
+            r = min(br * step + step // 2, h - 1)
+            c = min(bc * step + step // 2, w - 1)
+            i = r * w + c
+            if face[i] >= 0:
+                hit[b] = True
+                zs[b] = rays[i, 2] + t[i] * rays[i, 5]
+    return zmax, zs, hit
+
+
+@njit(parallel=True, **_OPTS)
+def spread_ao(h, w, step, low, semantic, depth, ao):  # pragma: no cover - compiled
+    """``ao`` (n,) float32: unoccluded fraction of the sky hemisphere per pixel, bilinear
+    between the four nearest block samples ``low`` (bh * bw,; < 0 = no sample) that lie on
+    the same surface (same label, depth within 0.3 m + 5 %), else the pixel's own block
+    sample; 1 where none applies."""
+    bh = (h + step - 1) // step
+    bw = (w + step - 1) // step
     half = step // 2
     for r in prange(h):
         fr = (np.float32(r) - np.float32(half)) / np.float32(step)

@@ -516,12 +516,25 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
     ao = np.ones(n if has_ao else 1, np.float32)
     if has_ao:
         ao_step, n_dirs = int(ao_cfg["step_px"]), int(ao_cfg["rays"])
+        radius = float(ao_cfg["radius_m"])
+        bh, bw = -(-h // ao_step), -(-w // ao_step)
+        # only blocks with something rising > 0.15 m above their sample within the radius
+        # (seen in the image) can be occluded: the others get 1 without casting
+        zmax, zs, hit = K.ao_blocks(h, w, ao_step, buffers.rays, buffers.t, buffers.face)
+        d = buffers.depth[buffers.depth > 0]
+        px_m = float(np.median(d)) / float(camera.K[0][0]) if len(d) else 0.1
+        kr = int(min(math.ceil(radius / max(px_m * ao_step, 1e-3)), 32))
+        zn = cv2.dilate(zmax.reshape(bh, bw), np.ones((2 * kr + 1, 2 * kr + 1), np.uint8))
+        need = hit & (zn.reshape(-1) - zs > np.float32(0.15))
         blocks, arays = K.gather_ao_rays(h, w, ao_step, buffers.rays, buffers.t,
-                                         buffers.normal, buffers.face, n_dirs,
+                                         buffers.normal, buffers.face, need, n_dirs,
                                          np.float32(_PEEL), np.uint64(pseed ^ 0xA0))
-        aocc = (rayscene.test_occlusions(arays, tfar=float(ao_cfg["radius_m"]))
+        aocc = (rayscene.test_occlusions(arays, tfar=radius)
                 if len(blocks) else np.zeros(0, bool))
-        K.spread_ao(h, w, ao_step, blocks, aocc, n_dirs, buffers.semantic.reshape(-1),
+        low = np.where(hit, np.float32(1.0), np.float32(-1.0)).astype(np.float32)
+        if len(blocks):
+            low[blocks] = 1.0 - aocc.reshape(-1, n_dirs).mean(axis=1)
+        K.spread_ao(h, w, ao_step, low, buffers.semantic.reshape(-1),
                     buffers.depth.reshape(-1), ao)
         mark("ambient_occlusion")
 
