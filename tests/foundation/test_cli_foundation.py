@@ -240,3 +240,10 @@ def test_validators_never_raise_anything_but_config_error(value):
         pass
     else:
         assert isinstance(out, int) and out >= 0
+
+
+def test_library_warnings_are_one_line():
+    from aerial_synth.cli import _one_line_warning
+
+    text = _one_line_warning(UserWarning("a\nb"), UserWarning, "f.py", 3)
+    assert text == "aerial-synth: warning: a b\n"
