@@ -135,7 +135,12 @@ def bench_tiles(a) -> dict:
     runs = (("one_tile", 2000.0, a.tile_vehicles, 2.0), ("sixteen_tiles", 500.0, a.tile_vehicles, 2.0),
             # memory does not grow with the world: one 500 m tile of a 50 km x 50 km city
             ("one_tile_of_50km_world", 500.0, a.tile_vehicles * 2500 // 16, 50.0))
+    prev = (a.previous or {}).get("tiles", {})
     for label, tile_m, n, km in runs:
+        if a.tile_runs and label not in a.tile_runs.split(","):
+            if label in prev:
+                res[label] = prev[label]  # kept from the merged file
+            continue
         cmd = [PY, "-c", _TILES_CHILD, str(tile_m), str(n), str(km)]
         out, wall = _run(cmd)
         d = json.loads(out.strip().splitlines()[-1])
@@ -159,6 +164,11 @@ def _export(a, out: Path, **kw) -> dict:
 def bench_export(a) -> dict:
     tmp = Path(tempfile.mkdtemp(prefix="bench_suite_"))
     try:
+        # warm-up: fills numba's on-disk kernel cache, so no timed run pays a compile
+        from aerial_synth.dataset.export import ExportConfig, export_dataset
+
+        export_dataset(ExportConfig(scene=a.scene, images=2, formats="dota", width_px=256, height_px=256),
+                       tmp / "warm", force=True, progress=False)
         one = _export(a, tmp / "w1", workers=1)
         two = _export(a, tmp / "w2", workers=2)
     finally:
@@ -198,6 +208,8 @@ def main(argv=None) -> int:
     ap.add_argument("--only", default=",".join(SECTIONS), help=f"comma list of {', '.join(SECTIONS)}")
     ap.add_argument("--quick", action="store_true", help="small runs (8 images, 1 repeat) to check the suite")
     ap.add_argument("--merge", action="store_true", help="keep the other sections of an existing --out file")
+    ap.add_argument("--tile-runs", default="", help="only these tiles runs (one_tile, sixteen_tiles, "
+                    "one_tile_of_50km_world); with --merge the others are kept")
     a = ap.parse_args(argv)
     if a.quick:
         a.images, a.repeat, a.place_vehicles, a.tile_vehicles = 8, 1, 300, 3000
@@ -223,9 +235,11 @@ def main(argv=None) -> int:
         "sections": {},
     }
     out = Path(a.out)
+    a.previous = None
     if a.merge and out.is_file():
         old = json.loads(out.read_text())
         doc["sections"] = old.get("sections", {})
+        a.previous = dict(doc["sections"])
         doc["merged_into"] = {k: old.get(k) for k in ("command", "date_utc", "git_commit")}
     for name in [s for s in SECTIONS if s in only]:
         print(f"[bench] {name} ...", flush=True)
