@@ -180,6 +180,7 @@ def _start_and_kill(args, watch, min_meta=1, timeout=600):
     return proc, kids
 
 
+@pytest.mark.slow  # test_kill_two_workers_force_keeps_old_and_workers_die covers the same in the default run
 def test_kill_and_resume_identical(exported, tiny_scene, tmp_path):
     """kill -9 of a fresh export: --out does not appear, the partial build stays for
     --resume, a rerun without --resume is refused, and --resume ends byte-identical."""
@@ -226,6 +227,14 @@ def test_kill_two_workers_force_keeps_old_and_workers_die(exported, tiny_scene, 
     assert [k for k in kids if _alive(k)] == []
     assert "Traceback" not in proc.stderr.read().decode()
     assert tree_bytes(out) == old
+    assert json.loads((part / "manifest.json").read_text())["status"] == "incomplete"
+    stray = part / "dota" / "val" / "images" / ".000003.png.x1y2.tmp"  # a write cut short
+    stray.parent.mkdir(parents=True, exist_ok=True)
+    stray.write_bytes(b"partial")
+    plain = [a for a in args if a not in ("--force",)]
+    r = run_cli(*plain)  # neither --resume nor --force: refused, naming both
+    assert r.returncode == 2 and "--resume" in r.stderr and "--force" in r.stderr
+    assert len(r.stderr.splitlines()) == 1
     # resume with one worker (any K gives the same bytes; one process starts faster)
     resume_args = [a for a in args if a != "--force"]
     k = resume_args.index("--workers")
