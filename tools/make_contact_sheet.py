@@ -1,7 +1,8 @@
 """Make docs/render_contact_sheet.png: 3 x 3 RGB frames of city_park.
 
 Rows: jam, normal, sparse placements. Columns: three sun/haze settings (high sun clear,
-low sun with haze, overcast + wet). Tiles are downscaled so the PNG stays under 1 MB.
+low sun with haze, overcast + wet), every other factor at its default (the camera's key
+gray fixed at 120 so the columns compare). Tiles are downscaled so the PNG stays under 1 MB.
 
     .venv/bin/python tools/make_contact_sheet.py [--out docs/render_contact_sheet.png]
 """
@@ -57,7 +58,8 @@ def main(argv=None) -> int:
         cam_rng = np.random.default_rng(np.random.SeedSequence([a.seed, r]))
         cam = sample_pose_targeted(cfg, pl, cam_rng, within_xy=scene.bounds()[:, :2])
         for c, (name, kw) in enumerate(SETTINGS.items()):
-            rcfg = RenderConfig(jpeg_probability=0.0, **kw)
+            rcfg = RenderConfig(jpeg_probability=0.0, grayscale_probability=0.0,
+                                key_gray=(120, 120), contrast_cv=(0.33, 0.33), **kw)
             fr = render_frame(rs, cam, pl, np.random.default_rng([a.seed, r, c]), rcfg)
             img = fr.rgb
             o = (img.shape[0] - a.crop) // 2

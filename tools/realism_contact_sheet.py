@@ -68,7 +68,9 @@ def _real_rows(real: Path):
             y0 = int(np.clip(cy - TILE // 2, 0, h - TILE))
             x0 = int(np.clip(cx - TILE // 2, 0, w - TILE))
             row3.append(im[y0 : y0 + TILE, x0 : x0 + TILE])
-    row3 = row3[:2] + [t for t in row3[2:] if t.std() > 12][-2:]
+    rest = sorted(row3[2:], key=lambda t: -cv2.Laplacian(
+        cv2.cvtColor(np.ascontiguousarray(t), cv2.COLOR_RGB2GRAY), cv2.CV_64F).var())
+    row3 = row3[:2] + rest[:2]  # the two sharpest of the others
     # colour crops with vehicles first, then the rest
     return row1[:COLS], row3[:COLS]
 
