@@ -193,10 +193,17 @@ class DaskEngine:
 
             k = int(arg)
             nthreads = threads_per_worker(k)
-            with dask.config.set({"distributed.nanny.pre-spawn-environ.OMP_NUM_THREADS": str(nthreads)}):
-                cluster = LocalCluster(n_workers=k, threads_per_worker=1, processes=True,
-                                       host="127.0.0.1", dashboard_address=None,
-                                       silence_logs=logging.ERROR)
+            try:
+                with dask.config.set({"distributed.nanny.pre-spawn-environ.OMP_NUM_THREADS": str(nthreads)}):
+                    cluster = LocalCluster(n_workers=k, threads_per_worker=1, processes=True,
+                                           host="127.0.0.1", dashboard_address=None,
+                                           silence_logs=logging.ERROR)
+            except Exception as exc:  # e.g. a script without an ``if __name__ == "__main__"`` guard
+                raise ExportError(
+                    f"--dask {spec}: the LocalCluster's worker processes did not start ({type(exc).__name__}: "
+                    f"{' '.join(str(exc).split())[:200]}); a script that exports must guard its entry point "
+                    "with if __name__ == '__main__'"
+                ) from None
             try:
                 client = Client(cluster, timeout=f"{max(timeout_s, 30.0)}s")
                 client.wait_for_workers(k, timeout=120)
