@@ -38,7 +38,14 @@ from .aggregate import write_aggregates
 from .config import IMAGE_EXTS, PLACEMENT_STREAM, SPLITS, ExportConfig, ExportResult
 from .layout import image_name, image_paths, is_done, label_paths, meta_path, split_of
 from .manifest import MANIFEST_FORMAT, is_dataset, manifest, read_manifest
-from .output import discard_build, finish_output, plan_output, prepare_build, remove_stray_temps
+from .output import (
+    discard_build,
+    finish_output,
+    output_lock,
+    plan_output,
+    prepare_build,
+    remove_stray_temps,
+)
 from .worker import (
     ImageWorker,
     encode_image,
@@ -120,50 +127,59 @@ def export_dataset(
     _check_dask(dask, workers)  # a bad or unreachable --dask is reported before the slow checks
     scene, catalog = validate_inputs(cfg)
     geo = _georeference(scene)
-    engine = _dask_engine(dask, workers)  # before any write: an unreachable scheduler writes nothing
 
-    # --- from here on, files are written (only into plan.build until the final swap)
-    prepare_build(plan)
-    build = plan.build
-    if plan.mode == "resume":
-        remove_stray_temps(build)
-    atomic_write_json(build / "manifest.json", manifest(cfg, "incomplete", geo))
+    # --- from here on, files are written (only into plan.build until the final swap), under
+    # a lock on --out; the plan is made again under it (another export may have finished).
+    with output_lock(out_dir):
+        plan = plan_output(cfg, out_dir, resume, force)
+        engine = _dask_engine(dask, workers)  # before any write: an unreachable scheduler writes nothing
+        try:
+            prepare_build(plan)
+        except BaseException:
+            if engine is not None:
+                engine.close()
+            raise
+        build = plan.build
+        if plan.mode == "resume":
+            remove_stray_temps(build)
+        atomic_write_json(build / "manifest.json", manifest(cfg, "incomplete", geo))
 
-    todo = [i for i in range(cfg.images) if not (plan.mode == "resume" and is_done(cfg, build, i))]
-    skipped = cfg.images - len(todo)
-    from .engine_dask import plan_tasks  # runs of images: a small export still uses every worker
+        todo = [i for i in range(cfg.images) if not (plan.mode == "resume" and is_done(cfg, build, i))]
+        skipped = cfg.images - len(todo)
+        # runs of images: a small export still uses every worker
+        from .engine_dask import plan_tasks
 
-    tasks = plan_tasks(todo, cfg.images_per_placement, workers)
+        tasks = plan_tasks(todo, cfg.images_per_placement, workers)
 
-    from tqdm import tqdm
+        from tqdm import tqdm
 
-    bar = tqdm(total=cfg.images, initial=skipped, unit="img", desc="export",
-               disable=(None if progress is None else not progress), dynamic_ncols=True)
-    done = 0
-    try:
-        if engine is not None:
-            done += engine.run(cfg, build, todo, bar)
-        elif workers == 1 or len(tasks) <= 1:
-            w = ImageWorker(cfg, build, nthreads=0, scene=scene, catalog=catalog)
-            for task in tasks:
-                for i in task:
-                    w.render(i)
-                    done += 1
-                    bar.update(1)
-        else:
-            done += _run_pool(cfg, build, tasks, workers, bar)
-        summary = write_aggregates(cfg, build, geo)
-        atomic_write_json(build / "manifest.json", manifest(cfg, "complete", geo))
-    except Exception:
-        if done == 0 and skipped == 0:
-            discard_build(plan)  # nothing worth resuming: leave no trace
-        raise
-    finally:
-        bar.close()
-        if engine is not None:
-            engine.close()
-    finish_output(plan)
-    return ExportResult(Path(out_dir), summary, time.perf_counter() - t0, len(todo), skipped)
+        bar = tqdm(total=cfg.images, initial=skipped, unit="img", desc="export",
+                   disable=(None if progress is None else not progress), dynamic_ncols=True)
+        done = 0
+        try:
+            if engine is not None:
+                done += engine.run(cfg, build, todo, bar)
+            elif workers == 1 or len(tasks) <= 1:
+                w = ImageWorker(cfg, build, nthreads=0, scene=scene, catalog=catalog)
+                for task in tasks:
+                    for i in task:
+                        w.render(i)
+                        done += 1
+                        bar.update(1)
+            else:
+                done += _run_pool(cfg, build, tasks, workers, bar)
+            summary = write_aggregates(cfg, build, geo)
+            atomic_write_json(build / "manifest.json", manifest(cfg, "complete", geo))
+        except Exception:
+            if done == 0 and skipped == 0:
+                discard_build(plan)  # nothing worth resuming: leave no trace
+            raise
+        finally:
+            bar.close()
+            if engine is not None:
+                engine.close()
+        finish_output(plan)
+        return ExportResult(Path(out_dir), summary, time.perf_counter() - t0, len(todo), skipped)
 
 
 def _check_dask(dask, workers):

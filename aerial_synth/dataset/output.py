@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import os
 import shutil
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -34,11 +35,12 @@ from .config import ExportConfig
 from .layout import owned_names
 from .manifest import read_manifest
 
-__all__ = ["PARTIAL_SUFFIX", "OutputPlan", "partial_dir", "plan_output", "finish_output",
-           "remove_stray_temps"]
+__all__ = ["PARTIAL_SUFFIX", "OutputPlan", "partial_dir", "plan_output", "output_lock",
+           "prepare_build", "discard_build", "finish_output", "remove_stray_temps"]
 
 PARTIAL_SUFFIX = ".aerial-synth-partial"
 OLD_SUFFIX = ".aerial-synth-old"
+LOCK_SUFFIX = ".aerial-synth-lock"
 
 
 def partial_dir(out: Path) -> Path:
@@ -87,7 +89,7 @@ def plan_output(cfg: ExportConfig, out_dir, resume: bool, force: bool) -> Output
     out = Path(os.path.realpath(out_dir))  # a link to a folder: build beside its target
     if out.parent == out or not out.name:
         raise OutputError(f"--out {shown}: expected a dataset folder, not the file-system root")
-    if out.name.endswith((PARTIAL_SUFFIX, OLD_SUFFIX)):
+    if out.name.endswith((PARTIAL_SUFFIX, OLD_SUFFIX, LOCK_SUFFIX)):
         raise OutputError(f"--out {shown}: that name is reserved for aerial-synth's temporary folders")
     part = partial_dir(out)
     if part.exists() and not part.is_dir():
@@ -155,6 +157,40 @@ def plan_output(cfg: ExportConfig, out_dir, resume: bool, force: bool) -> Output
 
 def _fresh(out: Path, part: Path, into: str, shown: str) -> OutputPlan:
     return OutputPlan(out, part, "overwrite" if into == "dataset" else "new", into, fresh=True)
+
+
+@contextmanager
+def output_lock(out_dir):
+    """Hold an exclusive lock on ``--out`` for an export's writing phase, so a second export
+    into the same folder (or its partial build) is refused in one line instead of mixing its
+    files in. The lock is ``flock`` on ``.<name>.aerial-synth-lock`` beside ``--out``
+    (released by the kernel if the process dies; the file is removed at the end)."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - no flock on this platform: no lock
+        yield
+        return
+    out = Path(os.path.realpath(out_dir))
+    lock = out.parent / f".{out.name}{LOCK_SUFFIX}"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise ExportError(
+                f"--out {out_dir}: another aerial-synth export is writing this folder right now; "
+                "wait for it to finish or choose another folder"
+            ) from None
+        try:
+            yield
+        finally:
+            try:
+                os.unlink(lock)
+            except OSError:
+                pass
+    finally:
+        os.close(fd)  # releases the lock
 
 
 def _existing_ancestor(p: Path) -> Path:

@@ -520,3 +520,24 @@ def test_export_into_empty_working_folder_keeps_the_folder(tiny_scene, tmp_path)
     assert out.stat().st_ino == ino and (out.stat().st_mode & 0o777) == 0o750
     assert sorted(p.name for p in out.iterdir()) == ["dota", "manifest.json", "meta", "summary.json"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["here"]
+
+
+def test_second_export_into_the_same_folder_refused(tiny_scene, tmp_path):
+    """While one export writes --out (it holds the lock), another is refused in one line and
+    writes nothing; once the lock is free the export runs and removes the lock file."""
+    import fcntl
+
+    out = tmp_path / "ds"
+    lock = tmp_path / ".ds.aerial-synth-lock"
+    fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+    fcntl.flock(fd, fcntl.LOCK_EX)
+    try:
+        r = run_cli("export", "--scene", tiny_scene, "--size", 64, "--images", 1, "--vehicles", 4,
+                    "--simple-vehicles", "--no-progress", "--force", "--out", out)
+    finally:
+        os.close(fd)
+    assert r.returncode == 2 and "another aerial-synth export" in r.stderr and len(r.stderr.splitlines()) == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".ds.aerial-synth-lock"]
+    res = export_dataset(_cfg(tiny_scene, images=1, formats="dota"), out, progress=False)
+    assert res.summary["images"] == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ds"]
