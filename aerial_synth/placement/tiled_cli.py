@@ -24,6 +24,9 @@ def register(sub) -> None:
     p.add_argument("--scene", default="city_2km", metavar="NAME|FILE",
                    help="a city spec (generated per window) or any scene (cut per window) (city_2km)")
     p.add_argument("--scene-seed", type=arg_int("--scene-seed", 0), default=None, metavar="N")
+    from ..scene.cli import add_osm_args
+
+    add_osm_args(p)  # --bbox/--crs for an OSM extract as --scene
     p.add_argument("--scenario", default="jam", metavar="NAME|FILE", help="traffic scenario (jam)")
     p.add_argument("--seed", type=arg_int("--seed", 0), default=0, metavar="S")
     p.add_argument("--vehicles", type=arg_int("--vehicles", 1, 100_000_000), default=None, metavar="N",
@@ -58,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
         raise PlacementError(
             f"--tile-m: expected a tile size of at least the longest vehicle ({longest:g} m), got {args.tile_m:g}")
     t0 = time.perf_counter()
-    world = TiledWorld.load(args.scene, seed=args.scene_seed)
+    world = TiledWorld.load(args.scene, seed=args.scene_seed, bbox=args.bbox, crs=args.crs)
     grid = world.grid(args.tile_m, args.margin_m)
 
     def progress(done, n, kept):

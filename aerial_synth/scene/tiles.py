@@ -174,12 +174,15 @@ class TiledWorld:
         return cls(scene.name, scene.bounds()[:, :2], scene=scene)
 
     @classmethod
-    def load(cls, name_or_path, seed: int | None = None) -> "TiledWorld":
+    def load(cls, name_or_path, seed: int | None = None, bbox=None, crs=None) -> "TiledWorld":
         """A bundled scene name, a spec or a mesh file: city specs are generated per window,
-        everything else is loaded once and cut."""
+        everything else is loaded once and cut. bbox/crs: OSM extracts only (load_scene)."""
         from pathlib import Path
 
         from .io import SCENES_DIR, _read_yaml, load_scene
+
+        if bbox is not None or crs is not None:  # an OSM extract (load_scene refuses others)
+            return cls.from_scene(load_scene(name_or_path, seed=seed, bbox=bbox, crs=crs))
 
         s = str(name_or_path)
         p = Path(s)

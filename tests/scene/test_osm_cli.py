@@ -205,3 +205,14 @@ def test_stale_cache_object_is_rebuilt(town_files, tmp_path):
     b = load_osm_scene(town_files["osm"], cache=c)
     assert b.vertex_hash() == a.vertex_hash()
     assert isinstance(pickle.loads(entry.read_bytes()), type(a))
+
+
+def test_place_tiled_takes_an_osm_file_with_bbox(town_files, tmp_path, cache, capsys):
+    from aerial_synth.cli import main
+
+    out = tmp_path / "tiled"
+    rc = main(["place-tiled", "--scene", str(town_files["pbf"]), "--bbox", _bbox(-200, -200, 200, 200),
+               "--scenario", "sparse", "--tile-m", "200", "--out", str(out)])
+    assert rc == 0, capsys.readouterr().err
+    data = json.loads((out / "placement.json").read_text())
+    assert data["vehicles"] and data["vehicles"][0]["lon_deg"] is not None
