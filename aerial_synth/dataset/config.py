@@ -21,6 +21,8 @@ SPLITS = ("train", "val")
 #: third SeedSequence word of a placement group's entropy: [seed, group, PLACEMENT_STREAM]
 PLACEMENT_STREAM = 1
 IMAGE_EXTS = ("png", "jpg")
+#: parameters that appear in the manifest only when set (added after manifest version 1)
+_OPTIONAL_FIELDS = ("bbox", "crs")
 
 
 @dataclass(frozen=True)
@@ -121,9 +123,14 @@ class ExportConfig:
         )
 
     def to_dict(self) -> dict:
+        """Every parameter, as the manifest stores it. Fields added after the first release
+        (:data:`_OPTIONAL_FIELDS`) are left out while unset, so a dataset exported without
+        them keeps the same manifest bytes and can still be resumed."""
         d = {}
         for f in fields(self):
             val = getattr(self, f.name)
+            if f.name in _OPTIONAL_FIELDS and val is None:
+                continue
             if f.name == "box":
                 val = val.to_dict()
             elif f.name == "formats":

@@ -129,3 +129,13 @@ def test_builtin_module_must_define_its_format(monkeypatch):
     monkeypatch.setattr(registry, "_LOADED", dict(registry._LOADED))
     with pytest.raises(ExportError, match="expected FORMAT = a LabelFormat named 'broken', got None"):
         registry.get("broken")
+
+
+def test_manifest_parameters_omit_unset_osm_fields():
+    """bbox / crs (OSM cuts) appear in the manifest only when set: exports without them keep
+    the manifest of earlier versions, so those datasets still resume."""
+    d = ExportConfig().to_dict()
+    assert "bbox" not in d and "crs" not in d
+    c = ExportConfig(bbox="1,2,3,4", crs="EPSG:32633")
+    assert c.to_dict()["bbox"] == "1,2,3,4" and ExportConfig.from_dict(c.to_dict()) == c
+    assert ExportConfig.from_dict(d) == ExportConfig()
