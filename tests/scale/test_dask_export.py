@@ -53,7 +53,6 @@ def _same(a, b):
     assert [k for k in a if a[k] != b[k]] == []
 
 
-@pytest.mark.slow  # a 2-process LocalCluster: 30-200 s on a shared 2-core machine
 def test_local_cluster_byte_identical(cluster, cross_scene, reference, tmp_path):
     out = tmp_path / "dask"
     res = export_dataset(_cfg(cross_scene), out, dask=cluster.scheduler_address, progress=False)
