@@ -158,11 +158,15 @@ def find_lots(rayscene, cfg: ParkingConfig | None = None) -> list[Lot]:
                 fr = LotFrame(float(hc[0]), float(hc[1]), float(np.radians(hnt["row_deg"])),
                               float(hnt["long_m"]), float(hnt["short_m"]))
                 break
-        if src == "default" and _has_markings(rs, fr):
-            read = _layout_from_markings(rs, fr)
-            if read is not None:
-                lay, src = read, "markings"
-        bays = layout_bays(fr, lay)
+        space_bays = _bays_from_spaces(rs.scene.meta.get("parking_spaces"), fr) if src == "default" else None
+        if space_bays is not None:
+            bays, src = space_bays, "osm-spaces"
+        else:
+            if src == "default" and _has_markings(rs, fr):
+                read = _layout_from_markings(rs, fr)
+                if read is not None:
+                    lay, src = read, "markings"
+            bays = layout_bays(fr, lay)
         keep = _bays_on_lot(rs, bays)
         lots.append(Lot(len(lots), fr, lay, bays.take(keep), src, int((~keep).sum())))
     return lots
@@ -212,6 +216,42 @@ def _refine(rs, fr):
         return dataclasses.replace(fr, cx=float(cc[0]), cy=float(cc[1]),
                                    u_rad=float(np.mod(fr.u_rad + np.pi / 2, np.pi)), long_m=S, short_m=L)
     return dataclasses.replace(fr, cx=float(cc[0]), cy=float(cc[1]), long_m=L, short_m=S)
+
+
+def _bays_from_spaces(spaces, fr):
+    """Bays from mapped parking spaces (OSM ``amenity=parking_space`` polygons, local frame)
+    whose centre lies in the lot rectangle: each space's minimum rotated rectangle gives the
+    bay centre and axis (its long side); all bays of the lot take the median size. None when
+    no space lies in the lot."""
+    import shapely
+
+    from ..scene.procedural.parking import Bays
+
+    if not spaces:
+        return None
+    lot = fr.polygon()
+    cs, axes, sizes = [], [], []
+    for ring in spaces:
+        try:
+            poly = shapely.Polygon(np.asarray(ring, float))
+        except (ValueError, TypeError):
+            continue
+        if poly.is_empty or poly.area < 1.0 or not lot.contains(poly.centroid):
+            continue
+        rect = np.asarray(shapely.minimum_rotated_rectangle(poly).exterior.coords)[:4]
+        e1, e2 = rect[1] - rect[0], rect[2] - rect[1]
+        long_e, short_e = (e1, e2) if np.linalg.norm(e1) >= np.linalg.norm(e2) else (e2, e1)
+        cs.append(rect.mean(axis=0))
+        axes.append(np.arctan2(long_e[1], long_e[0]))
+        sizes.append((np.linalg.norm(short_e), np.linalg.norm(long_e)))
+    if not cs:
+        return None
+    axes = np.mod(np.array(axes), 2 * np.pi)
+    rel = np.degrees(np.abs(np.angle(np.exp(1j * (np.median(axes) - fr.u_rad)))))
+    rel = min(rel, 180.0 - rel)
+    angle = min((90.0, 60.0, 45.0, 0.0), key=lambda a: abs(a - rel))
+    w, ln = np.median(np.array(sizes), axis=0)
+    return Bays(np.array(cs), axes, np.zeros(len(cs), int), fr.u_rad, float(w), float(ln), angle)
 
 
 def _has_markings(rs, fr, step_m: float = 0.03) -> bool:

@@ -308,3 +308,35 @@ def test_angled_and_parallel_bays_read_from_the_markings(angle, tol_m):
     assert np.abs(a.bays.centre_xy - b.bays.centre_xy).max() < tol_m
     d = np.abs(np.angle(np.exp(1j * (a.bays.axis_rad - b.bays.axis_rad))))
     assert np.degrees(d).max() < 0.5
+
+
+def test_osm_parking_spaces_are_the_bays():
+    """Where the extract maps amenity=parking_space polygons inside a lot, those are the
+    bays (not the generated layout)."""
+    import tempfile
+    from pathlib import Path
+
+    from aerial_synth.scene.osm import build_osm_scene
+    from tests.scene.osm_town import Town
+
+    t = Town()
+    t.way([(-150, 0), (150, 0)], {"highway": "residential"})
+    t.way([(-20, 20), (30, 20), (30, 50), (-20, 50)], {"amenity": "parking"}, close=True)
+    n = 8
+    for k in range(n):  # one row of 2.6 x 5.2 m spaces along the lot's north side
+        x0 = -10 + 2.6 * k
+        t.way([(x0, 44.5), (x0 + 2.6, 44.5), (x0 + 2.6, 49.7), (x0, 49.7)],
+              {"amenity": "parking_space"}, close=True)
+    with tempfile.TemporaryDirectory() as d:
+        scene = build_osm_scene(t.write(Path(d) / "spaces.osm"))
+    assert len(scene.meta["parking_spaces"]) == n
+    rs = RayScene(scene)
+    lt, = find_lots(rs)
+    assert lt.layout_source == "osm-spaces" and len(lt.bays) == n
+    assert abs(lt.bays.width_m - 2.6) < 0.05 and abs(lt.bays.length_m - 5.2) < 0.05
+    cents = np.array([np.mean(r, axis=0) for r in scene.meta["parking_spaces"]])
+    d = np.linalg.norm(lt.bays.centre_xy[:, None, :] - cents[None, :, :], axis=2).min(axis=1)
+    assert d.max() < 0.01
+    p = place(rs, "parking", seed=2, overrides={"parking": {"occupancy_mean": 1.0}})
+    assert len(p.vehicles) == n  # every space filled, nothing else
+    _assert_lot_invariants(rs, p, [lt])

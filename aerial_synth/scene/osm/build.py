@@ -399,7 +399,10 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
 
     sidewalk = _polys(np.concatenate(side_geoms + [areas("sidewalk")]), clip)
     water = _polys(np.concatenate(water_geoms + [areas("water")]), clip)
-    parking = _polys(areas("parking"), clip)
+    # parking spaces (amenity=parking_space) are parking surface too, and their rectangles
+    # go to placement as bays (meta "parking_spaces", docs/parking.md)
+    spaces = _polys(areas("parking_space"), clip)
+    parking = _polys(np.concatenate([areas("parking"), areas("parking_space")]), clip)
     grass = _polys(np.concatenate([areas("grass"), areas("forest")]), clip)
     soil = _polys(areas("soil"), clip)
 
@@ -502,6 +505,7 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
         "bbox": [float(c) for c in data.bbox],
         "attribution": ATTRIBUTION,
         META_KEY: hints,
+        "parking_spaces": [np.asarray(p.exterior.coords)[:-1].round(4).tolist() for p in spaces],
         "osm": {
             "roads": len(roads),
             "oneway_roads": int(sum(r.p.oneway for r in roads)),

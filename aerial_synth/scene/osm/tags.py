@@ -220,13 +220,16 @@ def _match(tags, table) -> bool:
 
 
 def area_kind(tags) -> str | None:
-    """What an area becomes: building, parking, water, forest, grass, soil, sidewalk or None."""
+    """What an area becomes: building, parking, parking_space (one bay, amenity=parking_space),
+    water, forest, grass, soil, sidewalk or None."""
     b = tags.get("building")
     if b is not None and b != "no":
         return "building"
     hw = tags.get("highway")
     if hw is not None:
         return "sidewalk" if (hw in SIDEWALK and tags.get("area") == "yes") else None
+    if tags.get("amenity") == "parking_space":
+        return "parking_space"
     if tags.get("amenity") == "parking":
         if tags.get("parking") in ("underground", "multi-storey", "rooftop"):
             return None
