@@ -120,12 +120,12 @@ class RenderConfig:
     jpeg_probability: float = 0.6
     jpeg_quality: tuple[float, float] = (55.0, 95.0)
     vignetting: tuple[float, float] = (0.0, 0.25)
-    asphalt_albedo: tuple[float, float] = (0.35, 1.3)
+    asphalt_albedo: tuple[float, float] = (0.3, 0.8)
     concrete_albedo: tuple[float, float] = (0.8, 1.15)
     ground_albedo: tuple[float, float] = (0.75, 1.2)
     vegetation_dryness: tuple[float, float] = (0.0, 0.8)
     road_wear: tuple[float, float] = (0.2, 1.0)
-    sky_light: tuple[float, float] = (1.0, 1.6)
+    sky_light: tuple[float, float] = (1.3, 2.2)
     randomise: str = "none"
     shadows: bool = True
     soft_shadows: bool = True
