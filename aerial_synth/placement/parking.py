@@ -421,6 +421,7 @@ def find_kerbs(rayscene, cfg: ParkingConfig, rng: np.random.Generator, probe=Non
     road_lut[[LABEL_IDS["road"], LABEL_IDS["lane_marking"]]] = True
     kerbs: list[Kerb] = []
     claimed = []  # shapely polygons of kerb stretches already used
+    rules = _kerb_rules(rs.scene.meta.get("kerb_parking"))
     want = cfg.kerb_lines
     tries = 0
     while len(kerbs) < want and tries < 8:
@@ -444,6 +445,9 @@ def find_kerbs(rayscene, cfg: ParkingConfig, rng: np.random.Generator, probe=Non
             zone = line.buffer(3.0, cap_style="flat")
             if claimed and shapely.intersects(np.array(claimed, dtype=object), zone).any():
                 continue
+            if rules and _kerb_allowed(rules, edge, n_out) is False:  # the map says no parking
+                claimed.append(zone)
+                continue
             centres = (edge[:-1] + edge[1:]) / 2 - n_out[:-1] * cfg.kerb_offset_m
             seg = edge[1:] - edge[:-1]
             axis = np.arctan2(seg[:, 1], seg[:, 0])
@@ -459,6 +463,46 @@ def find_kerbs(rayscene, cfg: ParkingConfig, rng: np.random.Generator, probe=Non
             kerbs.append(Kerb(len(kerbs), bays.take(keep), int((~keep).sum())))
             claimed.append(line.buffer(width + 3.0 if cfg.kerb_sides == "one" else 3.0, cap_style="flat"))
     return kerbs
+
+
+def _kerb_rules(data) -> list:
+    """Kerb parking tags of mapped roads (``Scene.meta["kerb_parking"]``, from OSM
+    ``parking:left|right|both`` and ``parking:lane:*``): [(centre line, width, left, right)]."""
+    import shapely
+
+    out = []
+    for r in data or []:
+        try:
+            line = shapely.LineString(np.asarray(r["coords"], float))
+            out.append((line, float(r.get("width_m", 6.0)), r.get("left"), r.get("right")))
+        except (KeyError, TypeError, ValueError):
+            continue
+    return out
+
+
+def _kerb_allowed(rules, edge, n_out):
+    """The tag of the mapped road side this kerb line runs along: True, False or None (the
+    nearest mapped road within half its width + 1 m of a point 1 m inside the kerb)."""
+    import shapely
+
+    k = len(edge) // 2
+    p = edge[k] - n_out[k] * 1.0
+    pt = shapely.Point(p)
+    best = None
+    for line, width, left, right in rules:
+        d = line.distance(pt)
+        if d <= width / 2 + 1.0 and (best is None or d < best[0]):
+            best = (d, line, left, right)
+    if best is None:
+        return None
+    _, line, left, right = best
+    s = line.project(pt)
+    a = np.asarray(line.interpolate(max(s - 0.5, 0.0)).coords[0])
+    b = np.asarray(line.interpolate(min(s + 0.5, line.length)).coords[0])
+    c = np.asarray(line.interpolate(s).coords[0])
+    t = b - a
+    on_left = t[0] * (edge[k][1] - c[1]) - t[1] * (edge[k][0] - c[0]) > 0
+    return left if on_left else right
 
 
 def _kerb_lines(pr, seeds, phi, cfg, unit, max_steps: int = 400):

@@ -340,3 +340,44 @@ def test_osm_parking_spaces_are_the_bays():
     p = place(rs, "parking", seed=2, overrides={"parking": {"occupancy_mean": 1.0}})
     assert len(p.vehicles) == n  # every space filled, nothing else
     _assert_lot_invariants(rs, p, [lt])
+
+
+def test_osm_kerb_parking_tags_are_obeyed():
+    """parking:left|right|both (and parking:lane:*) of a way decide which kerbs take parked
+    cars; untagged ways follow the scenario."""
+    import tempfile
+    from pathlib import Path
+
+    from aerial_synth.scene.osm import build_osm_scene
+    from tests.scene.osm_town import Town
+
+    t = Town()
+    t.way([(-150, 0), (150, 0)], {"highway": "residential", "width": "8",
+                                  "parking:left": "no", "parking:right": "lane"})
+    t.way([(-150, 80), (150, 80)], {"highway": "residential", "width": "8", "parking:lane:both": "no_parking"})
+    t.way([(-150, -80), (150, -80)], {"highway": "residential", "width": "8"})
+    with tempfile.TemporaryDirectory() as d:
+        scene = build_osm_scene(t.write(Path(d) / "kerbs.osm"))
+    kp = scene.meta["kerb_parking"]
+    assert sorted((r["left"], r["right"]) for r in kp) == [(False, False), (False, True)]
+    rs = RayScene(scene)
+    p = place(rs, "street-parking", seed=4, overrides={"parking": {"occupancy_mean": 1.0}})
+    # each parked car: the road it stands on and its side (the truth centre lines run in the
+    # ways' node order, west to east; UTM turns them by ~1.3 degrees)
+    roads = sorted(scene.truth.roads, key=lambda r: float(np.mean(r.centerline.xy[1])))
+    count = {}
+    for v in p.vehicles:
+        pt = shapely.Point(v.x_m, v.y_m)
+        k = int(np.argmin([r.centerline.distance(pt) for r in roads]))
+        line = roads[k].centerline
+        s0 = line.project(pt)
+        a = np.asarray(line.interpolate(max(s0 - 0.5, 0)).coords[0])
+        b = np.asarray(line.interpolate(min(s0 + 0.5, line.length)).coords[0])
+        c = np.asarray(line.interpolate(s0).coords[0])
+        left = (b - a)[0] * (v.y_m - c[1]) - (b - a)[1] * (v.x_m - c[0]) > 0
+        key = (("south", "mid", "north")[k], "left" if left else "right")
+        count[key] = count.get(key, 0) + 1
+    assert not any(k[0] == "north" for k in count)      # parking:lane:both=no_parking
+    assert ("mid", "left") not in count                  # parking:left=no
+    assert count.get(("mid", "right"), 0) > 10           # parking:right=lane
+    assert count.get(("south", "left"), 0) > 10 and count.get(("south", "right"), 0) > 10  # untagged

@@ -25,6 +25,7 @@ from .tags import (
     SIDEWALK_WIDTH_M,
     UNMARKED_CLASSES,
     building_height_m,
+    kerb_parking,
     parse_metres,
     road_params,
     waterway_width_m,
@@ -366,6 +367,7 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
                          f"{_fmt_bbox(data.bbox)}")
     # centre lines inside the scene: truth and hints
     truth_roads, hint_roads = [], []
+    kerbs = []  # kerb parking allowed per side, where the way tags it (placement/parking.py)
     inside = shapely.intersection(np.array([r.line for r in roads], dtype=object), clip)
     for r, g in zip(roads, inside):
         for part in shapely.get_parts(g):
@@ -376,6 +378,12 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
             hint_roads.append(HintRoad(shapely.get_coordinates(part), r.p.width_m, r.p.oneway,
                                        r.p.lanes_forward, r.p.lanes_backward, int(r.osm_id),
                                        r.name))
+            left, right = kerb_parking(r.tags)
+            if r.p.reverse:  # the line runs against the way's node order
+                left, right = right, left
+            if left is not None or right is not None:
+                kerbs.append({"coords": shapely.get_coordinates(part).round(4).tolist(),
+                              "width_m": float(r.p.width_m), "left": left, "right": right})
     t_roads = time.perf_counter()
     junctions = _junctions(roads)
     markings = _markings(roads, road_area, junctions)
@@ -506,6 +514,7 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
         "attribution": ATTRIBUTION,
         META_KEY: hints,
         "parking_spaces": [np.asarray(p.exterior.coords)[:-1].round(4).tolist() for p in spaces],
+        "kerb_parking": kerbs,
         "osm": {
             "roads": len(roads),
             "oneway_roads": int(sum(r.p.oneway for r in roads)),

@@ -20,6 +20,7 @@ __all__ = [
     "building_height_m",
     "area_kind",
     "waterway_width_m",
+    "kerb_parking",
     "RoadParams",
 ]
 
@@ -251,3 +252,25 @@ def waterway_width_m(tags) -> float | None:
     if ww not in WATERWAY_WIDTH_M or tags.get("tunnel") in ("yes", "culvert"):
         return None
     return parse_metres(tags.get("width"), lo=0.3, hi=2000.0) or WATERWAY_WIDTH_M[ww]
+
+
+_PARK_YES = {"lane", "street_side", "on_kerb", "half_on_kerb", "shoulder", "parallel", "diagonal",
+             "perpendicular", "marked", "yes", "painted_area_only"}
+_PARK_NO = {"no", "no_parking", "no_stopping", "fire_lane", "no_standing", "separate"}
+
+
+def kerb_parking(tags) -> tuple[bool | None, bool | None]:
+    """Whether cars may park along the (left, right) kerb of a way, relative to the way's
+    node order, from ``parking:left|right|both`` (current scheme) or
+    ``parking:lane:left|right|both`` (old scheme); None where the way says nothing."""
+
+    def side(name):
+        for key in (f"parking:{name}", f"parking:lane:{name}", "parking:both", "parking:lane:both"):
+            v = str(tags.get(key, "")).strip().lower()
+            if v in _PARK_YES:
+                return True
+            if v in _PARK_NO:
+                return False
+        return None
+
+    return side("left"), side("right")
