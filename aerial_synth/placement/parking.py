@@ -562,7 +562,8 @@ def _kerb_free(rs, road_lut, bays, n_out, cfg) -> np.ndarray:
     L = bays.length_m
     u = np.stack([np.cos(bays.axis_rad), np.sin(bays.axis_rad)], 1)
     foot = bays.centre_xy + n_out * cfg.kerb_offset_m  # on the edge
-    s = np.linspace(-(L / 2 + cfg.kerb_clear_m), L / 2 + cfg.kerb_clear_m, 13)
+    reach = L / 2 + cfg.kerb_clear_m
+    s = np.linspace(-reach, reach, int(np.ceil(2 * reach / 0.5)) + 1)  # every 0.5 m at most
     outs = np.array([0.4, 1.5, 3.5])
     pts = (foot[:, None, None, :] + u[:, None, None, :] * s[None, :, None, None]
            + n_out[:, None, None, :] * outs[None, None, :, None])
