@@ -109,6 +109,14 @@ def run(args: argparse.Namespace) -> int:
     t_place = placement.timing["seconds"]
     report = validate_placement(rs, placement, scene.truth, traffic=cfg.traffic)
     placement.stats["validation"] = report.summary()
+    moving = np.array([v.state == "moving" for v in placement.vehicles], bool)
+    if len(moving) and not moving.all():  # parked vehicles follow their bays, not the road
+        he = report.heading_error_deg[moving]
+        he = he[np.isfinite(he)]
+        placement.stats["validation"]["heading_error_deg"] = None if not len(he) else {
+            "median": round(float(np.median(he)), 4), "p99": round(float(np.percentile(he, 99)), 4),
+            "max": round(float(he.max()), 4), "mean": round(float(he.mean()), 4)}
+        placement.stats["validation"]["heading_error_of"] = "moving vehicles"
     png = None
     if not args.no_png:
         import cv2
