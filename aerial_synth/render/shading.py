@@ -12,7 +12,7 @@ Model (float32, one fused pass over the pixels per stage: the numba kernels in
   grain, grass patches, leafy crowns, nearly clean paint). The noise tiles depend only on
   ``RenderConfig.texture_seed``.
 - **Light**: Lambert sun term times a hard shadow from shadow rays (Embree any-hit test
-  towards the sun, one per 2 x 2 block plus every pixel at an object edge; trees and
+  towards the sun, one per 3 x 3 block (``shadow_step``) plus every pixel at an object edge; trees and
   buildings shade roads and vehicles, vehicles shade the road), plus sky ambient weighted
   by the normal's up component. Overcast dims the sun, raises the sky and softens shadows.
 - **Specular**: Blinn-Phong sun highlight and a Fresnel sky reflection per material
@@ -57,10 +57,10 @@ def _pair(name: str, value, lo: float, hi: float) -> tuple[float, float]:
 
 #: Named presets (keyword overrides of the defaults): ``full`` is every realism factor on
 #: (the default); ``fast`` drops ambient occlusion and the sun-disk sampling and casts one
-#: shadow ray per 3 x 3 block (see docs/rendering.md for the measured costs).
+#: shadow ray per 4 x 4 block (see docs/rendering.md for the measured costs).
 PRESETS: dict[str, dict] = {
     "full": {},
-    "fast": {"ambient_occlusion": False, "soft_shadows": False, "shadow_step": 3},
+    "fast": {"ambient_occlusion": False, "soft_shadows": False, "shadow_step": 4},
 }
 
 _PAIRS = {  # name: (lowest, highest) allowed
@@ -129,11 +129,11 @@ class RenderConfig:
     randomise: str = "none"
     shadows: bool = True
     soft_shadows: bool = True
-    shadow_step: int = 2
+    shadow_step: int = 3
     ambient_occlusion: bool = True
-    ao_step: int = 4
+    ao_step: int = 5
     ao_rays: int = 4
-    ao_radius_m: float = 2.5
+    ao_radius_m: float = 2.0
     texture: bool = True
     texture_seed: int = 0
     backend: str = "raycast"
@@ -521,7 +521,8 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
         # only blocks with something rising > 0.15 m above their sample within the radius
         # (seen in the image) can be occluded: the others get 1 without casting
         zmax, zs, hit = K.ao_blocks(h, w, ao_step, buffers.rays, buffers.t, buffers.face)
-        d = buffers.depth[buffers.depth > 0]
+        d = buffers.depth[::16, ::16]
+        d = d[d > 0]
         px_m = float(np.median(d)) / float(camera.K[0][0]) if len(d) else 0.1
         kr = int(min(math.ceil(radius / max(px_m * ao_step, 1e-3)), 32))
         zn = cv2.dilate(zmax.reshape(bh, bw), np.ones((2 * kr + 1, 2 * kr + 1), np.uint8))

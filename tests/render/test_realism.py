@@ -152,7 +152,7 @@ def test_ambient_occlusion_darkens_the_ground_beside_a_vehicle():
     g_on, g_off = on.rgb.astype(int).sum(2), off.rgb.astype(int).sum(2)
     assert g_on[near[1], near[0]] < g_off[near[1], near[0]] - 6
     assert abs(g_on[far[1], far[0]] - g_off[far[1], far[0]]) <= 3
-    assert on.factors["ambient_occlusion"] == {"step_px": 2, "rays": 16, "radius_m": 2.5}
+    assert on.factors["ambient_occlusion"] == {"step_px": 2, "rays": 16, "radius_m": 2.0}
     assert off.factors["ambient_occlusion"] is None
 
 
@@ -200,7 +200,7 @@ def test_randomised_textures_change_colours_not_labels(world):
 def test_presets_and_bad_config():
     assert set(PRESETS) == {"full", "fast"}
     fast = RenderConfig.preset("fast")
-    assert not fast.ambient_occlusion and not fast.soft_shadows and fast.shadow_step == 3
+    assert not fast.ambient_occlusion and not fast.soft_shadows and fast.shadow_step == 4
     assert RenderConfig.preset("full") == RenderConfig()
     assert RenderConfig.preset("fast", shadows=False).shadows is False
     for kw, needle in [({"key_gray": (200, 100)}, "key_gray"),
