@@ -1,29 +1,27 @@
-"""Shaded RGB from the primary hits: albedo, procedural texture, sun + sky, shadows, sensor.
+"""Shaded RGB from the primary hits: albedo, texture and wear, sun + sky, shadows, ambient
+occlusion, atmosphere, camera and sensor. The shader only decides colour; every label comes
+from the ray cast. Full description and the sources of every spread: docs/rendering.md.
 
-The shader only decides colour; every label comes from the ray cast.
+Stages (float32, one fused numba pass over the pixels each, :mod:`._kernels`):
 
-Model (float32, one fused pass over the pixels per stage: the numba kernels in
-:mod:`aerial_synth.render._kernels`):
-
-- **Albedo** from the RayScene's per-face tables (``face_albedo``, ``face_material``),
-  with procedural texture: fractal noise tiles looked up by the hit's *world* position (a
-  surface keeps its pattern across frames and overlapping tiles), at a fine fractal scale
-  (0.1 m texels) and two smooth bilinear ones (2 m, 6 m), with amplitudes per material (asphalt
-  grain, grass patches, leafy crowns, nearly clean paint). The noise tiles depend only on
-  ``RenderConfig.texture_seed``.
-- **Light**: Lambert sun term times a hard shadow from shadow rays (Embree any-hit test
-  towards the sun, one per 3 x 3 block (``shadow_step``) plus every pixel at an object edge; trees and
-  buildings shade roads and vehicles, vehicles shade the road), plus sky ambient weighted
-  by the normal's up component. Overcast dims the sun, raises the sky and softens shadows.
-- **Specular**: Blinn-Phong sun highlight and a Fresnel sky reflection per material
-  (glossy paint, dark reflective glass, matte tyres and trim, water); wet roads darken and
-  gain sheen and puddles.
-- **Atmosphere and sensor**: haze towards a grey-blue veil, exposure and white balance,
-  vignetting, a tone curve, Gaussian blur, additive Gaussian noise, optional JPEG.
+- **Albedo** from the RayScene's per-face tables times a per-frame gain per material
+  (asphalt age, concrete, ground, vegetation dryness; random colours in ``randomise``
+  mode), with procedural texture and wear (patches, cracks, oil stains, faded markings,
+  bare soil) looked up by the hit's *world* position (``texture_seed``).
+- **Light**: Lambert sun x shadow rays aimed at points of the sun's disk (one per
+  ``shadow_step`` block plus every pixel at an object edge; penumbra; dappled light through
+  tree crowns), blue sky light x ray-cast ambient occlusion (per ``ao_step`` block,
+  interpolated on each surface). Overcast dims the sun, raises the sky, softens shadows.
+- **Specular**: Blinn-Phong sun highlight and a Fresnel sky reflection per material; wet
+  roads darken and gain sheen and puddles.
+- **Atmosphere**: transmission by path length (view angle), a coloured veil.
+- **Camera**: auto exposure to a drawn key gray and gray sd (or a fixed gain), white
+  balance, tint, saturation, panchromatic frames, a tone curve with a soft shoulder.
+- **Sensor**: chromatic blur, noise growing with brightness, optional JPEG.
 
 Sun azimuth is in degrees clockwise from north (90 = east), elevation above the horizon.
 Every factor is drawn from the ranges of :class:`RenderConfig` with the frame's generator and
-recorded in ``Frame.factors``.
+recorded in ``Frame.factors`` (with ``pixel_seed``, the seed of every per-pixel hash).
 """
 
 from __future__ import annotations
