@@ -11,6 +11,9 @@ container     6.06 x 2.44 x 2.59 m box          unknown         beside roads, 3-
 dumpster      1.7-2.0 x 1.0-1.3 x 1.1-1.4 m box unknown         beside roads, 1.5-3 m off
 road_sign     2.4 m pole and a 0.6 m plate      pole            beside roads, 1-2 m off
 bench         1.6-2.0 x 0.5 x 0.45 m slab       unknown         beside roads, 1.5-3 m off
+roof_unit     0.8-2.2 x 0.7-1.5 x 0.4-1.1 m box building        on building roofs
+              (air conditioner, vent, skylight
+              housing)
 ============  ================================  ==============  =====================
 
 They are ordinary scene objects with non-vehicle labels, so the instance buffer, the
@@ -38,6 +41,7 @@ DISTRACTOR_KINDS: dict[str, tuple[float, str, str]] = {
     "dumpster": (0.2, "unknown", "metal"),
     "road_sign": (0.2, "pole", "metal"),
     "bench": (0.15, "unknown", "wall"),
+    "roof_unit": (0.25, "building", "metal"),
 }
 _CONTAINER_RGB = [(0.45, 0.16, 0.10), (0.12, 0.22, 0.40), (0.15, 0.30, 0.18),
                   (0.55, 0.55, 0.55), (0.60, 0.45, 0.12), (0.75, 0.75, 0.72)]
@@ -103,6 +107,8 @@ def add_distractors(scene, rng: np.random.Generator, per_hectare: float = 6.0,
         sel = kind_idx == i
         if k == "manhole":
             ok[sel] = on_road[sel]
+        elif k == "roof_unit":
+            ok[sel] = lab[sel] == LABEL_IDS["building"]
         else:
             lo, hi = {"container": (3.0, 6.0), "road_sign": (1.0, 2.0)}.get(k, (1.5, 3.0))
             cand = sel & kerb
@@ -133,6 +139,10 @@ def add_distractors(scene, rng: np.random.Generator, per_hectare: float = 6.0,
             v, f = build.merge_meshes([(pv, pf), (sv, sf)])
             col = (0.55, 0.56, 0.58)
             size = [0.6, 0.6, 2.6]
+        elif k == "roof_unit":
+            size = [0.8 + 1.4 * u[i, 0], 0.7 + 0.8 * u[i, 1], 0.4 + 0.7 * u[i, 2]]
+            v, f = _box(x, y, z, *size, a)
+            col = (0.62 + 0.2 * u[i, 2],) * 3
         else:  # bench
             size = [1.6 + 0.4 * u[i, 0], 0.5, 0.45]
             v, f = _box(x, y, z, *size, a)

@@ -14,8 +14,8 @@ from .worlds import make_placement, make_scene
 SMALL = CameraConfig(width_px=256, height_px=256, gsd_m=0.12)
 
 
-def _scene_with(seed, per_hectare=400.0):
-    return add_distractors(make_scene(building=False), np.random.default_rng(seed),
+def _scene_with(seed, per_hectare=400.0, building=False):
+    return add_distractors(make_scene(building=building), np.random.default_rng(seed),
                            per_hectare=per_hectare)
 
 
@@ -25,7 +25,7 @@ def test_distractors_are_seeded_sited_and_never_vehicles():
     assert drawn == drawn2 and len(drawn) > 50
     assert _scene_with(2)[1] != drawn
     kinds = {d["kind"] for d in drawn}
-    assert kinds == set(DISTRACTOR_KINDS)
+    assert kinds == set(DISTRACTOR_KINDS) - {"roof_unit"}  # no building in this world
     extra = scene.objects[len(make_scene(building=False).objects):]
     assert len(extra) == len(drawn)
     assert all(o.label != "vehicle" for o in extra)
@@ -35,6 +35,12 @@ def test_distractors_are_seeded_sited_and_never_vehicles():
         else:
             assert abs(d["y_m"]) > 4.0 and abs(d["y_m"]) < 4.0 + 6.5
     assert add_distractors(make_scene(), np.random.default_rng(0), per_hectare=0)[1] == []
+    # with the 9 m house (x 20..35, y 10..22): roof units stand on its roof
+    _, drawn = _scene_with(1, per_hectare=1000.0, building=True)
+    roof = [d for d in drawn if d["kind"] == "roof_unit"]
+    assert roof and all(20 <= d["x_m"] <= 35 and 10 <= d["y_m"] <= 22 for d in roof)
+    assert all(d["z_m"] == pytest.approx(9.0, abs=1e-3) and d["label"] == "building"
+               for d in roof)
 
 
 def test_distractors_never_appear_in_labels():
