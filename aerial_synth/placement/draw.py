@@ -60,6 +60,9 @@ def draw_placement(view, placement: Placement, title: str | None = None) -> np.n
         cv2.line(img, tuple(np.round(a * s).astype(int)), tuple(np.round(front * s).astype(int)),
                  (255, 255, 255), 1, cv2.LINE_AA, shift=3)
     if title:
-        cv2.putText(img, title, (10, 24), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 3, cv2.LINE_AA)
+        # white text on a dark band (a thick black outline drawn under thin white text
+        # advances differently per glyph in Hershey fonts and leaves a ghost of the title)
+        (tw, th), base = cv2.getTextSize(title, cv2.FONT_HERSHEY_SIMPLEX, 0.6, 1)
+        cv2.rectangle(img, (4, 24 - th - 6), (16 + tw, 24 + base + 2), (0, 0, 0), -1)
         cv2.putText(img, title, (10, 24), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (255, 255, 255), 1, cv2.LINE_AA)
     return img
