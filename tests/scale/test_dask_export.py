@@ -53,6 +53,7 @@ def _same(a, b):
     assert [k for k in a if a[k] != b[k]] == []
 
 
+@pytest.mark.slow  # a 2-process LocalCluster + reference export: about 45 s on a busy 2-core machine
 def test_local_cluster_byte_identical(cluster, cross_scene, reference, tmp_path):
     out = tmp_path / "dask"
     res = export_dataset(_cfg(cross_scene), out, dask=cluster.scheduler_address, progress=False)
