@@ -173,11 +173,12 @@ def compose(
     face_albedo, mat_gain, tiles, textured, fine_t, coarse_t, dry_t, wetk_t, spec_t, shine_t,
     f0_t, wet,
     light, sun_rgb, sky_rgb, miss_rgb, veil_rgb, e_sun, e_sky, spec_dim, haze, inv_alt,
-    vignetting, wear, wear_ids, out,
+    vignetting, wear, wear_ids, refl, has_refl, out,
 ):  # pragma: no cover - compiled
     """Albedo (per-face, times the frame's per-material RGB gain ``mat_gain`` (m, 3)) with
     procedural texture and wetness, light (sun x shadow, sky x ambient occlusion), specular + sky reflection, haze and vignetting -> ``out`` (h, w, 3) float32
-    linear radiance (tone mapping is :func:`tone`).
+    linear radiance (tone mapping is :func:`tone`). ``refl`` (n, 3): radiance seen along
+    a traced mirror ray (wet roads; < 0 = use the sky), used when ``has_refl``.
 
     Haze: transmission (1 - haze) ** (path / altitude) along the pixel's ray (longer, more
     hazy paths towards the edges of a tilted view) and a veil ``veil_rgb`` brighter
@@ -281,9 +282,15 @@ def compose(
                     # sky radiance in the units of the diffuse terms: e_sky x sky colour
                     b = fres * np.float32(1.2) * e_sky * trans * (
                         np.float32(0.4) + np.float32(0.6) * occ)
-                    cr += a * sun_rgb[0] + b * sky_rgb[0]
-                    cg += a * sun_rgb[1] + b * sky_rgb[1]
-                    cb += a * sun_rgb[2] + b * sky_rgb[2]
+                    if has_refl and refl[i, 0] >= 0:  # a traced mirror ray (wet roads)
+                        b2 = fres * trans
+                        cr += a * sun_rgb[0] + b2 * refl[i, 0]
+                        cg += a * sun_rgb[1] + b2 * refl[i, 1]
+                        cb += a * sun_rgb[2] + b2 * refl[i, 2]
+                    else:
+                        cr += a * sun_rgb[0] + b * sky_rgb[0]
+                        cg += a * sun_rgb[1] + b * sky_rgb[1]
+                        cb += a * sun_rgb[2] + b * sky_rgb[2]
             if haze > 0:
                 cr += hz * veil_rgb[0]
                 cg += hz * veil_rgb[1]

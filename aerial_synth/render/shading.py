@@ -127,6 +127,7 @@ class RenderConfig:
     randomise: str = "none"
     shadows: bool = True
     soft_shadows: bool = True
+    wet_reflections: bool = True
     shadow_step: int = 3
     ambient_occlusion: bool = True
     ao_step: int = 5
@@ -143,7 +144,7 @@ class RenderConfig:
         for p in ("overcast_probability", "wet_probability", "jpeg_probability",
                   "grayscale_probability"):
             s(self, p, probability(f"render config {p}", getattr(self, p)))
-        for b in ("shadows", "soft_shadows", "ambient_occlusion", "texture"):
+        for b in ("shadows", "soft_shadows", "ambient_occlusion", "texture", "wet_reflections"):
             boolean(f"render config {b}", getattr(self, b))
         one_of("render config backend", self.backend, ("raycast", "pyrender"))
         one_of("render config exposure_mode", self.exposure_mode, ("auto", "fixed"))
@@ -217,6 +218,7 @@ def sample_factors(cfg: RenderConfig, rng: np.random.Generator) -> dict:
     f["chromatic_blur"] = float(u(*cfg.chromatic_blur))
     f["shot_noise"] = float(u(*cfg.shot_noise))
     f["shadow_step"] = cfg.shadow_step
+    f["wet_reflections"] = bool(cfg.wet_reflections)
     f["ambient_occlusion"] = (
         {"step_px": cfg.ao_step, "rays": cfg.ao_rays, "radius_m": cfg.ao_radius_m}
         if cfg.ambient_occlusion else None)
@@ -411,6 +413,46 @@ def _crown_gaps(srays: np.ndarray, tiles: np.ndarray) -> np.ndarray:
     return np.clip((n - 0.4) * 0.9, 0.0, 0.85).astype(np.float32)
 
 
+def _wet_reflections(rayscene, buffers, face_mat, face_alb, gains, L, sun_col, sky_col,
+                     e_sun: float, e_sky: float) -> np.ndarray:
+    """(n, 3) float32 radiance seen in the mirror direction from wet road surfaces
+    (materials that wetness glosses: asphalt, markings, concrete, paving), one traced ray per
+    2 x 2 block copied to the block's wet pixels; -1 elsewhere (the shader then uses the
+    sky). Reflected surfaces are lit by the sun (no shadow test) and the sky; rays that
+    leave the scene see the sky."""
+    h, w = buffers.height_px, buffers.width_px
+    face = buffers.face.reshape(h, w)
+    fm = face_mat[np.maximum(face, 0)]
+    wetm = (face >= 0) & (_WETK[fm] > 0.5)
+    out = np.full((h * w, 3), -1.0, np.float32)
+    sr, sc = np.nonzero(wetm[::2, ::2])
+    if len(sr) == 0:
+        return out
+    idx = (2 * sr) * w + 2 * sc
+    rays = buffers.rays[idx]
+    d = rays[:, 3:6] / np.linalg.norm(rays[:, 3:6], axis=1, keepdims=True)
+    nrm = buffers.normal[idx]
+    p = rays[:, :3] + buffers.t[idx, None] * rays[:, 3:6] + _PEEL * nrm
+    r = d - 2.0 * np.sum(d * nrm, axis=1, keepdims=True) * nrm
+    hits = rayscene.cast_rays(np.concatenate([p, r], axis=1).astype(np.float32))
+    col = np.empty((len(idx), 3), np.float32)
+    miss = hits.face < 0
+    col[miss] = sky_col * np.float32(1.2 * e_sky)
+    hf = hits.face[~miss]
+    if len(hf):
+        alb = face_alb[hf] * gains[face_mat[hf]]
+        hn = hits.normal[~miss]
+        hn = hn * np.where(np.sum(hn * r[~miss], axis=1, keepdims=True) > 0, -1.0, 1.0)
+        ndl = np.clip(hn @ L, 0.0, None)[:, None]
+        col[~miss] = alb * (e_sun * ndl * sun_col + e_sky * (0.55 + 0.45 * hn[:, 2:3]) * sky_col)
+    grid = np.full((-(-h // 2), -(-w // 2), 3), -1.0, np.float32)
+    grid[sr, sc] = col
+    full = np.repeat(np.repeat(grid, 2, axis=0), 2, axis=1)[:h, :w].reshape(-1, 3)
+    keep = wetm.reshape(-1) & (full[:, 0] >= 0)
+    out[keep] = full[keep]
+    return out
+
+
 def _disk_vectors(L: np.ndarray, radius_deg: float) -> np.ndarray:
     """(2, 3) float32 vectors perpendicular to L spanning the sun's disk (length
     tan(radius)); zeros for a point sun."""
@@ -551,14 +593,21 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
     e_sky = np.float32((0.30 + 0.45 * oc) * float(factors.get("sky_light", 1.0)))
     veil = _haze_colour(float(factors.get("haze_tint", 0.0)), float(e_sky))
     alt = max(float(camera.altitude_m), 1.0)
+    gains_m = material_gains(factors)
+    has_refl = bool(factors.get("wet_reflections", False)) and float(wet) > 0
+    refl = (_wet_reflections(rayscene, buffers, face_mat, face_alb, gains_m, L, sun_col,
+                             sky_col, float(e_sun), float(e_sky))
+            if has_refl else np.zeros((1, 3), np.float32))
+    if has_refl:
+        mark("wet_reflections")
     lin = np.empty((h, w, 3), np.float32)
     K.compose(h, w, buffers.rays, buffers.t, buffers.face, buffers.normal,
               buffers.depth.reshape(-1), ndl, lit, has_lit, ao, has_ao, face_mat, face_alb,
-              material_gains(factors), tiles, textured, _FINE, _COARSE, _DRY, _WETK, _SPEC,
+              gains_m, tiles, textured, _FINE, _COARSE, _DRY, _WETK, _SPEC,
               _SHINE, _F0, wet, L, sun_col, sky_col, (sky_col * np.float32(0.25)).astype(np.float32), veil, e_sun, e_sky,
               np.float32(1.0 - 0.9 * oc), np.float32(factors["haze"]), np.float32(1.0 / alt),
               np.float32(factors.get("vignetting", 0.0)),
-              np.float32(factors.get("road_wear", 0.0)), _WEAR_IDS, lin)
+              np.float32(factors.get("road_wear", 0.0)), _WEAR_IDS, refl, has_refl, lin)
     mark("compose")
 
     # ---------------------------------------------------------------- camera

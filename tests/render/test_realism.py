@@ -263,3 +263,24 @@ def test_crown_gaps_let_some_sun_through_deterministically():
     assert 0.0 <= v.min() and v.max() <= 0.85
     assert 0.2 < (v > 0).mean() < 0.5 and 0.05 < v.mean() < 0.3
     assert np.array_equal(v, _crown_gaps(rays.copy(), _noise_tiles(0)))
+
+
+def test_wet_roads_mirror_the_scene_not_only_the_sky(world):
+    rs, pl, cam = world  # tilted view, a crown and vehicles beside the road
+    base = {**PLAIN, "wet_probability": 1.0, "wet": (1.0, 1.0), "texture": True}
+    on = render_frame(rs, cam, pl, np.random.default_rng(1), RenderConfig(**base))
+    off = render_frame(rs, cam, pl, np.random.default_rng(1),
+                       RenderConfig(**base, wet_reflections=False))
+    dry = render_frame(rs, cam, pl, np.random.default_rng(1),
+                       RenderConfig(**{**base, "wet_probability": 0.0}))
+    assert on.instance.tobytes() == off.instance.tobytes() == dry.instance.tobytes()
+    assert on.depth.tobytes() == off.depth.tobytes()
+    from aerial_synth.scene.model import LABEL_IDS
+
+    road = on.semantic == LABEL_IDS["road"]
+    diff = np.abs(on.rgb.astype(int) - off.rgb.astype(int)).max(axis=2)
+    assert (diff[road] > 3).mean() > 0.005  # some road pixels show a reflected object
+    assert (diff[~road & (on.semantic != LABEL_IDS["lane_marking"])] == 0).all()
+    assert on.factors["wet_reflections"] and not off.factors["wet_reflections"]
+    # frames that are not wet never trace mirror rays
+    assert "rgb_wet_reflections" not in dry.timings_s
