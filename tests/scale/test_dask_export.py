@@ -54,10 +54,19 @@ def _same(a, b):
 
 
 @pytest.mark.slow  # a 2-process LocalCluster + reference export: about 45 s on a busy 2-core machine
-def test_local_cluster_byte_identical(cluster, cross_scene, reference, tmp_path):
+def test_local_cluster_byte_identical(cross_scene, reference, tmp_path):
+    """--dask local:2: the engine's own LocalCluster (2 processes, 127.0.0.1, no dashboard)."""
     out = tmp_path / "dask"
-    res = export_dataset(_cfg(cross_scene), out, dask=cluster.scheduler_address, progress=False)
+    res = export_dataset(_cfg(cross_scene), out, dask="local:2", progress=False)
     assert res.rendered == 8
+    _same(reference, tree_bytes(out))
+
+
+@pytest.mark.slow
+def test_external_cluster_byte_identical(cluster, cross_scene, reference, tmp_path):
+    """--dask tcp://...: a cluster started elsewhere (here: a LocalCluster on 127.0.0.1)."""
+    out = tmp_path / "tcp"
+    export_dataset(_cfg(cross_scene), out, dask=cluster.scheduler_address, progress=False)
     _same(reference, tree_bytes(out))
 
 
