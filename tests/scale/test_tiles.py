@@ -68,3 +68,16 @@ def test_scene_for_xy_loads_only_touched_tiles(small_city_spec):
 def test_tiled_world_refuses_other_generators():
     with pytest.raises(SceneError, match="generator"):
         TiledWorld.from_spec({"generator": "suburb", "size_m": [100, 100]})
+
+
+def test_bundled_city_is_generated_per_window():
+    """scenes/city_2km.yaml: a 2 km world that TiledWorld builds window by window."""
+    w = TiledWorld.load("city_2km")
+    np.testing.assert_allclose(w.bounds, [[-1000.0, -1000.0], [1000.0, 1000.0]])
+    assert w.windows_built == 0  # nothing generated yet
+    g = w.grid(500.0, 60.0)
+    assert len(g) == 16
+    sc = w.scene_for(g.tile(0, 0).window)
+    b = sc.bounds()
+    assert b[1, 0] < -380 and b[0, 0] == pytest.approx(-1000.0, abs=5.0)  # crowns may overhang
+    assert w.windows_built == 1
