@@ -171,7 +171,8 @@ def export_dataset(
             summary = write_aggregates(cfg, build, geo)
             atomic_write_json(build / "manifest.json", manifest(cfg, "complete", geo))
         except Exception:
-            if done == 0 and skipped == 0:
+            # pool and Dask workers report only at the end: look at the disk too
+            if done == 0 and skipped == 0 and not any(is_done(cfg, build, i) for i in todo):
                 discard_build(plan)  # nothing worth resuming: leave no trace
             raise
         finally:
