@@ -162,3 +162,30 @@ def test_bad_engine_arguments(cross_scene, tmp_path, extra, field):
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and field in lines[0]
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.slow
+def test_threads_and_progress_on_the_client(cluster, cross_scene, tmp_path):
+    """Each worker process gets cores // processes threads; the client's bar sees every image."""
+    from aerial_synth.dataset.engine_dask import DaskEngine
+
+    eng = DaskEngine(distributed.Client(cluster.scheduler_address))
+    try:
+        threads = eng.worker_threads()
+        assert len(threads) == 2
+        assert set(threads.values()) == {max(1, (os.cpu_count() or 1) // 2)}
+
+        class Bar:
+            n = 0
+
+            def update(self, k):
+                self.n += k
+
+        bar = Bar()
+        build = tmp_path / "build"
+        build.mkdir()
+        assert eng.run(_cfg(cross_scene), build, [0, 1, 2, 5], bar) == 4
+        assert bar.n == 4
+        assert sorted(p.name for p in (build / "meta").iterdir()) == [f"{i:06d}.json" for i in (0, 1, 2, 5)]
+    finally:
+        eng.client.close()
