@@ -55,6 +55,7 @@ def place_tiled(
     progress=None,
     workers: int = 1,
     only=None,
+    executor=None,
 ) -> Placement:
     """Place vehicles tile by tile on ``world`` (a :class:`~aerial_synth.scene.tiles.TiledWorld`)
     over ``grid`` (its :class:`~aerial_synth.scene.tiles.TileGrid`).
@@ -64,6 +65,8 @@ def place_tiled(
     progress : optional callable(done_tiles, n_tiles, kept_so_far)
     workers : place tiles in this many processes (spawn); the result does not depend on it
               (tiles are independent; the merge runs in raster order here)
+    executor : instead of ``workers``, any executor whose ``map(fn, jobs)`` yields results in
+               order: ``distributed.Client(...).get_executor()`` places tiles on a Dask cluster
     only : optional (i, j) tile indices to place (the others stay empty): a part of a huge
            world, or one machine's share of it (seeds are those of the whole grid)
     Raises PlacementError when the grid's tiles are smaller than the longest vehicle.
@@ -108,7 +111,9 @@ def place_tiled(
         wants.append(want)
     jobs = [(world, grid, tile, cfg, tile_seed(seed, tile.i, tile.j, n_tiles), want, catalog, 0)
             for tile, want in zip(tiles, wants)]
-    if workers > 1 and n_tiles > 1:
+    if executor is not None:
+        results = executor.map(_place_tile, jobs)
+    elif workers > 1 and n_tiles > 1:
         results = _pool_map(jobs, workers)
     else:
         results = map(_place_tile, jobs)

@@ -38,6 +38,8 @@ def register(sub) -> None:
                    help="how far each tile's window reaches past its core (60)")
     p.add_argument("--workers", type=arg_int("--workers", 1, 1024), default=1, metavar="K",
                    help="place tiles in K processes; the result does not depend on K (1)")
+    p.add_argument("--dask", default=None, metavar="tcp://HOST:PORT",
+                   help="place the tiles on a running Dask cluster instead of --workers (docs/scale.md)")
     p.add_argument("--out", default="out/place-tiled", metavar="DIR", help="output folder")
     p.set_defaults(func=run)
 
@@ -60,6 +62,7 @@ def run(args: argparse.Namespace) -> int:
     if args.tile_m < longest:
         raise PlacementError(
             f"--tile-m: expected a tile size of at least the longest vehicle ({longest:g} m), got {args.tile_m:g}")
+    client = _dask_client(args) if args.dask else None
     t0 = time.perf_counter()
     world = TiledWorld.load(args.scene, seed=args.scene_seed, bbox=args.bbox, crs=args.crs)
     grid = world.grid(args.tile_m, args.margin_m)
@@ -70,7 +73,10 @@ def run(args: argparse.Namespace) -> int:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", PlacementWarning)
         pl = place_tiled(world, grid, cfg, seed=args.seed, n_vehicles=args.vehicles,
-                         progress=progress if sys.stderr.isatty() else None, workers=args.workers)
+                         progress=progress if sys.stderr.isatty() else None, workers=args.workers,
+                         executor=client.get_executor() if client is not None else None)
+    if client is not None:
+        client.close()
     wall = time.perf_counter() - t0
     if sys.stderr.isatty():
         print(file=sys.stderr)
@@ -83,3 +89,24 @@ def run(args: argparse.Namespace) -> int:
           f"{wall:.1f} s; peak RSS {rss:.0f} MB")
     print(f"wrote {out / 'placement.json'}")
     return 0
+
+
+def _dask_client(args):
+    """A client of the running scheduler ``--dask``; one-line PlacementError otherwise."""
+    import re
+
+    from ..errors import PlacementError
+
+    if args.workers != 1:
+        raise PlacementError(f"--dask and --workers: choose one, got --workers {args.workers}")
+    addr = str(args.dask).strip()
+    if not re.match(r"^(tcp|tls)://[^\s/:]+:\d+$", addr):
+        raise PlacementError(f"--dask: expected tcp://HOST:PORT of a running dask scheduler, got {args.dask!r}")
+    try:
+        from distributed import Client
+    except ImportError:
+        raise PlacementError("--dask: needs Dask distributed; pip install 'aerial-synth[dask]'") from None
+    try:
+        return Client(addr, timeout="6s")
+    except (OSError, TimeoutError) as exc:
+        raise PlacementError(f"--dask {addr}: cannot reach a Dask scheduler there ({type(exc).__name__})") from None

@@ -189,3 +189,22 @@ def test_threads_and_progress_on_the_client(cluster, cross_scene, tmp_path):
         assert sorted(p.name for p in (build / "meta").iterdir()) == [f"{i:06d}.json" for i in (0, 1, 2, 5)]
     finally:
         eng.client.close()
+
+
+@pytest.mark.slow
+def test_tiled_placement_on_the_cluster(cluster, small_city_spec):
+    """Tiles placed by Dask workers: the same placement as in this process."""
+    import warnings
+
+    from aerial_synth.placement.tiled import place_tiled
+    from aerial_synth.scene.tiles import TiledWorld
+
+    world = TiledWorld.from_spec(small_city_spec)
+    grid = world.grid(250.0, 50.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        here = place_tiled(world, grid, "jam", seed=3, n_vehicles=120)
+        with distributed.Client(cluster.scheduler_address) as cl:
+            there = place_tiled(world, grid, "jam", seed=3, n_vehicles=120, executor=cl.get_executor())
+    assert len(here.vehicles) > 40
+    assert [v.to_dict() for v in there.vehicles] == [v.to_dict() for v in here.vehicles]

@@ -149,3 +149,19 @@ def test_only_some_tiles(world, tiled):
     first = [v for v, o in zip(pl.vehicles, owner) if tuple(o) == (0, 0)]  # merged first: nothing dropped
     assert len(part.vehicles) == len(first) > 10
     assert _dicts(part) == _dicts(type(pl)(**{**pl.__dict__, "vehicles": first}))
+
+
+@pytest.mark.parametrize("extra, field", [
+    (["--dask", "foo"], "--dask"),
+    (["--dask", "tcp://127.0.0.1:9", "--workers", "2"], "--workers"),
+    (["--dask", "tcp://127.0.0.1:9"], "cannot reach"),
+])
+def test_cli_bad_dask(tmp_path, extra, field):
+    from .conftest import run_cli
+
+    out = tmp_path / "out"
+    r = run_cli("place-tiled", "--out", out, *extra)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and field in lines[0]
+    assert not out.exists()
