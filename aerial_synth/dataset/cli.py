@@ -28,7 +28,7 @@ def register(sub) -> None:
     from ..placement.config import SCENARIOS
     from ..scene.cli import add_scene_args
     from ..validators import arg_choice, arg_float, arg_int
-    from .config import IMAGE_EXTS
+    from .config import IMAGE_EXTS, RANDOMISE_MODES, RENDER_PRESETS
 
     fmts = ", ".join(format_names())
     p = sub.add_parser(
@@ -92,6 +92,14 @@ def register(sub) -> None:
                    help="rectangle of the region's pixels (default) or of the dilated contour")
     p.add_argument("--image-ext", type=arg_choice("--image-ext", IMAGE_EXTS), default="png",
                    metavar="|".join(IMAGE_EXTS), help="image files (png)")
+    r = p.add_argument_group("rendering (docs/rendering.md)")
+    r.add_argument("--preset", type=arg_choice("--preset", RENDER_PRESETS), default="full",
+                   help="shading preset: full (every realism factor) or fast (full)")
+    r.add_argument("--randomise", type=arg_choice("--randomise", RANDOMISE_MODES),
+                   default="none", help="textures: domain-randomised materials and light (none)")
+    r.add_argument("--distractors", type=arg_float("--distractors", 0.0, 1000.0), default=0.0,
+                   metavar="PER_HA", help="unlabelled street objects (manholes, containers, "
+                   "signs, ...) per hectare; 0 = none, render's default is 6 (0)")
     p.add_argument("--simple-vehicles", action="store_true",
                    help="box-shaped vehicles instead of catalog meshes (quick tests)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -147,6 +155,9 @@ def config_from_args(args):
         box=box,
         image_ext=args.image_ext,
         simple_vehicles=args.simple_vehicles,
+        render_preset=None if args.preset == "full" else args.preset,
+        randomise=None if args.randomise == "none" else args.randomise,
+        distractors=args.distractors or None,
     )
 
 

@@ -22,7 +22,11 @@ SPLITS = ("train", "val")
 PLACEMENT_STREAM = 1
 IMAGE_EXTS = ("png", "jpg")
 #: parameters that appear in the manifest only when set (added after manifest version 1)
-_OPTIONAL_FIELDS = ("bbox", "crs")
+_OPTIONAL_FIELDS = ("bbox", "crs", "render_preset", "randomise", "distractors")
+#: render presets and randomisation modes (aerial_synth.render.shading); kept here as text so
+#: that reading a config imports no renderer
+RENDER_PRESETS = ("full", "fast")
+RANDOMISE_MODES = ("none", "textures")
 
 
 @dataclass(frozen=True)
@@ -44,6 +48,11 @@ class ExportConfig:
     box                 : box extraction and flag thresholds (BoxConfig)
     image_ext           : "png" (lossless) or "jpg" (quality 95)
     simple_vehicles     : box meshes instead of catalog meshes (fast tests)
+    render_preset       : shading preset, "full" (default when None) or "fast"
+    randomise           : "none" (default when None) or "textures" (domain randomisation)
+    distractors         : distractors per hectare (manholes, containers, signs, ...; never
+                          labelled), drawn once per dataset from SeedSequence([seed,
+                          DISTRACTOR_KEY]); None or 0 = none
     """
 
     scene: str = "city_park"
@@ -67,6 +76,9 @@ class ExportConfig:
     box: BoxConfig = field(default_factory=BoxConfig)
     image_ext: str = "png"
     simple_vehicles: bool = False
+    render_preset: str | None = None
+    randomise: str | None = None
+    distractors: float | None = None
 
     def __post_init__(self):
         from ..formats.registry import parse_names
@@ -98,6 +110,13 @@ class ExportConfig:
             raise E(f"--labels: expected a label-rules file, got {v.show(self.labels)}")
         if not isinstance(self.scenario, str) or not self.scenario:
             raise E(f"--scenario: expected a scenario name or file, got {v.show(self.scenario)}")
+        if self.render_preset is not None:
+            v.one_of("--preset", self.render_preset, RENDER_PRESETS, error=E)
+        if self.randomise is not None:
+            v.one_of("--randomise", self.randomise, RANDOMISE_MODES, error=E)
+        if self.distractors is not None:
+            s(self, "distractors", v.in_range("--distractors", self.distractors, 0.0, 1000.0,
+                                              error=E))
         if not isinstance(self.box, BoxConfig):
             raise ConfigError(f"box: expected a BoxConfig, got {type(self.box).__name__}")
 
@@ -121,6 +140,13 @@ class ExportConfig:
             gsd_m=self.gsd_m,
             max_tilt_deg=self.max_tilt_deg,
         )
+
+    def render_config(self):
+        """The :class:`~aerial_synth.render.RenderConfig` of every image."""
+        from ..render import RenderConfig
+
+        return RenderConfig.preset(self.render_preset or "full",
+                                   randomise=self.randomise or "none")
 
     def to_dict(self) -> dict:
         """Every parameter, as the manifest stores it. Fields added after the first release

@@ -72,10 +72,18 @@ def _check_parent() -> None:
 
 
 def _load_scene(cfg: ExportConfig):
+    """The export's scene, with its distractors (drawn once per dataset, so every worker and
+    engine builds the same scene)."""
     from ..scene import load_scene
 
-    return load_scene(cfg.scene, labels=cfg.labels, seed=cfg.scene_seed, bbox=cfg.bbox,
-                      crs=cfg.crs)
+    scene = load_scene(cfg.scene, labels=cfg.labels, seed=cfg.scene_seed, bbox=cfg.bbox,
+                       crs=cfg.crs)
+    if cfg.distractors:
+        from ..render.distractors import DISTRACTOR_KEY, add_distractors
+
+        rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, DISTRACTOR_KEY]))
+        scene, _ = add_distractors(scene, rng, per_hectare=cfg.distractors)
+    return scene
 
 
 class ImageWorker:
@@ -107,6 +115,10 @@ class ImageWorker:
     def georeference(self) -> dict:
         geo = getattr(self.scene, "georeference", None)
         return geo() if callable(geo) else {"origin": [0.0, 0.0, 0.0], "crs": None}
+
+    @functools.cached_property
+    def render_config(self):
+        return self.cfg.render_config()
 
     @property
     def catalog(self):
@@ -150,7 +162,7 @@ class ImageWorker:
         from ..annotate.boxes import annotate_frame
         from ..camera import sample_pose_targeted
         from ..formats import coco, meta
-        from ..render import RenderConfig, render_frame
+        from ..render import render_frame
 
         cfg = self.cfg
         group = index // cfg.images_per_placement
@@ -160,7 +172,7 @@ class ImageWorker:
         cam_ss, render_ss = ss.spawn(2)
         cam = sample_pose_targeted(cfg.camera_config(), pl, np.random.default_rng(cam_ss),
                                    within_xy=self.scene_xy_bounds)
-        frame = render_frame(rs, cam, pl, np.random.default_rng(render_ss), config=RenderConfig())
+        frame = render_frame(rs, cam, pl, np.random.default_rng(render_ss), config=self.render_config)
         H, W = frame.instance.shape
         segs = {}
 

@@ -20,7 +20,6 @@ import time
 __all__ = ["register", "add_camera_args", "camera_config_from_args", "run"]
 
 PLACEMENT_KEY = 0x504C  # "PL"
-DISTRACTOR_KEY = 0x4453  # "DS"
 MAX_IMAGE_PX = 16384
 
 
@@ -153,7 +152,7 @@ def run(args) -> int:
         grid = grid_poses(cam_cfg, b[:, :2], overlap=args.overlap, ground_z=gz)
     distractors = []
     if args.distractors > 0:
-        from .distractors import add_distractors
+        from .distractors import DISTRACTOR_KEY, add_distractors
 
         scene, distractors = add_distractors(
             scene, np.random.default_rng(np.random.SeedSequence([args.seed, DISTRACTOR_KEY])),

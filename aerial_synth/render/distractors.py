@@ -32,7 +32,7 @@ import numpy as np
 
 from ..scene.model import LABEL_IDS
 
-__all__ = ["DISTRACTOR_KINDS", "add_distractors"]
+__all__ = ["DISTRACTOR_KEY", "DISTRACTOR_KINDS", "add_distractors"]
 
 #: kind: (share of the distractors, label, material)
 DISTRACTOR_KINDS: dict[str, tuple[float, str, str]] = {
@@ -73,6 +73,10 @@ def _near_road(rs, xy: np.ndarray, d_lo: float, d_hi: float) -> np.ndarray:
         lab = rs.trace_labels(probe, ignore=("tree",)).reshape(len(xy), 8)
         found |= np.isin(lab, list(road)).any(axis=1)
     return found
+
+
+#: second SeedSequence word of the distractor stream: ``SeedSequence([seed, DISTRACTOR_KEY])``
+DISTRACTOR_KEY = 0x4453  # "DS"
 
 
 def add_distractors(scene, rng: np.random.Generator, per_hectare: float = 6.0,
