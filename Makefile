@@ -66,7 +66,7 @@ test-all: install-test
 	$(BIN)/python -m pytest -q -m "slow or not slow"
 
 # Benchmark suite (tools/bench_suite.py runs tools/bench_*.py and more): writes bench.json.
-bench: install
+bench: install-test
 	$(BIN)/python tools/bench_suite.py --out bench.json
 
 clean:
