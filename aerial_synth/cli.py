@@ -97,7 +97,15 @@ def _one_line_warning(message, category, filename, lineno, line=None) -> str:
 def main(argv: list[str] | None = None) -> int:
     import warnings
 
+    previous = warnings.formatwarning
     warnings.formatwarning = _one_line_warning  # the CLI's own process (and forked workers)
+    try:
+        return _main(argv)
+    finally:
+        warnings.formatwarning = previous  # main() called as a function leaves no trace
+
+
+def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
