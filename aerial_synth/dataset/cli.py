@@ -28,7 +28,7 @@ def register(sub) -> None:
     from ..placement.config import SCENARIOS
     from ..scene.cli import add_scene_args
     from ..validators import arg_choice, arg_float, arg_int
-    from .config import IMAGE_EXTS, RANDOMISE_MODES, RENDER_PRESETS
+    from .config import IMAGE_EXTS, MAX_IMAGES, RANDOMISE_MODES, RENDER_PRESETS
 
     fmts = ", ".join(format_names())
     p = sub.add_parser(
@@ -41,7 +41,7 @@ def register(sub) -> None:
     add_scene_args(p)
     p.add_argument("--scenario", default="jam", metavar="NAME|FILE",
                    help=f"traffic scenario: {', '.join(SCENARIOS)} or a YAML file (jam)")
-    p.add_argument("--images", type=arg_int("--images", 1), default=10, metavar="N",
+    p.add_argument("--images", type=arg_int("--images", 1, MAX_IMAGES), default=10, metavar="N",
                    help="number of images (10)")
     p.add_argument("--format", type=_format_list, default="dota", metavar="LIST",
                    help=f"comma list of {fmts} (dota)")

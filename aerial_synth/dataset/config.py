@@ -21,6 +21,9 @@ SPLITS = ("train", "val")
 #: third SeedSequence word of a placement group's entropy: [seed, group, PLACEMENT_STREAM]
 PLACEMENT_STREAM = 1
 IMAGE_EXTS = ("png", "jpg")
+#: most images one export may hold (the plan and the manifest grow with it; about 9 days of
+#: rendering on 2 cores at 0.8 s an image): a larger dataset is several exports
+MAX_IMAGES = 1_000_000
 #: parameters that appear in the manifest only when set (added after manifest version 1)
 _OPTIONAL_FIELDS = ("bbox", "crs", "render_preset", "randomise", "distractors")
 #: render presets and randomisation modes (aerial_synth.render.shading); kept here as text so
@@ -90,7 +93,7 @@ class ExportConfig:
             if isinstance(val, os.PathLike):
                 s(self, name, os.fspath(val))
         s(self, "formats", parse_names(self.formats))
-        s(self, "images", v.integer("--images", self.images, 1, error=E))
+        s(self, "images", v.integer("--images", self.images, 1, MAX_IMAGES, error=E))
         s(self, "split", v.in_range("--split", self.split, 0.0, 1.0, lo_open=True, error=E))
         s(self, "seed", v.integer("--seed", self.seed, 0, error=E))
         s(self, "images_per_placement",

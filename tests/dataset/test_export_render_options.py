@@ -76,6 +76,7 @@ def test_distractors_are_in_the_scene_and_never_labelled(tiny_scene, tmp_path):
 @pytest.mark.parametrize("kw, field", [
     ({"render_preset": "slow"}, "--preset"), ({"randomise": "all"}, "--randomise"),
     ({"distractors": -1}, "--distractors"), ({"distractors": float("nan")}, "--distractors"),
+    ({"images": 1_000_001}, "--images"), ({"images": 10**20}, "--images"),
 ])
 def test_bad_render_options_are_one_line(tiny_scene, kw, field):
     with pytest.raises(ExportError, match=f"^{field}: expected"):

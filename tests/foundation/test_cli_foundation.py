@@ -50,6 +50,8 @@ def _snapshot(folder):
          "aerial-synth export: --images: expected a positive integer, got 'abc'"),
         (["place", "--seed", "1.5"], "aerial-synth place: --seed: expected a non-negative integer, got '1.5'"),
         (["export"], "aerial-synth export: missing required --out"),
+        (["export", "--images", "99999999999999999999", "--out", "x"],
+         "aerial-synth export: --images: expected an integer >= 1 and <= 1000000, got"),
         (["place", "--traffic", "up"],
          "aerial-synth place: --traffic: expected one of right, left, got 'up'"),
         (["assets", "preview", "--out", "a.png", "--gsd", "nan"],
