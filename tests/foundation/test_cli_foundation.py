@@ -47,7 +47,7 @@ def _snapshot(folder):
     "argv, expected",
     [
         (["export", "--images", "abc", "--out", "x"],
-         "aerial-synth export: --images: expected a positive integer, got 'abc'"),
+         "aerial-synth export: --images: expected an integer >= 1 and <= 1000000, got 'abc'"),
         (["place", "--seed", "1.5"], "aerial-synth place: --seed: expected a non-negative integer, got '1.5'"),
         (["export"], "aerial-synth export: missing required --out"),
         (["export", "--images", "99999999999999999999", "--out", "x"],
