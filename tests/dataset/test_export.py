@@ -278,7 +278,7 @@ BAD_INPUTS = [
     (["--split", "1.01"], "--split"),
     (["--split", "nan"], "--split"),
     (["--images", "0"], "--images"),
-    (["--images", "abc"], "--images: expected a positive integer, got 'abc'"),
+    (["--images", "abc"], "--images: expected an integer >= 1 and <= 1000000, got 'abc'"),
     (["--images", "1.5"], "--images"),
     (["--seed", "-1"], "--seed"),
     (["--seed", "1.5"], "--seed"),

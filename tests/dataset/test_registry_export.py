@@ -77,7 +77,7 @@ def test_unregistered_format_refused(tiny_scene):
 
 
 @pytest.mark.parametrize("kw, msg", [
-    (dict(images=0), "--images: expected a positive integer, got 0"),
+    (dict(images=0), "--images: expected an integer >= 1 and <= 1000000, got 0"),
     (dict(images="abc"), "--images"),
     (dict(images=True), "--images"),
     (dict(scene=""), "--scene"),
