@@ -65,23 +65,27 @@ def _check_parents(path: Path, option: str) -> None:
         return
 
 
+def _stat_output(path, option: str, what: str):
+    """(Path, os.stat_result or None when nothing is there yet); one line for odd paths.
+    A path below a file also gives None: :func:`_check_parents` reports it."""
+    if os.fspath(path) == "":  # Path("") would silently mean "."
+        raise OutputError(f"{option}: expected {what}, got ''")
+    path = Path(path)
+    try:
+        return path, os.stat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        return path, None
+    except OSError as exc:
+        raise OutputError(f"{option} {path}: cannot use it: {exc.strerror}") from None
+
+
 def check_output_file(path: str | os.PathLike, option: str = "--out") -> Path:
     """Refuse an output file path that cannot be written safely; returns it as a Path.
 
     Refused: an existing path that is not a regular file (device, FIFO, socket, folder),
     a path below a file, or a path whose nearest existing folder is not writable.
     """
-    path = Path(path)
-    if str(path) == "":
-        raise OutputError(f"{option}: expected a file path, got ''")
-    try:
-        st = os.stat(path)
-    except FileNotFoundError:
-        st = None
-    except NotADirectoryError:
-        st = None  # reported by _check_parents
-    except OSError as exc:
-        raise OutputError(f"{option} {path}: cannot use it: {exc.strerror}") from None
+    path, st = _stat_output(path, option, "a file path")
     if st is not None:
         if not stat.S_ISREG(st.st_mode):
             raise OutputError(
@@ -95,17 +99,7 @@ def check_output_file(path: str | os.PathLike, option: str = "--out") -> Path:
 
 def check_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:
     """Refuse an output folder path that is not a folder or cannot be created/written."""
-    path = Path(path)
-    if str(path) == "":
-        raise OutputError(f"{option}: expected a folder path, got ''")
-    try:
-        st = os.stat(path)
-    except FileNotFoundError:
-        st = None
-    except NotADirectoryError:
-        st = None
-    except OSError as exc:
-        raise OutputError(f"{option} {path}: cannot use it: {exc.strerror}") from None
+    path, st = _stat_output(path, option, "a folder path")
     if st is not None:
         if not stat.S_ISDIR(st.st_mode):
             raise OutputError(f"{option} {path}: expected a folder, found {_kind(st.st_mode)}"

@@ -17,8 +17,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from sheet_io import save_sheet_png  # noqa: E402  (tools/sheet_io.py)
+
 from aerial_synth.camera import CameraConfig, sample_pose_targeted  # noqa: E402
-from aerial_synth.io_utils import atomic_write_bytes  # noqa: E402
 from aerial_synth.placement import place  # noqa: E402
 from aerial_synth.render import RenderConfig, add_placement, render_frame  # noqa: E402
 from aerial_synth.scene import load_scene  # noqa: E402
@@ -69,12 +70,7 @@ def main(argv=None) -> int:
             sheet[y : y + a.tile, x : x + a.tile] = img
             print(f"{scen:7s} | {name:18s} | {len(fr.visibility)} vehicles in view, "
                   f"{fr.timings_s['total']:.2f} s")
-    # drop the two lowest bits per channel (invisible at this size) so PNG stays < 1 MB
-    sheet = (sheet & 0xFC) | 0x02
-    ok, enc = cv2.imencode(".png", sheet[..., ::-1], [cv2.IMWRITE_PNG_COMPRESSION, 9])
-    data = enc.tobytes()
-    atomic_write_bytes(a.out, data)
-    print(f"wrote {a.out} ({len(data) / 1e6:.2f} MB)")
+    save_sheet_png(sheet, a.out)
     return 0
 
 

@@ -18,8 +18,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from sheet_io import save_sheet_png  # noqa: E402  (tools/sheet_io.py)
+
 from aerial_synth.camera import CameraConfig, grid_poses  # noqa: E402
-from aerial_synth.io_utils import atomic_write_bytes  # noqa: E402
 from aerial_synth.placement import place  # noqa: E402
 from aerial_synth.render import RenderConfig, add_placement, render_frame  # noqa: E402
 from aerial_synth.scene import load_scene  # noqa: E402
@@ -74,11 +75,7 @@ def main(argv=None) -> int:
         label = f"{title}: {parked} parked, {len(pl.vehicles) - parked} moving"
         cv2.putText(sheet, label, (x0 + 4, y0 - 8), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
         print(f"{title:32s} {len(fr.visibility)} vehicles in view, {fr.timings_s['total']:.2f} s")
-    sheet = (sheet & 0xFC) | 0x02  # the two lowest bits are invisible; keeps the PNG small
-    ok, enc = cv2.imencode(".png", sheet[..., ::-1], [cv2.IMWRITE_PNG_COMPRESSION, 9])
-    data = enc.tobytes()
-    atomic_write_bytes(a.out, data)
-    print(f"wrote {a.out} ({len(data) / 1e6:.2f} MB)")
+    save_sheet_png(sheet, a.out)
     return 0
 
 

@@ -27,8 +27,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from sheet_io import save_sheet_png  # noqa: E402  (tools/sheet_io.py)
+
 from aerial_synth.camera import CameraConfig, sample_pose_targeted  # noqa: E402
-from aerial_synth.io_utils import atomic_write_bytes  # noqa: E402
 from aerial_synth.placement import place  # noqa: E402
 from aerial_synth.render import RenderConfig, add_placement, render_frame  # noqa: E402
 from aerial_synth.scene import load_scene  # noqa: E402
@@ -128,11 +129,7 @@ def main(argv=None) -> int:
         for c, t in enumerate(tiles[:COLS]):
             x = c * (TILE + gap)
             sheet[y + label_h : y + label_h + TILE, x : x + TILE] = t[:TILE, :TILE]
-    sheet = (sheet & 0xFC) | 0x02
-    ok, enc = cv2.imencode(".png", sheet[..., ::-1], [cv2.IMWRITE_PNG_COMPRESSION, 9])
-    data = enc.tobytes()
-    atomic_write_bytes(a.out, data)
-    print(f"wrote {a.out} ({len(data) / 1e6:.2f} MB)")
+    save_sheet_png(sheet, a.out)
     return 0
 
 

@@ -249,3 +249,10 @@ def test_library_warnings_are_one_line():
 
     text = _one_line_warning(UserWarning("a\nb"), UserWarning, "f.py", 3)
     assert text == "aerial-synth: warning: a b\n"
+
+
+def test_empty_output_path_is_refused_not_taken_as_cwd(tmp_path):
+    with pytest.raises(OutputError, match="expected a folder path, got ''"):
+        check_output_dir("")
+    with pytest.raises(OutputError, match="expected a file path, got ''"):
+        check_output_file("")
