@@ -67,6 +67,11 @@ MATERIALS: tuple[str, ...] = (
     "cargo",
     "light_front",
     "light_rear",
+    # appended (ids above stay stable): roof coverings and lane wear
+    "roof_gravel",
+    "roof_tiles",
+    "roof_metal",
+    "track",
 )
 MATERIAL_IDS: dict[str, int] = {name: i for i, name in enumerate(MATERIALS)}
 
@@ -108,6 +113,10 @@ DEFAULT_COLOR_FOR_MATERIAL: dict[str, tuple[float, float, float]] = {
     "cargo": (0.85, 0.85, 0.83),
     "light_front": (0.90, 0.90, 0.85),
     "light_rear": (0.60, 0.05, 0.05),
+    "roof_gravel": (0.52, 0.50, 0.47),
+    "roof_tiles": (0.50, 0.25, 0.18),
+    "roof_metal": (0.58, 0.60, 0.62),
+    "track": (0.20, 0.20, 0.21),
 }
 
 
