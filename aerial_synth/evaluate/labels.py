@@ -405,7 +405,8 @@ def find_data_yaml(path: Path) -> Path | None:
 
 
 def detect_layout(path) -> str:
-    """``dota``, ``yolo-obb``, ``vedai`` or ``images`` for a dataset folder (stats input)."""
+    """``dota``, ``yolo-obb``, ``vedai``, ``collection`` (a folder of such datasets) or
+    ``images`` for a dataset folder (stats input)."""
     path = Path(path)
     if (path / "dota").is_dir() or (path / "labelTxt").is_dir() or any(
             (path / s / "labelTxt").is_dir() for s in ("train", "val", "test")):
@@ -416,7 +417,16 @@ def detect_layout(path) -> str:
         return "vedai"
     if path.name == "labelTxt":
         return "dota"
+    if _sub_datasets(path):
+        return "collection"
     return "images"
+
+
+def _sub_datasets(path: Path) -> list[Path]:
+    """Subfolders that are datasets of a labelled layout (a folder of several datasets,
+    e.g. a VEDAI folder beside a DOTA folder)."""
+    subs = sorted(p for p in path.iterdir() if p.is_dir() and not p.name.startswith("."))
+    return [p for p in subs if detect_layout(p) not in ("images", "collection")]
 
 
 def _all_images(folder: Path) -> list[Path]:
@@ -428,12 +438,21 @@ def read_dataset(path, option: str = "DIR") -> tuple[str, list[ImageLabels]]:
 
     aerial-synth exports and DOTA folders (labelTxt), YOLO-OBB folders (``images/``,
     ``labels/``, a data YAML with ``names``), VEDAI folders (``images/*_co.png`` with
-    ``annotations*/``), or a folder of images without labels (``classes`` empty)."""
+    ``annotations*/``), a folder of such datasets (``collection``: each labelled subfolder
+    is read with its own layout; item names get the subfolder as prefix), or a folder of
+    images without labels (``classes`` empty)."""
     path = Path(path)
     _must_be_dir(path, option)
     layout = detect_layout(path)
     items: list[ImageLabels] = []
-    if layout == "dota":
+    if layout == "collection":
+        for sub in _sub_datasets(path):
+            sub_layout, sub_items = read_dataset(sub, f"{option} {sub.name}/")
+            for it in sub_items:
+                it.name = f"{sub.name}/{it.name}"
+                it.extra["layout"] = sub_layout
+            items += sub_items
+    elif layout == "dota":
         pairs = []
         for base in (path / "dota", path):
             if (base / "labelTxt").is_dir():

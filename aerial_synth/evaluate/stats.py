@@ -15,7 +15,8 @@ drawn with ``numpy.random.default_rng(seed)``):
 - per vehicle: ``box_gray_mean`` (inside the box), ``ring_gray_mean`` (a 4 px ring around
   it: the box dilated by a 9 x 9 ellipse, minus the box, minus every other box of the image),
   and ``vehicle_contrast`` = (box mean - ring mean) / the image's gray sd; the report quotes
-  its median over vehicles;
+  its median over vehicles (signed), the median of its absolute value (issue 15's figure)
+  and the share of vehicles brighter than their ring;
 - colour histograms (32 bins per channel, R G B) of all pixels, inside boxes and in rings.
 
 With a second dataset: each distribution side by side, its two-sample KS statistic and
@@ -299,6 +300,9 @@ def dataset_stats(path, *, gsd: float | None = None, max_images: int = 500, seed
         "truncated_fraction": (n_trunc / n_trunc_known) if n_trunc_known else None,
         "gsd_m": _describe(np.asarray(gsds, float)) if gsds else None,
         "vehicle_contrast_median": _median(arrays["vehicle_contrast"]),
+        "vehicle_abs_contrast_median": _median(np.abs(arrays["vehicle_contrast"])),
+        "vehicle_brighter_fraction": (float(np.mean(arrays["vehicle_contrast"] > 0))
+                                      if len(arrays["vehicle_contrast"]) else None),
         "distributions": {k: _describe(v) for k, v in arrays.items()},
         "colour_histograms": {r: (h / max(h[0].sum(), 1)).round(6).tolist() for r, h in hists.items()},
     }
@@ -418,9 +422,18 @@ def run_stats(path: Path, out: Path, *, compare: Path | None = None, gsd: float 
             "image_gray_sd": {"A": _get(sa, "image_gray_sd"), "B": _get(sets[1][1], "image_gray_sd"),
                               "ks": by.get("image_gray_sd", {}).get("ks")},
             "vehicle_contrast_ks": by.get("vehicle_contrast", {}).get("ks"),
+            "vehicle_abs_contrast_median": {"A": sa["vehicle_abs_contrast_median"],
+                                            "B": sets[1][1]["vehicle_abs_contrast_median"],
+                                            "relative_difference": _relative(
+                                                sa["vehicle_abs_contrast_median"],
+                                                sets[1][1]["vehicle_abs_contrast_median"])},
+            "vehicle_brighter_fraction": {"A": sa["vehicle_brighter_fraction"],
+                                          "B": sets[1][1]["vehicle_brighter_fraction"]},
         }
     else:
         report["realism"] = {"vehicle_contrast_median": {"A": sa["vehicle_contrast_median"]},
+                             "vehicle_abs_contrast_median": {"A": sa["vehicle_abs_contrast_median"]},
+                             "vehicle_brighter_fraction": {"A": sa["vehicle_brighter_fraction"]},
                              "image_gray_mean": {"A": _get(sa, "image_gray_mean")},
                              "image_gray_sd": {"A": _get(sa, "image_gray_sd")}}
 
@@ -465,6 +478,11 @@ def run_stats(path: Path, out: Path, *, compare: Path | None = None, gsd: float 
     return text + f"\nreport: {out}/stats.json, summary.txt, {len(written)} PNG plots"
 
 
+def _relative(a, b):
+    """(a - b) / |b|: A's figure relative to the reference B (None when undefined)."""
+    return None if a is None or b is None or b == 0 else (a - b) / abs(b)
+
+
 def _get(s: dict, k: str):
     d = s["distributions"].get(k)
     return None if d is None else {"mean": d["mean"], "median": d["median"], "sd": d["sd"]}
@@ -492,8 +510,9 @@ def _summary_text(sets, label, gaps) -> str:
         lines.append(
             f"  gray mean {_fmt((d.get('image_gray_mean') or {}).get('median'))}, gray sd "
             f"{_fmt((d.get('image_gray_sd') or {}).get('median'))} (medians over images), vehicle "
-            f"contrast {_fmt(vc)} (median), difficult {_fmt(s['difficult_fraction'])}, truncated "
-            f"{_fmt(s['truncated_fraction'])}")
+            f"contrast {_fmt(vc)} (median; |contrast| {_fmt(s['vehicle_abs_contrast_median'])}, "
+            f"brighter than the ring {_fmt(s['vehicle_brighter_fraction'])}), difficult "
+            f"{_fmt(s['difficult_fraction'])}, truncated {_fmt(s['truncated_fraction'])}")
     if gaps:
         lines.append("")
         lines.append(f"domain gap, largest first ({label['A']} vs {label['B']}):")

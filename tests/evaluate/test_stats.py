@@ -187,3 +187,29 @@ def test_inside_means_pixel_centres_inside_the_box():
     assert m_ring[0] == 50.0 and not (ring & inside).any()
     # the ring reaches 4 px out: pixel columns 6..9 and 20..23 on the box's rows
     assert ring[12, 6] and ring[12, 23] and not ring[12, 5] and not ring[12, 24]
+
+
+def test_collection_of_datasets_and_abs_contrast(tmp_path):
+    """A folder holding a VEDAI folder and a DOTA folder is read as one collection; the
+    |contrast| median and the brighter share are exact on drawn boxes."""
+    root = tmp_path / "real"
+    vedai = root / "vedai"
+    (vedai / "images").mkdir(parents=True)
+    (vedai / "annotations512").mkdir()
+    co = np.full((64, 64, 3), 100, np.uint8)
+    co[17:23, 14:26] = 40  # a dark car on a 100 background
+    cv2.imwrite(str(vedai / "images/00000001_co.png"), co)
+    (vedai / "annotations512/00000001.txt").write_text("20 20 0.0 1 1 0 14 26 26 14 17 17 23 23\n")
+    # two bright cars (drawn 230 by the helper) on a 90 background
+    write_dota_image(root / "dota_crops", "p1", [[[20, 20], [40, 20], [40, 30], [20, 30]],
+                                           [[80, 60], [100, 60], [100, 70], [80, 70]]])
+    (root / "notes").mkdir()  # an unlabelled, image-less folder is ignored
+    s, dist, _ = dataset_stats(root)
+    assert s["layout"] == "collection" and s["images"] == 2 and s["objects"] == 3
+    c = dist["vehicle_contrast"]
+    assert len(c) == 3 and (c > 0).sum() == 2
+    assert s["vehicle_brighter_fraction"] == pytest.approx(2 / 3)
+    assert s["vehicle_abs_contrast_median"] == pytest.approx(float(np.median(np.abs(c))))
+    # the dark VEDAI car: (40 - 100) / sd of its image, exactly
+    g = cv2.cvtColor(co, cv2.COLOR_BGR2GRAY).astype(float)
+    assert c.min() == pytest.approx((40 - 100) / g.std())
