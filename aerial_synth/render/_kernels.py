@@ -13,6 +13,12 @@ import numpy as np
 from numba import njit, prange
 
 from ..numba_setup import KERNEL_OPTIONS as _OPTS
+from . import _materials
+
+#: sha256 (first 16 hex digits) of ``_materials.py``. :func:`compose` inlines its helpers,
+#: but numba's disk cache checks only this file's content, so this line must change
+#: whenever ``_materials.py`` does (tests/render/test_materials.py checks it).
+MATERIALS_SHA = "f1f7f2161f589f73"
 
 
 @njit(parallel=True, **_OPTS)
@@ -173,10 +179,14 @@ def compose(
     face_albedo, mat_gain, tiles, textured, fine_t, coarse_t, dry_t, wetk_t, spec_t, shine_t,
     f0_t, wet,
     light, sun_rgb, sky_rgb, miss_rgb, veil_rgb, e_sun, e_sky, spec_dim, haze, inv_alt,
-    vignetting, wear, wear_ids, refl, has_refl, out,
+    vignetting, wear, wear_ids, refl, has_refl, kind_t, face_tangent, inv_focal, tex_seed,
+    zenith_dim, out,
 ):  # pragma: no cover - compiled
     """Albedo (per-face, times the frame's per-material RGB gain ``mat_gain`` (m, 3)) with
-    procedural texture and wetness, light (sun x shadow, sky x ambient occlusion), specular + sky reflection, haze and vignetting -> ``out`` (h, w, 3) float32
+    procedural texture, material detail (:func:`._materials.detail`: pattern kind
+    ``kind_t`` (m,) per material, oriented by ``face_tangent`` (k, 2) for faces < k, world x
+    for the others; ``inv_focal`` = 1 / focal length in pixels gives the pixel footprint;
+    ``tex_seed`` uint64 seeds the cell hashes) and wetness, light (sun x shadow, sky x ambient occlusion), specular + sky reflection, haze and vignetting -> ``out`` (h, w, 3) float32
     linear radiance (tone mapping is :func:`tone`). ``refl`` (n, 3): radiance seen along
     a traced mirror ray (wet roads; < 0 = use the sky), used when ``has_refl``.
 
@@ -219,6 +229,8 @@ def compose(
                 ag = face_albedo[f, 1] * mat_gain[m, 1]
                 ab = face_albedo[f, 2] * mat_gain[m, 2]
                 nc = zero
+                sk = spec_t[m]
+                f0 = f0_t[m]
                 if textured:
                     qx, qy = _tex_coords(rays, t, i)
                     ty, tx = _texel(qx, qy)
@@ -232,6 +244,21 @@ def compose(
                     if wear > 0:
                         ar, ag, ab = _wear(m, wear, wear_ids, qx, qy, nf, t0, t1, t2, ar, ag,
                                            ab)
+                    kd = kind_t[m]
+                    if kd != 0:
+                        ti = t[i]
+                        wx = rays[i, 0] + ti * dx_
+                        wy = rays[i, 1] + ti * dy_
+                        tgx = one
+                        tgy = zero
+                        if f < face_tangent.shape[0]:
+                            tgx = face_tangent[f, 0]
+                            tgy = face_tangent[f, 1]
+                        fp = max(ti * dn * inv_focal, np.float32(1e-3))
+                        ar, ag, ab, sk, f0 = _materials.detail(
+                            kd, wx * tgx + wy * tgy, wy * tgx - wx * tgy, qx, qy,
+                            normal[i, 2], fp, tex_seed, nf, t0, t1, t2, wear, ar, ag, ab,
+                            sk, f0)
                     dk = dry_t[m]
                     if dk > 0:  # grass / foliage drift towards dry yellow-brown
                         nd = _bilinear(t1, (qx + np.float32(57.0)) / np.float32(6.0),
@@ -240,8 +267,6 @@ def compose(
                         ar += d * (dry_r - ar)
                         ag += d * (dry_g - ag)
                         ab += d * (dry_b - ab)
-                sk = spec_t[m]
-                f0 = f0_t[m]
                 shine = shine_t[m]
                 if wet > 0:  # darker porous surfaces, puddles where the coarse noise is high
                     wk = wetk_t[m] * wet
@@ -279,8 +304,12 @@ def compose(
                     if f0 > 0:
                         fres = f0 + (one - f0) * (one - ndv) ** 5
                     a = sp * np.float32(1.5) * trans
-                    # sky radiance in the units of the diffuse terms: e_sky x sky colour
-                    b = fres * np.float32(1.2) * e_sky * trans * (
+                    # sky radiance in the units of the diffuse terms: e_sky x sky colour,
+                    # x a clear sky's gradient: the zenith (seen in roofs, bonnets, water
+                    # at nadir) about 0.4 x the horizon (seen in windscreens, oblique views)
+                    rz = np.float32(2.0) * ndv * nz - vz_
+                    skyg = np.float32(1.2) - zenith_dim * max(rz, zero)
+                    b = fres * skyg * e_sky * trans * (
                         np.float32(0.4) + np.float32(0.6) * occ)
                     if has_refl and refl[i, 0] >= 0:  # a traced mirror ray (wet roads)
                         b2 = fres * trans

@@ -27,6 +27,7 @@ recorded in ``Frame.factors`` (with ``pixel_seed``, the seed of every per-pixel 
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass, fields
 from functools import lru_cache
 
@@ -238,7 +239,7 @@ def sample_factors(cfg: RenderConfig, rng: np.random.Generator) -> dict:
     return f
 
 
-_ASPHALT = [MATERIAL_IDS["asphalt"]]
+_ASPHALT = [MATERIAL_IDS["asphalt"], MATERIAL_IDS["track"]]  # tracks age with the road
 _WEAR_IDS = np.array([MATERIAL_IDS[k] for k in ("asphalt", "marking", "grass")], np.int64)
 _DRY_RGB = np.array([0.40, 0.36, 0.24], np.float32)  # dry grass / straw albedo
 _CONCRETE = [MATERIAL_IDS[k] for k in ("concrete", "paving")]
@@ -343,21 +344,110 @@ def _table(default: float, **values: float) -> np.ndarray:
 # texture amplitudes (relative albedo change per unit of noise, noise std ~ 1)
 _FINE = _table(0.05, asphalt=0.10, marking=0.09, concrete=0.08, paving=0.08, grass=0.2,
                soil=0.18, water=0.04, roof=0.07, wall=0.06, foliage=0.35, bark=0.12,
-               paint=0.008, glass=0.0, tyre=0.05, trim=0.02, cargo=0.02, metal=0.03)
+               paint=0.008, glass=0.0, tyre=0.05, trim=0.02, cargo=0.02, metal=0.03,
+               roof_gravel=0.08, roof_tiles=0.04, roof_metal=0.015, track=0.05)
 _COARSE = _table(0.04, asphalt=0.08, grass=0.16, soil=0.12, foliage=0.15, roof=0.08,
-                 water=0.1, paint=0.0, glass=0.0, tyre=0.0, trim=0.0, cargo=0.02)
+                 water=0.1, paint=0.0, glass=0.0, tyre=0.0, trim=0.0, cargo=0.02,
+                 roof_gravel=0.1, roof_tiles=0.06, roof_metal=0.03, track=0.06)
 # hue shift with coarse noise: grass/foliage drift towards dry yellow-brown
 _DRY = _table(0.0, grass=0.35, foliage=0.2, soil=0.1)
 # specular strength / shininess / sky reflection at normal incidence (F0)
 _SPEC = _table(0.0, paint=0.35, glass=0.9, water=0.8, metal=0.3, roof=0.03, cargo=0.1,
-               light_front=0.5, light_rear=0.4, trim=0.05, marking=0.02)
+               light_front=0.5, light_rear=0.4, trim=0.05, marking=0.02, roof_metal=0.3,
+               roof_tiles=0.03, track=0.07)
 _SHINE = _table(20.0, paint=80.0, glass=300.0, water=400.0, metal=40.0, light_front=100.0,
-                light_rear=100.0)
+                light_rear=100.0, roof_metal=30.0, track=25.0)
 _F0 = _table(0.0, paint=0.05, glass=0.09, water=0.06, metal=0.2, light_front=0.05,
-             light_rear=0.05, cargo=0.02)
+             light_rear=0.05, cargo=0.02, roof_metal=0.12, track=0.025)
 # how strongly wetness darkens and glosses a material
 _WETK = _table(0.0, asphalt=1.0, marking=0.7, concrete=0.9, paving=0.9, soil=0.6, roof=0.4,
-               grass=0.2)
+               grass=0.2, track=1.0, roof_gravel=0.5, roof_tiles=0.4, roof_metal=0.2)
+
+
+def _kinds() -> np.ndarray:
+    """(n_materials,) int64 pattern kind of each material (:mod:`._materials`)."""
+    from . import _materials as M
+
+    t = np.zeros(len(MATERIALS), np.int64)
+    for name, kind in (("roof_gravel", M.KIND_GRAVEL), ("roof_tiles", M.KIND_TILES),
+                       ("roof_metal", M.KIND_METAL), ("track", M.KIND_TRACK),
+                       ("asphalt", M.KIND_ASPHALT), ("paving", M.KIND_PAVING),
+                       ("concrete", M.KIND_CONCRETE), ("grass", M.KIND_VEGETATION),
+                       ("soil", M.KIND_VEGETATION), ("water", M.KIND_WATER)):
+        t[MATERIAL_IDS[name]] = kind
+    t.setflags(write=False)
+    return t
+
+
+_KIND = _kinds()
+_TANGENTS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def face_tangents(scene) -> np.ndarray:
+    """(n_static_faces, 2) float32 unit horizontal tangent of every static face of
+    ``scene``, in the RayScene's face order (objects in order): the orientation of roof
+    tiles, standing seams, paving joints and asphalt patches.
+
+    A pitched face (normal more than ~1 degree off vertical, walls included) takes its
+    normal's horizontal direction (down the slope); a flat face takes the direction of its
+    longest edge on its object's flat outline (an edge no other flat face of the object
+    shares): the run of a sidewalk or road strip, the side of a flat roof. Flat faces with
+    no outline edge take their longest edge."""
+    objs = scene.objects
+    nfs = [o.n_triangles for o in objs]
+    if not objs or sum(nfs) == 0:
+        return np.zeros((0, 2), np.float32)
+    tri = np.concatenate([np.asarray(o.vertices, np.float64)[np.asarray(o.faces)]
+                          for o in objs])  # (m, 3, 3)
+    obj = np.repeat(np.arange(len(objs), dtype=np.int64), nfs)
+    nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    nl = np.linalg.norm(nrm, axis=1)
+    hl = np.linalg.norm(nrm[:, :2], axis=1)
+    out = np.zeros((len(tri), 2), np.float64)
+    out[:, 0] = 1.0
+    pitched = hl > 0.02 * np.maximum(nl, 1e-30)
+    out[pitched] = nrm[pitched, :2] / hl[pitched, None]
+    flat = np.flatnonzero(~pitched & (nl > 0))
+    if len(flat):
+        a = tri[flat]
+        b = np.roll(a, -1, axis=1)  # edges (a0 a1), (a1 a2), (a2 a0)
+        q1 = np.round(a * 1000.0).astype(np.int64)  # 1 mm keys
+        q2 = np.round(b * 1000.0).astype(np.int64)
+        swap = (q1[..., 0] > q2[..., 0]) | ((q1[..., 0] == q2[..., 0]) & (
+            (q1[..., 1] > q2[..., 1]) | ((q1[..., 1] == q2[..., 1]) & (q1[..., 2] > q2[..., 2]))))
+        lo = np.where(swap[..., None], q2, q1)
+        hi = np.where(swap[..., None], q1, q2)
+        key = np.broadcast_to(obj[flat, None], swap.shape).astype(np.uint64)
+        mult = np.uint64(0x9E3779B97F4A7C15)
+        for part in (lo[..., 0], lo[..., 1], lo[..., 2], hi[..., 0], hi[..., 1], hi[..., 2]):
+            key = (key * mult) ^ part.astype(np.uint64)
+            key ^= key >> np.uint64(29)
+        _, inv, cnt = np.unique(key.reshape(-1), return_inverse=True, return_counts=True)
+        outline = (cnt[inv] == 1).reshape(-1, 3)
+        e = (b - a)[..., :2]
+        ln = np.linalg.norm(e, axis=2)
+        score = ln + np.where(outline, 1e6, 0.0)  # an outline edge first, then length
+        k = np.argmax(score, axis=1)
+        ev = e[np.arange(len(flat)), k]
+        el = np.maximum(ln[np.arange(len(flat)), k], 1e-12)
+        out[flat] = ev / el[:, None]
+    return out.astype(np.float32)
+
+
+def _tex_hash_seed(texture_seed: int) -> int:
+    """uint64 seed of the material patterns' cell hashes for a texture seed."""
+    ss = np.random.SeedSequence([int(texture_seed), 0x4D41])
+    return int(ss.generate_state(1, np.uint64)[0])
+
+
+def _face_tangents_cached(rayscene) -> np.ndarray:
+    """:func:`face_tangents` of the RayScene's static scene, computed once per RayScene."""
+    t = _TANGENTS.get(rayscene)
+    if t is None:
+        t = face_tangents(rayscene.scene)
+        t.setflags(write=False)
+        _TANGENTS[rayscene] = t
+    return t
 
 _FOLIAGE = MATERIAL_IDS["foliage"]
 _PEEL = 0.03  # shadow-ray origin offset along the normal, metres
@@ -607,7 +697,10 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
               _SHINE, _F0, wet, L, sun_col, sky_col, (sky_col * np.float32(0.25)).astype(np.float32), veil, e_sun, e_sky,
               np.float32(1.0 - 0.9 * oc), np.float32(factors["haze"]), np.float32(1.0 / alt),
               np.float32(factors.get("vignetting", 0.0)),
-              np.float32(factors.get("road_wear", 0.0)), _WEAR_IDS, refl, has_refl, lin)
+              np.float32(factors.get("road_wear", 0.0)), _WEAR_IDS, refl, has_refl, _KIND,
+              _face_tangents_cached(rayscene), np.float32(1.0 / float(camera.K[0][0])),
+              np.uint64(_tex_hash_seed(int(factors["texture_seed"]) if textured else 0)),
+              np.float32(0.72 * (1.0 - oc)), lin)
     mark("compose")
 
     # ---------------------------------------------------------------- camera
