@@ -279,8 +279,8 @@ def test_m_per_px_too_fine_for_the_scene(cli_main, capsys, tmp_path):
     assert cli_main(["scene", "show", "city_park", "--out", str(out), "--m-per-px", "0.05"]) == 2
     line = _one_error_line(capsys)
     # the map covers the scene's bounds (505 m x 507 m: tree crowns reach past the edge)
-    assert "--m-per-px: 0.05 gives a 10097x10150 px map of city_park (505 m x 507 m); " \
-           "expected at least 0.0634 m/px (at most 8000 px a side)" in line, line
+    assert "--m-per-px: 0.05 gives a 10133x10094 px map of city_park (507 m x 505 m); " \
+           "expected at least 0.0633 m/px (at most 8000 px a side)" in line, line
     assert not out.exists()
 
 

@@ -226,7 +226,10 @@ def test_shifted_glb_places_and_renders_like_the_unshifted(city_park_files):
     add_placement(rs_a, pa, simple_boxes=True)
     add_placement(rs_b, pb, simple_boxes=True)
     cfg = CameraConfig(width_px=384, height_px=384, gsd_m=0.15)
-    v = pa.vehicles[0]
+    # aim at the vehicle with the most neighbours within 20 m (whatever the scene's layout)
+    xy = np.array([[u.x_m, u.y_m] for u in pa.vehicles])
+    near = (np.linalg.norm(xy[:, None] - xy[None], axis=-1) < 20.0).sum(axis=1)
+    v = pa.vehicles[int(np.argmax(near))]
     cam = Camera.look_at_ground(cfg, (v.x_m, v.y_m, 0.0), yaw_deg=30.0, tilt_deg=20.0)
     quick = RenderConfig(jpeg_probability=0.0)
     fa = render_frame(rs_a, cam, pa, np.random.default_rng(1), quick)

@@ -39,12 +39,12 @@ def test_bundled_list():
 
 #: Scene.vertex_hash() of the bundled scenes. Refactoring must not change them (they held
 #: through the split of procedural.py into the scene/procedural/ package); a deliberate
-#: change of the geometry updates them here. Last change: ground under roads and parking
-#: (no cracks), and the suburb's parking lots with painted bays.
+#: change of the geometry updates them here. Last change: clumped crowns of four species,
+#: roof coverings and roof details, tyre tracks along the lanes (issue 15).
 BUNDLED_HASHES = {
-    "city_park": "f1be56b68114b46580af9ebe8157ba534f929b89b357ab44e7696ede709efc1d",
-    "suburb": "559fa064182a4196f92d0eae5926349c6b164c54dde99d320cfdf4177f8c1904",
-    "highway": "2913df8d86feb33895bb0bc161b8e3dfcfd702ea71dab859ad64a91c60af0be9",
+    "city_park": "ba1c40b8d7cad8776cab469c83785aaf6df7aefebb7c04e7b0249729cfbd2e6b",
+    "suburb": "f888e0b6017cbb9a4dd0fe8f179a418d6d6e8720fd9e361bf53bac1e9f5a7bbb",
+    "highway": "bd974b741ef10bb7aea9b31561a3a3e2c7e288184a52db887d6d4ef154c3aab5",
 }
 
 
@@ -85,9 +85,13 @@ def test_road_truth_is_drivable(name):
     tr = rs.trace_down(pts)
     ok = tr.is_label(sc.label_config.drivable)
     assert ok.mean() >= 0.999, (name, ok.mean())
-    # the road itself (not markings, not parking) is at the road height
+    # the road itself (not markings, not parking) is at the road height, or 5 mm above it
+    # on the tyre tracks (label road, material track)
     on_road = tr.is_label({"road"})
-    np.testing.assert_allclose(tr.z[on_road], 0.05, atol=1e-9)
+    z = tr.z[on_road]
+    on_track = np.abs(z - 0.055) < 1e-9
+    assert (on_track | (np.abs(z - 0.05) < 1e-9)).all()
+    assert 0.1 < on_track.mean() < 0.6, on_track.mean()
 
 
 @pytest.mark.parametrize("name", BUNDLED)

@@ -2,7 +2,7 @@
 
 :class:`Builder` collects road centre lines, parking, water, buildings, trees and poles,
 answers placement questions (is this spot free?) and finally emits the labelled objects
-and the ground truth. Heights: ground 0.0, road and parking 0.05, lane markings 0.06,
+and the ground truth. Heights: ground 0.0, road and parking 0.05, tyre tracks 0.055, lane markings 0.06,
 sidewalks raised 0.12. Ground covers the whole scene except water (the only other surface
 at its height), so it lies 5 cm under roads and parking and catches any ray that slips
 past their edges.
@@ -14,33 +14,22 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..build import cylinder, ellipsoid, merge_meshes, polygon_object, prism
+from ..build import cylinder, merge_meshes, polygon_object, prism
 from ..model import LabelConfig, RoadTruth, Scene, SceneObject, SceneTruth
-from .markings import road_markings
+from .markings import TRACK_DEFAULTS, road_markings, road_tracks
 from .roads import Road, offset_line, polygonal, road_polygon
+from .roofs import building_objects
+from .trees import DEFAULT_SPECIES, draw_species, species_weights, tree_objects
 
-__all__ = ["Builder", "Z_GROUND", "Z_ROAD", "Z_MARKING", "Z_SIDEWALK"]
+__all__ = ["Builder", "Z_GROUND", "Z_ROAD", "Z_TRACK", "Z_MARKING", "Z_SIDEWALK"]
 
 Z_GROUND = 0.0
 Z_ROAD = 0.05
 Z_MARKING = 0.06
+#: Tyre tracks: 5 mm above the asphalt, under the markings (coplanar offset like them).
+Z_TRACK = 0.055
 Z_SIDEWALK = 0.12
 
-_ROOF_COLORS = (
-    (0.55, 0.30, 0.24),
-    (0.42, 0.22, 0.18),
-    (0.35, 0.35, 0.37),
-    (0.62, 0.58, 0.52),
-    (0.25, 0.27, 0.30),
-    (0.70, 0.45, 0.32),
-    (0.48, 0.50, 0.46),
-)
-_FOLIAGE_COLORS = (
-    (0.16, 0.32, 0.12),
-    (0.20, 0.36, 0.14),
-    (0.13, 0.27, 0.11),
-    (0.24, 0.34, 0.16),
-)
 
 
 # --------------------------------------------------------------------------- assembly
@@ -59,7 +48,8 @@ class Builder:
         self.parking = []  # shapely polygons
         self.water = []
         self.buildings: list[tuple[Any, float]] = []  # (polygon, height)
-        self.trees: list[tuple[float, float, float, float, float]] = []  # x, y, r, h, trunk_h
+        # x, y, crown r, height, species index, shape u, colour number (procedural/trees.py)
+        self.trees: list[tuple[float, ...]] = []
         self.poles: list[tuple[float, float, float]] = []  # x, y, height
         self.pads = []  # extra road polygons not tied to a centre line (median openings)
 
@@ -160,8 +150,10 @@ class Builder:
             cache[key] = g
         return cache[key]
 
-    def add_tree_row(self, line, spacing_m, crown_r, height, trunk_frac=0.4, jitter_m=0.5):
-        """Trees along a line (shapely); crowns may overhang, trunks must be clear."""
+    def add_tree_row(self, line, spacing_m, crown_r, height, trunk_frac=0.4, jitter_m=0.5,
+                     species=None):
+        """Trees along a line (shapely); crowns may overhang, trunks must be clear.
+        species: {name: weight} (procedural/trees.py), None = the scene's mix."""
         import shapely
 
         L = line.length
@@ -170,9 +162,9 @@ class Builder:
         s = np.arange(spacing_m / 2, L, spacing_m)
         pts = shapely.get_coordinates(shapely.line_interpolate_point(line, s))
         pts = pts + self.rng.uniform(-jitter_m, jitter_m, pts.shape)
-        self._add_trees(pts, crown_r, height, trunk_frac)
+        self._add_trees(pts, crown_r, height, trunk_frac, species)
 
-    def add_tree_cluster(self, n, region, crown_r, height, trunk_frac=0.4):
+    def add_tree_cluster(self, n, region, crown_r, height, trunk_frac=0.4, species=None):
         """n random trees in a shapely region."""
         import shapely
 
@@ -181,18 +173,31 @@ class Builder:
             [self.rng.uniform(minx, maxx, 4 * n), self.rng.uniform(miny, maxy, 4 * n)]
         )
         inside = shapely.contains(region, shapely.points(pts))
-        self._add_trees(pts[inside][:n], crown_r, height, trunk_frac)
+        self._add_trees(pts[inside][:n], crown_r, height, trunk_frac, species)
 
-    def _add_trees(self, pts, crown_r, height, trunk_frac):
+    def species_weights(self, species=None) -> np.ndarray:
+        """Species probabilities: ``species`` if given, else the spec's ``tree_species``,
+        else the generator's default mix (procedural/trees.py)."""
+        if species is None:
+            species = self.spec.get("tree_species")
+        if species is None:
+            species = DEFAULT_SPECIES.get(str(self.spec.get("generator")), {"broadleaf": 1.0})
+        return species_weights(species)
+
+    def _add_trees(self, pts, crown_r, height, trunk_frac, species=None):
+        """Trees at pts whose trunks stand clear; trunk_frac is kept for callers (the crown
+        shape now follows the species, procedural/trees.py)."""
         if len(pts) == 0:
             return
         n = len(pts)
         r = self.rng.uniform(crown_r[0], crown_r[1], n)
         h = self.rng.uniform(height[0], height[1], n)
+        sp, u = draw_species(self.rng, n, self.species_weights(species))
+        cu = self.rng.random(n)
         ok = self.trunk_ok(pts, 0.6)
-        for (x, y), rr, hh, good in zip(pts, r, h, ok):
+        for (x, y), rr, hh, s, uu, cc, good in zip(pts, r, h, sp, u, cu, ok):
             if good:
-                self.trees.append((float(x), float(y), float(rr), float(hh), float(hh * trunk_frac)))
+                self.trees.append((float(x), float(y), float(rr), float(hh), float(s), float(uu), float(cc)))
 
     def add_poles_along(self, r: Road, spacing_m: float, height_m: float, side_offset_m: float):
         import shapely
@@ -262,32 +267,29 @@ class Builder:
             v, f = prism(sidewalk, Z_GROUND, Z_SIDEWALK)
             objs.append(SceneObject("sidewalk", "sidewalk", v, f))
         mcfg = self.spec.get("markings", {}) or {}
-        if mcfg.get("enabled", True):
-            for i, r in enumerate(self.roads):
-                others = [p for j, p in enumerate(self._road_polys) if j != i] + list(self.pads)
-                others_area = shapely.union_all(others) if others else None
+        tcfg = {**TRACK_DEFAULTS, **(self.spec.get("tracks", {}) or {})}
+        lane_w = float(mcfg.get("lane_width_m", 3.5))
+        for i, r in enumerate(self.roads):
+            if not (mcfg.get("enabled", True) or tcfg["enabled"]):
+                break
+            others = [p for j, p in enumerate(self._road_polys) if j != i] + list(self.pads)
+            others_area = shapely.union_all(others) if others else None
+            if tcfg["enabled"]:
+                # worn wheel paths: road label (drivable), 'track' material, 5 mm up
+                t = polygonal(road_tracks(r, others_area, tcfg, lane_w).intersection(road_area))
+                if not t.is_empty:
+                    objs.append(polygon_object(f"track_{r.name}", "road", t, Z_TRACK, material="track"))
+            if mcfg.get("enabled", True):
                 m = polygonal(road_markings(r, others_area, mcfg).intersection(road_area))
                 if not m.is_empty:
                     objs.append(polygon_object(f"lane_marking_{r.name}", "lane_marking", m, Z_MARKING))
-        for i, (poly, hgt) in enumerate(self.buildings):
-            v, f = prism(poly, Z_GROUND, hgt)
-            col = _ROOF_COLORS[int(self.rng.integers(len(_ROOF_COLORS)))]
-            objs.append(SceneObject(f"building_{i:03d}", "building", v, f, color=col))
-        # trees grouped by foliage colour (few objects, many triangles)
-        crown_sub = int(self.spec.get("tree_subdivisions", 1))
-        groups: dict[int, list] = {}
-        trunks = []
-        for x, y, r, h, th in self.trees:
-            k = int(self.rng.integers(len(_FOLIAGE_COLORS)))
-            rz = max((h - th) / 2, 0.6 * r)
-            groups.setdefault(k, []).append(ellipsoid((x, y, h - rz), (r, r, rz), crown_sub))
-            trunks.append(cylinder((x, y), max(0.12, 0.06 * r), Z_GROUND, h - rz + 0.3 * rz, 8))
-        for k in sorted(groups):
-            v, f = merge_meshes(groups[k])
-            objs.append(SceneObject(f"tree_crowns_{k}", "tree", v, f, color=_FOLIAGE_COLORS[k]))
-        if trunks:
-            v, f = merge_meshes(trunks)
-            objs.append(SceneObject("trunks", "trunk", v, f))
+        # buildings with roof coverings and roof details, each from a seed of its own
+        seeds = self.rng.integers(2**62, size=len(self.buildings))
+        objs.extend(building_objects(self.buildings, seeds, self.spec))
+        # trees: clumped crowns grouped by species and colour, one trunk object
+        if self.trees:
+            objs.extend(tree_objects(np.asarray(self.trees, float),
+                                     sub=int(self.spec.get("tree_subdivisions", 0))))
         if self.poles:
             v, f = merge_meshes([cylinder((x, y), 0.12, Z_GROUND, h, 8) for x, y, h in self.poles])
             objs.append(SceneObject("poles", "pole", v, f))

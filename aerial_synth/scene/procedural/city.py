@@ -22,7 +22,8 @@ Spec keys (all optional but ``size_km``; see docs/scale.md)::
     size_km: 2.0                   # world edge length, km
     block_m: [90, 140]             # block pitch range (street centre to street centre)
     street_width_m: 8.0            # two-way street, one lane per direction
-    avenue_width_m: 14.0           # avenue, two lanes per direction
+    avenue_width_m: 14.0           # avenue carriageway width
+    avenue_lanes: 2                # avenue lanes per direction (lane width = width / 2 / lanes)
     avenue_every: 3                # every k-th street is an avenue (0 = none)
     sidewalk_m: 2.5
     park_fraction: 0.2             # share of blocks that are parks
@@ -42,10 +43,12 @@ from typing import Mapping
 import numpy as np
 
 from ...errors import SceneError
-from ..build import merge_meshes, prism
+from ..build import merge_meshes
 from ..model import SceneObject
-from .builder import Z_GROUND, Builder
+from .builder import Builder
 from .roads import Road
+from .roofs import building_objects
+from .trees import draw_species, tree_objects
 
 __all__ = ["generate_city", "city_layout", "with_size_m", "CityLayout", "CITY_DEFAULTS"]
 
@@ -59,6 +62,7 @@ CITY_DEFAULTS: dict = {
     "block_m": [90.0, 140.0],
     "street_width_m": 8.0,
     "avenue_width_m": 14.0,
+    "avenue_lanes": 2,
     "avenue_every": 3,
     "sidewalk_m": 2.5,
     "park_fraction": 0.2,
@@ -68,11 +72,6 @@ CITY_DEFAULTS: dict = {
     "building_height_m": [6.0, 30.0],
 }
 
-_ROOF_COLORS = (
-    (0.55, 0.30, 0.24), (0.42, 0.22, 0.18), (0.35, 0.35, 0.37), (0.62, 0.58, 0.52),
-    (0.25, 0.27, 0.30), (0.70, 0.45, 0.32), (0.48, 0.50, 0.46),
-)
-_FOLIAGE_COLORS = ((0.16, 0.32, 0.12), (0.20, 0.36, 0.14), (0.13, 0.27, 0.11), (0.24, 0.34, 0.16))
 
 
 @dataclass(frozen=True)
@@ -123,6 +122,14 @@ def _positive(spec: Mapping, key: str, lo: float = 0.0, hi: float = float("inf")
     if not (np.isfinite(f) and lo <= f <= hi):
         raise SceneError(f"city: field {key!r} must be in [{lo}, {hi}], got {v!r}")
     return f
+
+
+def _lanes(spec: Mapping) -> int:
+    """``avenue_lanes``: an integer number of lanes per direction, 1..6."""
+    v = _num(spec, "avenue_lanes")
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or v != int(v) or not 1 <= v <= 6:
+        raise SceneError(f"city: field 'avenue_lanes' must be an integer in [1, 6], got {v!r}")
+    return int(v)
 
 
 def with_size_m(spec: Mapping, where: str = "scene spec") -> Mapping:
@@ -189,12 +196,6 @@ def _span(lo: float, hi: float, w_lo: float, w_hi: float) -> tuple[float, float]
     return (float(a), float(b)) if b > a else None
 
 
-def _unit_sphere():
-    from ..build import ellipsoid
-
-    return ellipsoid((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), 1)
-
-
 def generate_city(b: Builder, spec: Mapping) -> None:
     """Fill ``b`` with the part of the city world inside ``spec['window_m']`` (default:
     the whole world). Registered as generator ``city``."""
@@ -219,6 +220,7 @@ def generate_city(b: Builder, spec: Mapping) -> None:
                              f"[{-half}, {-half}, {half}, {half}]")
     b.box = shapely.box(x0, y0, x1, y1)
     sidewalk = _positive(spec, "sidewalk_m", 0.0, 10.0)
+    av_lanes = _lanes(spec)
 
     # ---- streets that reach into the padded window
     for axis, (pos, wid, av) in enumerate(((lay.xs, lay.wx, lay.avx), (lay.ys, lay.wy, lay.avy))):
@@ -233,7 +235,7 @@ def generate_city(b: Builder, spec: Mapping) -> None:
             pts = [(p, sp[0]), (p, sp[1])] if axis == 0 else [(sp[0], p), (sp[1], p)]
             b.roads.append(Road(
                 name=f"{'ns' if axis == 0 else 'ew'}_{k}", line=LineString(pts), width_m=float(w),
-                lanes=2 if is_av else 1, sidewalk_m=sidewalk, centre="solid" if is_av else "dashed",
+                lanes=av_lanes if is_av else 1, sidewalk_m=sidewalk, centre="solid" if is_av else "dashed",
             ))
     if not b.roads:  # a window between streets: a short stub keeps generate() happy
         raise SceneError(f"city: window {[x0, y0, x1, y1]} holds no street; make it larger")
@@ -242,8 +244,8 @@ def generate_city(b: Builder, spec: Mapping) -> None:
     ex, ey = lay.block_edges(0), lay.block_edges(1)
     ix = np.flatnonzero((ex[1:] > x0 - 40.0) & (ex[:-1] < x1 + 40.0))
     iy = np.flatnonzero((ey[1:] > y0 - 40.0) & (ey[:-1] < y1 + 40.0))
-    buildings: list[tuple] = []  # (polygon, height, colour index)
-    trees: list[np.ndarray] = []  # (k, 5) x, y, crown r, height, colour index
+    buildings: list[tuple] = []  # (polygon, height, roof seed)
+    trees: list[np.ndarray] = []  # (k, 7) x, y, crown r, height, species, shape u, colour u
     park_f = _positive(spec, "park_fraction", 0.0, 1.0)
     lot_f = _positive(spec, "parking_fraction", 0.0, 1.0)
     pond_f = _positive(spec, "pond_fraction", 0.0, 1.0)
@@ -267,7 +269,7 @@ def generate_city(b: Builder, spec: Mapping) -> None:
     b.freeze_areas()
     win_box = b.box
     b._city_buildings = [t for t in buildings if t[0].intersects(win_box)]
-    tr = np.concatenate(trees) if trees else np.zeros((0, 5))
+    tr = np.concatenate(trees) if trees else np.zeros((0, 7))
     if len(tr):
         keep = ((tr[:, 0] + tr[:, 2] > x0) & (tr[:, 0] - tr[:, 2] < x1)
                 & (tr[:, 1] + tr[:, 2] > y0) & (tr[:, 1] - tr[:, 2] < y1))
@@ -298,11 +300,12 @@ def _park(rng, box, density, pond_f, b: Builder, trees: list) -> None:
     xy = np.column_stack([rng.uniform(bx0 + 3, bx1 - 3, n), rng.uniform(by0 + 3, by1 - 3, n)])
     r = rng.uniform(2.5, 5.0, n)
     hgt = rng.uniform(7.0, 15.0, n)
-    col = rng.integers(len(_FOLIAGE_COLORS), size=n)
+    sp, u = draw_species(rng, n, b.species_weights())
+    col = rng.random(n)
     if pond is not None:
         ok = ~shapely.intersects(pond.buffer(1.0), shapely.points(xy))
-        xy, r, hgt, col = xy[ok], r[ok], hgt[ok], col[ok]
-    trees.append(np.column_stack([xy, r, hgt, col]))
+        xy, r, hgt, sp, u, col = xy[ok], r[ok], hgt[ok], sp[ok], u[ok], col[ok]
+    trees.append(np.column_stack([xy, r, hgt, sp, u, col]))
 
 
 def _built(rng, box, heights, lot_f, b: Builder, buildings: list, trees: list, edge_streets) -> None:
@@ -349,14 +352,15 @@ def _built(rng, box, heights, lot_f, b: Builder, buildings: list, trees: list, e
         if blocked is not None and poly.intersects(blocked):
             continue
         h = float(hmin + (hmax - hmin) * rng.uniform(0.0, 1.0) ** (2.5 - 2.0 * tall))
-        buildings.append((poly, h, int(rng.integers(len(_ROOF_COLORS)))))
+        buildings.append((poly, h, int(rng.integers(2**62))))  # the building's roof seed
     # a few courtyard trees
     n = int(rng.integers(0, 6))
     if n and (iy1 - iy0) > 2 * depth + 12 and (ix1 - ix0) > 2 * depth + 12:
         xy = np.column_stack([rng.uniform(ix0 + depth + 4, ix1 - depth - 4, n),
                               rng.uniform(iy0 + depth + 4, iy1 - depth - 4, n)])
-        trees.append(np.column_stack([xy, rng.uniform(2.5, 4.0, n), rng.uniform(6.0, 10.0, n),
-                                      rng.integers(len(_FOLIAGE_COLORS), size=n)]))
+        r, hgt = rng.uniform(2.5, 4.0, n), rng.uniform(6.0, 10.0, n)
+        sp, u = draw_species(rng, n, b.species_weights())
+        trees.append(np.column_stack([xy, r, hgt, sp, u, rng.random(n)]))
 
 
 def _city_scene(b: Builder, source: str, meta: dict):
@@ -369,29 +373,12 @@ def _city_scene(b: Builder, source: str, meta: dict):
     if poles:
         v, f = merge_meshes([_trunk(x, y, 0.12, h) for x, y, h in poles])
         objs.append(SceneObject("poles", "pole", v, f))
-    for poly, hgt, ci in b._city_buildings:
-        v, f = prism(poly, Z_GROUND, hgt)
-        c = poly.centroid
-        objs.append(SceneObject(f"building_{c.x:.2f}_{c.y:.2f}", "building", v, f,
-                                color=_ROOF_COLORS[ci]))
+    bl = b._city_buildings  # roofs from each building's own seed (procedural/roofs.py)
+    names = [f"building_{p.centroid.x:.2f}_{p.centroid.y:.2f}" for p, _, _ in bl]
+    objs.extend(building_objects([(p, h) for p, h, _ in bl], [s for _, _, s in bl], b.spec, names))
     tr = b._city_trees
-    if len(tr):
-        sv, sf = _unit_sphere()
-        for ci in range(len(_FOLIAGE_COLORS)):
-            t = tr[tr[:, 4] == ci]
-            if not len(t):
-                continue
-            r, h = t[:, 2], t[:, 3]
-            rz = np.maximum(0.3 * h, 0.6 * r)
-            centre = np.column_stack([t[:, 0], t[:, 1], h - rz])
-            radii = np.column_stack([r, r, rz])
-            v = (sv[None] * radii[:, None] + centre[:, None]).reshape(-1, 3)
-            f = (sf[None] + (np.arange(len(t)) * len(sv))[:, None, None]).reshape(-1, 3)
-            objs.append(SceneObject(f"tree_crowns_{ci}", "tree", v, f, color=_FOLIAGE_COLORS[ci]))
-        trunks = [_trunk(x, y, max(0.12, 0.06 * r), h - max(0.3 * h, 0.6 * r) * 0.7)
-                  for x, y, r, h, _ in tr]
-        v, f = merge_meshes(trunks)
-        objs.append(SceneObject("trunks", "trunk", v, f))
+    if len(tr):  # clumped crowns by species and colour (procedural/trees.py)
+        objs.extend(tree_objects(tr, sub=int(b.spec.get("tree_subdivisions", 0))))
     scene.objects = [o for o in objs if o.n_triangles]
     return scene
 

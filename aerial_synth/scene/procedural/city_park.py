@@ -23,13 +23,13 @@ def generate_city_park(b: Builder, spec: Mapping):
                 off = offset_line(r.line, sign * (r.width_m / 2 + r.sidewalk_m + float(row.get("offset_m", 2.5))))
                 b.add_tree_row(
                     off, float(row.get("spacing_m", 12.0)), row.get("crown_radius_m", [3.5, 5.0]),
-                    row.get("height_m", [9, 14]),
+                    row.get("height_m", [9, 14]), species=row.get("species"),
                 )
     cl = t.get("park", {}) or {}
     if int(cl.get("count", 0)) > 0:
         free = b.box.difference(b._blocked.buffer(3.0))
         b.add_tree_cluster(int(cl["count"]), free, cl.get("crown_radius_m", [2.5, 5.5]),
-                           cl.get("height_m", [6, 16]))
+                           cl.get("height_m", [6, 16]), species=cl.get("species"))
     p = spec.get("poles", {}) or {}
     for r in b.roads:
         if r.width_m >= float(p.get("min_road_width_m", 8.0)):

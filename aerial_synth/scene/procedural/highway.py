@@ -117,7 +117,7 @@ def generate_highway(b: Builder, spec: Mapping):
     if int(t.get("count", 0)) > 0:
         free = b.box.difference(b._blocked.buffer(6.0))
         b.add_tree_cluster(int(t["count"]), free, t.get("crown_radius_m", [2.5, 5.0]),
-                           t.get("height_m", [7, 15]))
+                           t.get("height_m", [7, 15]), species=t.get("species"))
     random_buildings(b, spec.get("buildings", {}) or {})
     p = spec.get("poles", {}) or {}
     if p:

@@ -1,4 +1,5 @@
-"""Lane markings of procedural roads: dashed and solid lines, clipped out of junctions."""
+"""Lane markings and tyre tracks of procedural roads: dashed and solid lines, worn wheel
+paths along every lane, both clipped out of junctions."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ from typing import Mapping
 
 from .roads import Road, offset_line
 
-__all__ = ["road_markings", "dashes", "solid"]
+__all__ = ["road_markings", "road_tracks", "lane_centres", "dashes", "solid", "TRACK_DEFAULTS"]
 
 
 def dashes(line, dash_m: float, gap_m: float, width_m: float):
@@ -67,3 +68,46 @@ def road_markings(r: Road, others_area, cfg: Mapping):
         m = m.difference(others_area.buffer(float(cfg.get("junction_clear_m", 1.5))))
     return m
 
+
+
+#: Defaults of the ``tracks`` spec section (worn wheel paths along every lane).
+TRACK_DEFAULTS = {"enabled": True, "width_m": 0.6, "gauge_m": 1.8, "junction_clear_m": 2.0}
+
+
+def lane_centres(r: Road, lane_width_m: float = 3.5) -> list[float]:
+    """Lateral offsets (metres, positive = left of the line direction) of the lane centres
+    of one road: a one-way carriageway's ``lanes`` lanes from its left shoulder; a two-way
+    road's ``lanes`` lanes per direction, splitting the width evenly (an unmarked road:
+    one lane per direction when at least 5.5 m wide, else one lane down the middle)."""
+    w = r.width_m
+    if r.oneway:
+        left = w / 2 - r.shoulder_left_m
+        return [left - (k + 0.5) * lane_width_m for k in range(max(1, r.lanes))]
+    n = r.lanes if r.lanes > 0 else (1 if w >= 5.5 else 0)
+    if n == 0:
+        return [0.0]
+    lw = w / (2 * n)
+    return [s * (k + 0.5) * lw for s in (1.0, -1.0) for k in range(n)]
+
+
+def road_tracks(r: Road, others_area, cfg: Mapping, lane_width_m: float = 3.5):
+    """Tyre-track polygon of one road: two worn strips per lane (``width_m`` wide, their
+    centres ``gauge_m`` apart, centred on the lane), clipped to the road's own surface and
+    kept ``junction_clear_m`` out of junctions (``others_area`` = the other roads)."""
+    import shapely
+
+    tw = float(cfg.get("width_m", TRACK_DEFAULTS["width_m"]))
+    gauge = float(cfg.get("gauge_m", TRACK_DEFAULTS["gauge_m"]))
+    parts = []
+    for c in lane_centres(r, lane_width_m):
+        for d in (-gauge / 2, gauge / 2):
+            off = offset_line(r.line, c + d) if abs(c + d) > 1e-9 else r.line
+            if not off.is_empty:
+                parts.append(solid(off, tw))
+    if not parts:
+        return shapely.Polygon()
+    m = shapely.union_all(parts).intersection(r.line.buffer(r.width_m / 2 - 0.05, cap_style="flat"))
+    if others_area is not None and not others_area.is_empty:
+        clear = float(cfg.get("junction_clear_m", TRACK_DEFAULTS["junction_clear_m"]))
+        m = m.difference(others_area.buffer(clear))
+    return m

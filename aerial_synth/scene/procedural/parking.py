@@ -401,6 +401,6 @@ def generate_depot(b, spec: Mapping):
     n = int(t.get("count", 40))
     if n > 0:
         free = b.box.difference(b._blocked.buffer(3.0))
-        b.add_tree_cluster(n, free, [2.0, 3.5], [5, 9])
+        b.add_tree_cluster(n, free, [2.0, 3.5], [5, 9], species=t.get("species"))
     for r in b.roads:
         b.add_poles_along(r, 40.0, 8.0, r.sidewalk_m + 0.5)

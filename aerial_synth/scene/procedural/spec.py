@@ -182,7 +182,27 @@ BUILDINGS = section({
     "height_m": span(0.0, 1e3),
     "clearance_m": nonneg(1e3),
 })
-TREE_SHAPE = {"crown_radius_m": span(0.0, 50.0), "height_m": span(0.0, 200.0)}
+def species(f: str, v: Any) -> dict:
+    """A tree species mix ``{broadleaf: 0.7, conifer: 0.3}`` (procedural/trees.py)."""
+    from .trees import species_weights
+
+    species_weights(v, f)
+    return {str(k): float(x) for k, x in v.items()}
+
+
+TREE_SHAPE = {"crown_radius_m": span(0.0, 50.0), "height_m": span(0.0, 200.0), "species": species}
+ROOFS = section({
+    "enabled": boolean,
+    "details": boolean,
+    "materials": section({"roof_gravel": nonneg(1e6), "roof_tiles": nonneg(1e6),
+                          "roof_metal": nonneg(1e6)}),
+})
+TRACKS = section({
+    "enabled": boolean,
+    "width_m": pos(3.0),
+    "gauge_m": pos(5.0),
+    "junction_clear_m": nonneg(1e3),
+})
 POLES = section({
     "min_road_width_m": nonneg(1e3),
     "spacing_m": spacing(),
@@ -225,7 +245,8 @@ LOT = section({
     "entrance": boolean,
 }, required=("center", "size_m"), allow_none=False)
 
-_COMMON = ("name", "generator", "seed", "size_m", "markings", "tree_subdivisions")
+_COMMON = ("name", "generator", "seed", "size_m", "markings", "tree_subdivisions", "tree_species",
+           "roofs", "tracks")
 #: generator -> top-level keys it cannot do without
 REQUIRED: dict[str, tuple[str, ...]] = {"suburb": ("grid",), "highway": ("highway",)}
 
@@ -275,7 +296,7 @@ SCHEMAS: dict[str, dict[str, Check]] = {
         "yards": nullable(list_of(LOT, 100)),
         "garage": section({"center": pair(), "size_m": pair(0.0, 1e4, positive_only=True),
                            "height_m": pos(200.0)}, required=("center", "size_m")),
-        "trees": section({"count": integer(0, MAX_COUNT)}),
+        "trees": section({"count": integer(0, MAX_COUNT), "species": species}),
     },
     "highway": {
         "highway": section({
@@ -340,6 +361,12 @@ def _check(spec: Any, seed: Any, generators) -> tuple[dict, int]:
         out["markings"] = MARKINGS("markings", spec["markings"])
     if "tree_subdivisions" in spec:
         out["tree_subdivisions"] = integer(0, 4)("tree_subdivisions", spec["tree_subdivisions"])
+    if "tree_species" in spec:
+        out["tree_species"] = species("tree_species", spec["tree_species"])
+    if "roofs" in spec:
+        out["roofs"] = ROOFS("roofs", spec["roofs"])
+    if "tracks" in spec:
+        out["tracks"] = TRACKS("tracks", spec["tracks"])
     if kind == "city":  # procedural/city.py checks its values; here: no unknown keys
         from .city import CITY_DEFAULTS
 

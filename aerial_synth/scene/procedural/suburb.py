@@ -107,12 +107,12 @@ def generate_suburb(b: Builder, spec: Mapping):
             for sign in (1.0, -1.0):
                 off = offset_line(r.line, sign * (r.width_m / 2 + r.sidewalk_m + float(row.get("offset_m", 1.2))))
                 b.add_tree_row(off, float(row.get("spacing_m", 18.0)), row.get("crown_radius_m", [2.5, 4.0]),
-                               row.get("height_m", [7, 11]))
+                               row.get("height_m", [7, 11]), species=row.get("species"))
     yard = t.get("yard", {}) or {}
     if int(yard.get("count", 0)) > 0:
         free = b.box.difference(b._blocked.buffer(2.0))
         b.add_tree_cluster(int(yard["count"]), free, yard.get("crown_radius_m", [2.0, 4.0]),
-                           yard.get("height_m", [5, 10]))
+                           yard.get("height_m", [5, 10]), species=yard.get("species"))
     p = spec.get("poles", {}) or {}
     for r in b.roads:
         if r.width_m >= float(p.get("min_road_width_m", 7.0)):
