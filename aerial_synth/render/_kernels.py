@@ -22,10 +22,29 @@ MATERIALS_SHA = "f1f7f2161f589f73"
 
 
 @njit(parallel=True, **_OPTS)
-def finish_buffers(rays, t, normal, depth):  # pragma: no cover - compiled
-    """In place: flip ``normal`` (n, 3) to face the camera; ``depth`` (n,) = t, 0 on miss."""
+def finish_buffers(rays, t, gid, pid, lut, offs, face_label, face_instance, normal, face,
+                   depth, semantic, instance):  # pragma: no cover - compiled
+    """One pass over the n primary hits, straight from Embree's answer (no numpy temporaries):
+
+    ``face`` (n,) int64 global face = ``lut[offs[gid] + pid]`` (-1 on miss, i.e. ``gid`` not
+    a geometry of the scene: see ``RayScene._face_lut``), ``semantic`` (n,) uint8 and
+    ``instance`` (n,) uint32 from the per-face tables ``face_label`` / ``face_instance``
+    (0 on miss), ``depth`` (n,) = t (0 on miss), and in place: ``normal`` (n, 3) flipped to
+    face the camera."""
     n = t.shape[0]
+    ng = offs.shape[0] - 1
     for i in prange(n):
+        g = np.int64(gid[i])
+        f = np.int64(-1)
+        if g < ng:
+            f = lut[offs[g] + np.int64(pid[i])]
+        face[i] = f
+        if f >= 0:
+            semantic[i] = np.uint8(face_label[f])
+            instance[i] = np.uint32(face_instance[f])
+        else:
+            semantic[i] = 0
+            instance[i] = 0
         ti = t[i]
         depth[i] = ti if np.isfinite(ti) else np.float32(0.0)
         d = normal[i, 0] * rays[i, 3] + normal[i, 1] * rays[i, 4] + normal[i, 2] * rays[i, 5]

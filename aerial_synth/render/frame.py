@@ -82,7 +82,8 @@ def render_frame(
     buf = cast_buffers(rayscene, camera)
     t1 = time.perf_counter()
     vehicles = placement.vehicles if placement is not None else []
-    vis, amodal = compute_visibility(rayscene, camera, buf.instance, vehicles)
+    vis, amodal = compute_visibility(rayscene, camera, buf.instance, vehicles,
+                                     depth=buf.depth)
     t2 = time.perf_counter()
     shade_t: dict = {}
     if cfg.backend == "pyrender":

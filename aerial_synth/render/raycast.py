@@ -153,22 +153,31 @@ class AmodalMasks:
 
 
 def cast_buffers(rayscene, camera) -> Buffers:
-    """Cast one ray per pixel centre; return instance / semantic / depth and hit data."""
-    h, w = camera.height_px, camera.width_px
-    rays = camera._all_rays()
-    hits = rayscene.cast_rays(rays)
+    """Cast one ray per pixel centre; return instance / semantic / depth and hit data.
+
+    Embree's answer is read without copies and turned into faces, labels, depth and
+    camera-facing normals in one compiled pass (:func:`._kernels.finish_buffers`); the
+    result is the same as mapping :meth:`RayScene.cast_rays` hits."""
     from ._kernels import finish_buffers
 
-    t = hits.t
-    n = np.ascontiguousarray(hits.normal, dtype=np.float32)
-    if not n.flags.writeable:
-        n = n.copy()
-    depth = np.empty(h * w, np.float32)
-    finish_buffers(rays, t, n, depth)  # normals face the camera; depth 0 on miss
-    depth = depth.reshape(h, w)
-    instance = hits.instance_id.astype(np.uint32).reshape(h, w)
-    semantic = hits.label_id.astype(np.uint8).reshape(h, w)
-    return Buffers(h, w, instance, semantic, depth, hits.face, t, n, rays)
+    h, w = camera.height_px, camera.width_px
+    n = h * w
+    rays = camera._all_rays()
+    ans = rayscene._cast_raw(rays)
+    lut, offs = ans["lut"]
+    t = ans["t_hit"]
+    normal = ans["primitive_normals"]
+    if not (normal.flags.writeable and normal.flags.c_contiguous):
+        normal = np.array(normal, np.float32)
+    face = np.empty(n, np.int64)
+    depth = np.empty(n, np.float32)
+    semantic = np.empty(n, np.uint8)
+    instance = np.empty(n, np.uint32)
+    finish_buffers(rays, t, ans["geometry_ids"], ans["primitive_ids"], lut, offs,
+                   rayscene.face_label, rayscene.face_instance, normal, face, depth, semantic,
+                   instance)
+    return Buffers(h, w, instance.reshape(h, w), semantic.reshape(h, w), depth.reshape(h, w),
+                   face, t, normal, rays)
 
 
 def vehicle_boxes_corners(vehicles) -> np.ndarray:
@@ -229,14 +238,109 @@ def _box_xyxy(rows: np.ndarray, cols: np.ndarray) -> tuple[int, int, int, int]:
     return (int(cols.min()), int(rows.min()), int(cols.max()) + 1, int(rows.max()) + 1)
 
 
+def _candidate_boxes(rayscene, camera, vehicles, margin_px: int = 1):
+    """Every vehicle of ``rayscene`` whose mesh may show in the image, for
+    :func:`._vis_kernels.amodal_cast_mask`: (cand (k, 12) float64, ids (k,) int64).
+
+    A vehicle of ``vehicles`` gets the box of its mesh in its placement frame (heading),
+    the others their world axis-aligned bounds; the pixel range holds the box's projection
+    plus ``margin_px`` (the whole image when it reaches behind the camera)."""
+    ids, b = rayscene._vehicle_bounds()
+    h, w = camera.height_px, camera.width_px
+    if len(ids) == 0:
+        return np.zeros((0, 12)), np.zeros(0, np.int64)
+    # vertex bounds first: cheap, and they drop the vehicles out of view
+    x0, y0, x1, y1, seen = _project_bounds(camera, _corners(b), margin_px)
+    keep = seen & (x1 > 0) & (x0 < w) & (y1 > 0) & (y0 < h)
+    ids, b = ids[keep], b[keep]
+    pose = {int(v.id): v for v in vehicles}
+    frames = np.empty((len(ids), 8))
+    cache = rayscene.__dict__.setdefault("_render_box_cache", {})  # reset on vehicle changes
+    for k, i in enumerate(ids):
+        v = pose.get(int(i))
+        if v is None:  # axis-aligned: centre, heading 0, half sizes, z range
+            c = 0.5 * (b[k, 0] + b[k, 1])
+            frames[k] = (c[0], c[1], 1.0, 0.0, *(0.5 * (b[k, 1, :2] - b[k, 0, :2])),
+                         b[k, 0, 2], b[k, 1, 2])
+            continue
+        key = (int(i), v.x_m, v.y_m, v.heading_rad)
+        got = cache.get(key)
+        if got is None:
+            vert = rayscene._vehicles[int(i)][0].astype(np.float64)
+            cs, sn = np.cos(v.heading_rad), np.sin(v.heading_rad)
+            lx = cs * (vert[:, 0] - v.x_m) + sn * (vert[:, 1] - v.y_m)
+            ly = -sn * (vert[:, 0] - v.x_m) + cs * (vert[:, 1] - v.y_m)
+            got = (v.x_m, v.y_m, cs, sn, float(np.abs(lx).max()), float(np.abs(ly).max()),
+                   float(vert[:, 2].min()), float(vert[:, 2].max()))
+            cache[key] = got
+        frames[k] = got
+    # pixel ranges of the oriented boxes
+    cs, sn = frames[:, 2:3], frames[:, 3:4]
+    sl = np.array([1, 1, -1, -1, 1, 1, -1, -1], float) * frames[:, 4:5]
+    sw = np.array([1, -1, -1, 1, 1, -1, -1, 1], float) * frames[:, 5:6]
+    zz = np.where(np.array([0, 0, 0, 0, 1, 1, 1, 1], bool), frames[:, 7:8], frames[:, 6:7])
+    corners = np.stack([frames[:, 0:1] + cs * sl - sn * sw, frames[:, 1:2] + sn * sl + cs * sw,
+                        zz], axis=2)
+    x0, y0, x1, y1, _ = _project_bounds(camera, corners, margin_px)
+    cand = np.concatenate([np.stack([x0, y0, x1, y1], axis=1), frames], axis=1)
+    return np.ascontiguousarray(cand, np.float64), ids.astype(np.int64)
+
+
+def _corners(b: np.ndarray) -> np.ndarray:
+    """(k, 8, 3) corners of axis-aligned bounds (k, 2, 3)."""
+    sel = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [0, 0, 1], [1, 0, 1],
+                    [0, 1, 1], [1, 1, 1]])
+    return b[:, sel, np.arange(3)]
+
+
+_BOX_EDGES = np.array([[0, 1], [1, 3], [3, 2], [2, 0], [4, 5], [5, 7], [7, 6], [6, 4],
+                       [0, 4], [1, 5], [2, 6], [3, 7]])
+
+
+def _project_bounds(camera, corners: np.ndarray, margin_px: int):
+    """Pixel ranges [x0, x1) x [y0, y1) (float64, whole pixels, may reach far outside the
+    image) holding the projection of each box given by its (8, 3) corners (the order of
+    :func:`_corners`) plus ``margin_px``. A box that crosses the camera plane is clipped to
+    z-depth >= 1 mm first (camera rays reach nothing closer). Also returns (k,) bool: False
+    for a box wholly behind that plane, which no camera ray can reach."""
+    k = len(corners)
+    pc = camera.to_camera(corners.reshape(-1, 3)).reshape(k, 8, 3)
+    eps = 1e-3
+    a, b = pc[:, _BOX_EDGES[:, 0]], pc[:, _BOX_EDGES[:, 1]]  # (k, 12, 3)
+    za, zb = a[..., 2], b[..., 2]
+    cross = (za - eps) * (zb - eps) < 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        f = np.where(cross, (eps - za) / (zb - za), 0.0)
+    pts = np.concatenate([pc, a + f[..., None] * (b - a)], axis=1)  # (k, 20, 3)
+    ok = np.concatenate([pc[..., 2] >= eps, cross], axis=1)
+    z = np.where(ok, np.maximum(pts[..., 2], eps), 1.0)
+    u = camera.K[0, 0] * pts[..., 0] / z + camera.K[0, 2]
+    v = camera.K[1, 1] * pts[..., 1] / z + camera.K[1, 2]
+    seen = ok.any(axis=1)
+    big = np.inf
+    x0 = np.floor(np.where(ok, u, big).min(axis=1)) - margin_px
+    x1 = np.ceil(np.where(ok, u, -big).max(axis=1)) + margin_px + 1
+    y0 = np.floor(np.where(ok, v, big).min(axis=1)) - margin_px
+    y1 = np.ceil(np.where(ok, v, -big).max(axis=1)) + margin_px + 1
+    lim = 1e9  # keep the ranges finite (int64 in the kernel)
+    return (np.clip(x0, -lim, lim), np.clip(y0, -lim, lim), np.clip(x1, -lim, lim),
+            np.clip(y1, -lim, lim), seen)
+
+
 def compute_visibility(
-    rayscene, camera, instance: np.ndarray, vehicles, margin_px: int = 2
+    rayscene, camera, instance: np.ndarray, vehicles, margin_px: int = 2,
+    depth: np.ndarray | None = None,
 ) -> tuple[dict[int, VehicleVisibility], AmodalMasks]:
     """Visibility of every vehicle in view (see the module docstring).
 
     instance : (H, W) uint32 primary instance buffer
     vehicles : iterable of PlacedVehicle-like records (id, x_m, y_m, z_m, heading_rad,
                length_m, width_m, height_m, cls); they must be in ``rayscene``.
+    depth    : (H, W) primary z-depth buffer (0 = nothing hit), optional. With it, pixels
+               whose vehicles the primary hit already tells are not cast again: a pixel
+               whose first surface is a vehicle and that only one box covers, or where no
+               other vehicle's bounds reach as deep as the first surface (so no vehicle
+               hides behind it). The result is the same as without ``depth`` (tested).
     Returns ({id: VehicleVisibility}, AmodalMasks) for vehicles with at least one amodal
     pixel inside the image.
     """
@@ -266,18 +370,36 @@ def compute_visibility(
         x0[sel].astype(np.int64), y0[sel].astype(np.int64),
         x1[sel].astype(np.int64), y1[sel].astype(np.int64),
     )
-    rays = camera.pixel_rays(rows, cols)
+    pair_pix, pair_id = [], []
+    if depth is not None:  # pixels the primary hit settles: their pairs without a ray
+        from ._vis_kernels import amodal_cast_mask
+
+        cand, cid = _candidate_boxes(rayscene, camera, vehicles)
+        kk = np.asarray(camera.K, np.float64)
+        cast = amodal_cast_mask(rows, cols, multi, instance, depth,
+                                np.asarray(camera.center, np.float64),
+                                np.ascontiguousarray(camera.R, np.float64), kk[0, 0], kk[1, 1],
+                                kk[0, 2], kk[1, 2], cand, cid, 0.01)
+        known = np.flatnonzero(~cast)
+        kv = instance[rows[known], cols[known]]
+        pair_pix.append(known[kv > 0])
+        pair_id.append(kv[kv > 0].astype(np.int64))
+        todo = np.flatnonzero(cast)
+    else:
+        todo = np.arange(len(rows))
+    rays = camera.pixel_rays(rows[todo], cols[todo])
+    tmulti = multi[todo]
     hits = rayscene.cast_rays(rays, ignore=VEHICLES_ONLY)
     got = hits.instance_id > 0
-    pair_pix = [np.flatnonzero(got)]
-    pair_id = [hits.instance_id[got]]
+    pair_pix.append(todo[got])
+    pair_id.append(hits.instance_id[got])
     # where boxes overlap, continue each ray behind the vehicle it hit: restart it where
     # it leaves that vehicle's 3-D box (placed vehicles never share space), so one peel
     # per vehicle in line suffices; a part outside its box just costs another peel
     boxes = _box_frames([vehicles[k] for k in sel])
     slot = np.full(max(present) + 1, -1, np.int64)  # id -> row of boxes (-1: not in view)
     slot[[int(vehicles[k].id) for k in sel]] = np.arange(len(sel))
-    idx = np.flatnonzero(got & multi)
+    idx = np.flatnonzero(got & tmulti)  # rows of ``rays``
     t_acc = hits.t[idx].astype(np.float64)
     last = hits.instance_id[idx]
     for _ in range(_MAX_PEELS):
@@ -292,7 +414,7 @@ def compute_visibility(
         hh = rayscene.cast_rays(r2, ignore=VEHICLES_ONLY)
         g = hh.instance_id > 0
         idx, t_acc, last = idx[g], t_go[g] + hh.t[g], hh.instance_id[g]
-        pair_pix.append(idx)
+        pair_pix.append(todo[idx])
         pair_id.append(last)
     pix = np.concatenate(pair_pix).astype(np.int64)
     ids = np.concatenate(pair_id).astype(np.int64)

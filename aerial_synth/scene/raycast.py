@@ -183,6 +183,27 @@ class RayScene:
     def _invalidate(self) -> None:
         self._built.clear()
         self._tables_dirty = True
+        self._veh_bounds = None
+        self._render_box_cache = {}  # the renderer's per-vehicle boxes (render/raycast.py)
+
+    def _vehicle_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(ids (k,) int64 sorted, bounds (k, 2, 3) float64 [min xyz, max xyz]): world
+        axis-aligned box of every vehicle mesh (cached until vehicles change)."""
+        cached = getattr(self, "_veh_bounds", None)
+        if cached is None:
+            ids = sorted(self._vehicles)
+            b = np.empty((len(ids), 2, 3), np.float64)
+            for k, i in enumerate(ids):
+                v = self._vehicles[i][0]
+                if len(v):
+                    b[k, 0] = v.min(axis=0)
+                    b[k, 1] = v.max(axis=0)
+                else:  # no triangles: nothing can be hit
+                    b[k, 0] = np.inf
+                    b[k, 1] = -np.inf
+            cached = (np.asarray(ids, np.int64), b)
+            self._veh_bounds = cached
+        return cached
 
     # ------------------------------------------------------------------ tables
     def _rebuild_tables(self) -> None:
@@ -255,6 +276,28 @@ class RayScene:
         return built
 
     # ------------------------------------------------------------------ casting
+    def _face_lut(self, built: _Built) -> tuple[np.ndarray, np.ndarray]:
+        """(concatenated per-geometry face maps + a sentinel -1, (n_geometries + 1,) offsets)
+        for ``built``: global face = concat[offs[gid] + pid] for a valid geometry id."""
+        if built.lut is None:
+            maps = [built.geom_face_base.get(g, np.zeros(0, np.int64))
+                    for g in range(max(built.geom_face_base, default=-1) + 1)]
+            offs = np.concatenate([[0], np.cumsum([len(m) for m in maps])]).astype(np.int64)
+            built.lut = (np.concatenate(maps + [np.array([-1], np.int64)]), offs)
+        return built.lut
+
+    def _cast_raw(self, rays: np.ndarray, ignore: frozenset[str] = frozenset()) -> dict:
+        """Embree's answer for ``rays`` (n, 6) float32 C-contiguous, without any mapping:
+        {"t_hit", "geometry_ids", "primitive_ids", "primitive_normals", ...} as numpy
+        arrays (no copies), plus "lut" (see :meth:`_face_lut`). For callers that map faces
+        in their own fused pass (the renderer's primary cast); tables are up to date."""
+        built = self._get_built(ignore)
+        o3d = _o3d()
+        ans = built.scene.cast_rays(o3d.core.Tensor.from_numpy(rays))
+        out = {k: v.numpy() for k, v in ans.items()}
+        out["lut"] = self._face_lut(built)
+        return out
+
     def _cast_faces(self, rays: np.ndarray, ignore: frozenset[str]):
         """Cast and map hits to global face indices (-1 on miss). Returns (ans, face)."""
         built = self._get_built(ignore)
@@ -263,12 +306,7 @@ class RayScene:
         ans = built.scene.cast_rays(o3d.core.Tensor.from_numpy(r))
         gid = ans["geometry_ids"].numpy()
         pid = ans["primitive_ids"].numpy()
-        if built.lut is None:
-            maps = [built.geom_face_base.get(g, np.zeros(0, np.int64))
-                    for g in range(max(built.geom_face_base, default=-1) + 1)]
-            offs = np.concatenate([[0], np.cumsum([len(m) for m in maps])]).astype(np.int64)
-            built.lut = (np.concatenate(maps + [np.array([-1], np.int64)]), offs)
-        concat, offs = built.lut
+        concat, offs = self._face_lut(built)
         valid = gid < len(offs) - 1
         idx = np.where(valid, offs[np.where(valid, gid, 0)] + pid, len(concat) - 1)
         return ans, concat[idx]

@@ -1,0 +1,85 @@
+"""Compiled helpers of the visibility pass (:func:`aerial_synth.render.raycast.compute_visibility`).
+
+Kept apart from the shading kernels (:mod:`._kernels`) so that the two can change
+independently. Results do not depend on the number of threads (no parallel loops here).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..numba_setup import KERNEL_OPTIONS as _OPTS
+
+__all__ = ["amodal_cast_mask"]
+
+
+@njit(**_OPTS)
+def amodal_cast_mask(rows, cols, multi, instance, depth, centre, rot, fx, fy, cx, cy, cand,
+                     cid, tol):  # pragma: no cover - compiled
+    """Which pixels of the amodal union still need a vehicles-only ray (True = cast).
+
+    rows, cols, multi : (m,) the union's pixels (:func:`._kernels.box_union_pixels`)
+    instance, depth   : (h, w) primary buffers (uint32 ids, z-depth with 0 = nothing hit)
+    centre (3,), rot (3, 3) camera-to-world, fx, fy, cx, cy : the pinhole camera (float64)
+    cand (k, 12) float64 per candidate vehicle ``cid[k]``: pixel range x0, y0, x1, y1
+        ([x0, x1) x [y0, y1), every pixel whose ray can meet its mesh), then a box that
+        holds its mesh: centre x, y, cos, sin of its heading, half length, half width,
+        z low, z high (world)
+    tol : metres added to every box and allowed on depths
+
+    A pixel inside the image skips its ray when the primary hit already tells every vehicle
+    its ray meets. Its first surface (depth d0) is the first vehicle hit too when it is a
+    vehicle ``v0``, and no other vehicle can lie in front of d0; so when no other candidate
+    box reaches d0 along the ray (the ray misses the box, or leaves it before d0 - tol), the
+    ray meets ``v0`` only (or no vehicle). A pixel that one box covers (``multi`` False) only
+    needs its first vehicle, so ``v0 > 0`` alone settles it.
+    """
+    h, w = instance.shape
+    deep = np.zeros((h, w), np.bool_)  # another vehicle may lie on the ray at d0 or beyond
+    for k in range(cid.shape[0]):
+        x0, y0 = max(np.int64(cand[k, 0]), 0), max(np.int64(cand[k, 1]), 0)
+        x1, y1 = min(np.int64(cand[k, 2]), w), min(np.int64(cand[k, 3]), h)
+        bx, by, bc, bs = cand[k, 4], cand[k, 5], cand[k, 6], cand[k, 7]
+        hl, hw = cand[k, 8] + tol, cand[k, 9] + tol
+        zl, zh = cand[k, 10] - tol, cand[k, 11] + tol
+        # the camera centre in the box frame
+        ox, oy = centre[0] - bx, centre[1] - by
+        lox, loy, loz = bc * ox + bs * oy, -bs * ox + bc * oy, centre[2]
+        vk = cid[k]
+        for r in range(y0, y1):
+            ny = (r + 0.5 - cy) / fy
+            for c in range(x0, x1):
+                if deep[r, c] or np.int64(instance[r, c]) == vk:
+                    continue
+                d0 = np.float64(depth[r, c])
+                if d0 <= 0:  # nothing hit: no vehicle on the ray
+                    continue
+                nx = (c + 0.5 - cx) / fx
+                dx = rot[0, 0] * nx + rot[0, 1] * ny + rot[0, 2]
+                dy = rot[1, 0] * nx + rot[1, 1] * ny + rot[1, 2]
+                dz = rot[2, 0] * nx + rot[2, 1] * ny + rot[2, 2]
+                ldx, ldy = bc * dx + bs * dy, -bs * dx + bc * dy
+                t0, t1 = -np.inf, np.inf
+                for o, dd, lo, hi in ((lox, ldx, -hl, hl), (loy, ldy, -hw, hw),
+                                      (loz, dz, zl, zh)):
+                    if dd == 0.0:
+                        if o < lo or o > hi:
+                            t0, t1 = np.inf, -np.inf
+                    else:
+                        ta, tb = (lo - o) / dd, (hi - o) / dd
+                        t0 = max(t0, min(ta, tb))
+                        t1 = min(t1, max(ta, tb))
+                if t0 <= t1 and t1 >= d0 - tol:
+                    deep[r, c] = True
+    m = rows.shape[0]
+    out = np.ones(m, np.bool_)
+    for j in range(m):
+        r, c = rows[j], cols[j]
+        if r < 0 or r >= h or c < 0 or c >= w:
+            continue
+        if instance[r, c] > 0 and not multi[j]:
+            out[j] = False
+        elif not deep[r, c]:
+            out[j] = False
+    return out
