@@ -139,6 +139,12 @@ class ScenarioConfig:
     lane_offsets_m    : optional list of d values for multi-lane roads (thesis §6 future work):
                         each seeded line picks one lane, e.g. [1.75, 5.25, 8.75] for three
                         3.5 m lanes per direction; null = every line uses lane_offset_m
+    fill_lanes        : fill every lane of a multi-lane carriageway: a finished line starts the
+                        line of the next lane inwards (lane_width_m further from the edge) at
+                        its first vehicle, the way a double lane starts the opposite one, while
+                        that lane still lies on the line's side of the road (its half of an
+                        undivided road, the whole carriageway of a divided one or one-way road)
+    lane_width_m      : the lane width fill_lanes steps by, [2, 6] m
     traffic           : "right" (edge on the vehicle's right) or "left"
     double_lane_probability : chance that a finished line gets an opposite lane, [0, 1]
     gap_m             : the clearance kept between two vehicle footprints, [0, 10] m: two
@@ -148,7 +154,8 @@ class ScenarioConfig:
     min_center_distance_m : optional thesis rule (8 m centre to centre); null = off
     lines / vehicles  : default amount when the caller gives neither (positive or null)
     seed_batch        : random traces per batch when looking for line seeds
-    max_seed_attempts : give up seeding after this many random traces
+    max_seed_attempts : give up seeding after this many random traces...
+    seed_attempts_per_ha : ...or this many per hectare of the scene's extent, if more, [0, 1e6]
     """
 
     name: str = "jam"
@@ -157,6 +164,8 @@ class ScenarioConfig:
     vehicles_per_line: LinesConfig = field(default_factory=LinesConfig)
     lane_offset_m: float = 1.75
     lane_offsets_m: tuple[float, ...] | None = None
+    fill_lanes: bool = False
+    lane_width_m: float = 3.5
     traffic: str = "right"
     double_lane_probability: float = 0.8
     gap_m: float = 0.5
@@ -166,6 +175,7 @@ class ScenarioConfig:
     probe: ProbeConfig = field(default_factory=ProbeConfig)
     seed_batch: int = 4096
     max_seed_attempts: int = 50000
+    seed_attempts_per_ha: float = 2000.0
     #: parking, street-parking and mixed scenarios (placement/parking_config.py)
     parking: ParkingConfig | None = None
 
@@ -195,6 +205,9 @@ class ScenarioConfig:
                     f"lane_offsets_m: expected a non-empty list of distances in (0, 50] m or null, "
                     f"got {V.show(self.lane_offsets_m)}")
             s(self, "lane_offsets_m", offs)
+        if not isinstance(self.fill_lanes, bool):
+            raise ConfigError(f"fill_lanes: expected true or false, got {V.show(self.fill_lanes)}")
+        s(self, "lane_width_m", V.in_range("lane_width_m", self.lane_width_m, 2.0, 6.0))
         s(self, "double_lane_probability",
           V.probability("double_lane_probability", self.double_lane_probability))
         s(self, "gap_m", V.in_range("gap_m", self.gap_m, 0.0, 10.0))
@@ -204,6 +217,7 @@ class ScenarioConfig:
             s(self, k, _opt(V.integer, k, getattr(self, k), lo=1, hi=MAX_COUNT))
         s(self, "seed_batch", V.integer("seed_batch", self.seed_batch, 1, 1_000_000))
         s(self, "max_seed_attempts", V.integer("max_seed_attempts", self.max_seed_attempts, 1, 10**9))
+        s(self, "seed_attempts_per_ha", V.in_range("seed_attempts_per_ha", self.seed_attempts_per_ha, 0.0, 1e6))
 
     def to_dict(self) -> dict:
         d = asdict(self)

@@ -88,29 +88,61 @@ class FootprintIndex:
 
     A new footprint collides when it comes closer than ``gap_m`` to a placed one (the
     clearance between two footprints is gap_m: exactly gap_m apart is accepted, within a
-    1 µm tolerance), or, with ``gap_m`` = 0, when their interiors overlap (touching is fine).
+    1 µm tolerance), or, with ``gap_m`` = 0, when their interiors overlap (touching is fine);
+    with ``min_center_distance_m`` also when the centres are closer than that; with
+    ``lane_spacing`` also when it stands in the lane of a placed vehicle heading its way
+    closer than the spacing floor (the headings of both must be given).
 
-    shapely's STRtree is immutable, so new footprints go to a short list that is checked
-    directly and folded into a rebuilt tree every ``rebuild_every`` insertions.
+    Candidate pairs come from the footprints' centres and bounding radii (a scipy cKDTree
+    over the older footprints, rebuilt every ``rebuild_every`` insertions, plus a brute-force
+    pass over the recent ones); only those pairs get the exact shapely test, vectorised.
+    :meth:`select` decides a whole batch at once with the same result as testing and adding
+    its footprints one after the other.
     """
 
-    def __init__(self, gap_m: float, min_center_distance_m: float | None = None, rebuild_every: int = 128):
+    def __init__(self, gap_m: float, min_center_distance_m: float | None = None, rebuild_every: int = 512,
+                 lane_spacing=None):
         self.gap_m = float(gap_m)
         self.min_center = min_center_distance_m
+        #: optional (min_m, half_lane_m, max_turn_rad): two vehicles heading the same way
+        #: (within max_turn_rad) in one lane (centres less than half_lane_m apart across
+        #: the heading) keep min_m centre to centre (a traffic scenario's spacing floor)
+        self.lane_spacing = lane_spacing
+        self._h = np.zeros(64)
         self.rebuild_every = rebuild_every
-        self._polys: list = []
-        self._centers: list[tuple[float, float]] = []
+        self._geoms = np.empty(64, dtype=object)
+        self._xy = np.zeros((64, 2))
+        self._r = np.zeros(64)
+        self._n = 0
         self._tree = None
         self._tree_n = 0
+        self._rmax = 0.0
 
     def __len__(self) -> int:
-        return len(self._polys)
+        return self._n
 
+    @property
+    def geometries(self) -> list:
+        """The indexed footprints, in insertion order."""
+        return list(self._geoms[: self._n])
+
+    _polys = geometries  # the name earlier versions used
+
+    # ------------------------------------------------------------------ geometry
     def polygon(self, x, y, heading, length, width):
         """The bare footprint (no gap added): the gap is a distance between footprints."""
         import shapely
 
         return shapely.Polygon(footprint_corners_xy(x, y, heading, length, width))
+
+    def polygons(self, x, y, heading, length, width):
+        """Footprints of n vehicles at once: (geometries (n,), centres (n, 2), radii (n,))."""
+        import shapely
+
+        x, y, h, ln, w = (np.atleast_1d(np.asarray(a, dtype=np.float64)) for a in (x, y, heading, length, width))
+        x, y, h, ln, w = np.broadcast_arrays(x, y, h, ln, w)
+        geoms = shapely.polygons(footprint_corners_xy(x, y, h, ln, w)) if len(x) else np.empty(0, object)
+        return np.asarray(geoms, dtype=object), np.stack([x, y], 1), 0.5 * np.hypot(ln, w)
 
     def point_zone(self, xy, radius_m: float = 2.0):
         """A disc around a seed point: seeds this close to a placed vehicle are skipped."""
@@ -118,44 +150,195 @@ class FootprintIndex:
 
         return shapely.Point(float(xy[0]), float(xy[1])).buffer(radius_m, quad_segs=4)
 
-    def _close(self, others, poly) -> bool:
-        """Does any of ``others`` (array of polygons) come closer to ``poly`` than the gap?"""
+    @staticmethod
+    def _describe(geom, center_xy):
+        import shapely
+
+        pts = shapely.get_coordinates(geom)
+        c = np.asarray(center_xy, float) if center_xy is not None else pts.mean(axis=0)
+        return c, float(np.sqrt(((pts - c) ** 2).sum(axis=1).max())) if len(pts) else 0.0
+
+    # ------------------------------------------------------------------ pair tests
+    def _exact(self, a, b) -> np.ndarray:
+        """Do the geometries a[k] and b[k] come closer than the gap (overlap when gap 0)?"""
         import shapely
 
         d = self.gap_m - GAP_TOL_M
+        if not len(a):
+            return np.zeros(0, bool)
         if d > 0:
-            return bool(np.any(shapely.dwithin(others, poly, d)))
-        hit = others[shapely.intersects(others, poly)]
-        return bool(len(hit)) and bool(np.any(shapely.area(shapely.intersection(hit, poly)) > 1e-9))
+            return np.asarray(shapely.dwithin(a, b, d), bool)
+        hit = np.asarray(shapely.intersects(a, b), bool)
+        if hit.any():
+            k = np.flatnonzero(hit)
+            hit[k] = shapely.area(shapely.intersection(a[k], b[k])) > 1e-9
+        return hit
+
+    def _conflicts(self, qxy, qr, ixy, ir, qg, ig, i, j, centers: bool, qh=None, ih=None) -> np.ndarray:
+        """Which candidate pairs (query i, item j) conflict: the gap rule on the footprints,
+        the centre-distance rule where ``centers``, the lane rule where headings are given."""
+        dxy = qxy[i] - ixy[j]
+        dd = np.sqrt((dxy**2).sum(axis=1))
+        out = np.zeros(len(i), bool)
+        if self.min_center and centers:
+            out |= dd < self.min_center
+        if self.lane_spacing is not None and centers and qh is not None and ih is not None:
+            lo, half, turn = self.lane_spacing
+            a, b = qh[i], ih[j]
+            same = np.abs(np.angle(np.exp(1j * (a - b)))) < turn
+            across = np.abs(-np.sin(b) * dxy[:, 0] + np.cos(b) * dxy[:, 1])
+            out |= same & (dd < lo) & (across < half)
+        near = ~out & (dd <= qr[i] + ir[j] + max(self.gap_m, 0.0) + 1e-6)
+        k = np.flatnonzero(near)
+        out[k] = self._exact(qg[i[k]], ig[j[k]])
+        return out
+
+    def _reach(self) -> float:
+        return max(self.gap_m, 0.0) + 1e-6
+
+    def _candidates(self, qxy, qr, centers: bool):
+        """Candidate pairs (query index, item index) whose bounding discs come within reach."""
+        n = self._n
+        if n == 0 or not len(qxy):
+            return np.zeros(0, np.int64), np.zeros(0, np.int64)
+        rq = qr + self._rmax + self._reach()
+        if self.min_center and centers:
+            rq = np.maximum(rq, self.min_center)
+        if self.lane_spacing is not None and centers:
+            rq = np.maximum(rq, self.lane_spacing[0])
+        ii, jj = [], []
+        if self._tree is not None:
+            lists = self._tree.query_ball_point(qxy, rq, return_sorted=False)
+            lens = np.fromiter((len(v) for v in lists), np.int64, len(lists))
+            if lens.sum():
+                ii.append(np.repeat(np.arange(len(qxy)), lens))
+                ii_j = np.fromiter((k for v in lists for k in v), np.int64, int(lens.sum()))
+                jj.append(ii_j)
+        m0 = self._tree_n
+        if n > m0:  # recent footprints: brute force (at most rebuild_every of them)
+            rxy = self._xy[m0:n]
+            d2 = ((qxy[:, None, :] - rxy[None, :, :]) ** 2).sum(axis=2)
+            a, b = np.nonzero(d2 <= (rq[:, None]) ** 2)
+            ii.append(a)
+            jj.append(b + m0)
+        if not ii:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64)
+        return np.concatenate(ii).astype(np.int64), np.concatenate(jj).astype(np.int64)
+
+    # ------------------------------------------------------------------ queries
+    def collides_many(self, geoms, xy, r, centers: bool = True, heading=None) -> np.ndarray:
+        """(n,) bool: each geometry collides with an indexed footprint (batch not mutual)."""
+        geoms = np.asarray(geoms, dtype=object)
+        xy = np.asarray(xy, float).reshape(-1, 2)
+        r = np.asarray(r, float).reshape(-1)
+        out = np.zeros(len(geoms), bool)
+        i, j = self._candidates(xy, r, centers)
+        if len(i):
+            qh = None if heading is None else np.asarray(heading, float).reshape(-1)
+            hit = self._conflicts(xy, r, self._xy, self._r, geoms, self._geoms, i, j, centers, qh, self._h)
+            out[i[hit]] = True
+        return out
+
+    def near_points(self, xy, radius_m: float = 2.0) -> np.ndarray:
+        """(n,) bool: a disc of ``radius_m`` around each point comes closer than the gap to
+        an indexed footprint (seed points that close to a placed vehicle are skipped)."""
+        import shapely
+
+        xy = np.asarray(xy, float).reshape(-1, 2)
+        if not len(xy):
+            return np.zeros(0, bool)
+        pts = np.asarray(shapely.points(xy), dtype=object)
+        r = np.full(len(xy), float(radius_m))
+        out = np.zeros(len(xy), bool)
+        i, j = self._candidates(xy, r, centers=False)
+        if len(i):
+            dd = np.sqrt(((xy[i] - self._xy[j]) ** 2).sum(axis=1))
+            k = np.flatnonzero(dd <= r[i] + self._r[j] + self._reach())
+            d = radius_m + max(self.gap_m, 0.0) - GAP_TOL_M
+            hit = np.asarray(shapely.dwithin(pts[i[k]], self._geoms[j[k]], d), bool)
+            out[i[k[hit]]] = True
+        return out
 
     def collides(self, poly, center_xy=None) -> bool:
-        d = self.gap_m - GAP_TOL_M
-        if self._tree is not None:
-            if d > 0:
-                if len(self._tree.query(poly, predicate="dwithin", distance=d)):
-                    return True
-            else:
-                idx = self._tree.query(poly, predicate="intersects")
-                if len(idx) and self._close(np.asarray(self._tree.geometries)[idx], poly):
-                    return True
-        recent = self._polys[self._tree_n :]
-        if recent and self._close(np.array(recent, dtype=object), poly):
-            return True
-        if self.min_center and center_xy is not None and self._centers:
-            c = np.asarray(self._centers)
-            d2 = ((c - np.asarray(center_xy)) ** 2).sum(axis=1)
-            if d2.min() < self.min_center**2:
-                return True
-        return False
+        c, r = self._describe(poly, center_xy)
+        return bool(self.collides_many(np.array([poly], dtype=object), c[None], [r],
+                                       centers=center_xy is not None)[0])
 
+    def select(self, geoms, xy, r, ok=None, max_n: int | None = None, heading=None) -> np.ndarray:
+        """Decide a batch in order: footprint k is accepted when it keeps the rules with every
+        indexed footprint and every footprint of the batch accepted before it (as testing and
+        adding them one by one would); at most ``max_n`` are accepted. Candidates with ``ok``
+        False are skipped. The accepted ones are added; returns (n,) bool."""
+        from scipy.spatial import cKDTree
+
+        geoms = np.asarray(geoms, dtype=object)
+        xy = np.asarray(xy, float).reshape(-1, 2)
+        r = np.asarray(r, float).reshape(-1)
+        n = len(geoms)
+        ok = np.ones(n, bool) if ok is None else np.asarray(ok, bool).copy()
+        acc = np.zeros(n, bool)
+        if not n or not ok.any() or (max_n is not None and max_n <= 0):
+            return acc
+        h = None if heading is None else np.asarray(heading, float).reshape(-1)
+        sel = np.flatnonzero(ok)
+        ok[sel[self.collides_many(geoms[sel], xy[sel], r[sel], heading=None if h is None else h[sel])]] = False
+        sel = np.flatnonzero(ok)
+        earlier: dict[int, list[int]] = {}
+        if len(sel) > 1:
+            reach = 2.0 * float(r[sel].max()) + self._reach()
+            if self.min_center:
+                reach = max(reach, float(self.min_center))
+            if self.lane_spacing is not None and h is not None:
+                reach = max(reach, float(self.lane_spacing[0]))
+            pairs = cKDTree(xy[sel]).query_pairs(reach, output_type="ndarray")
+            if len(pairs):
+                a, b = sel[pairs[:, 0]], sel[pairs[:, 1]]
+                lo, hi = np.minimum(a, b), np.maximum(a, b)
+                hit = self._conflicts(xy, r, xy, r, geoms, geoms, hi, lo, True, h, h)
+                for p, q in zip(hi[hit].tolist(), lo[hit].tolist()):
+                    earlier.setdefault(p, []).append(q)
+        count = 0
+        for k in sel.tolist():
+            if any(acc[q] for q in earlier.get(k, ())):
+                continue
+            acc[k] = True
+            count += 1
+            if max_n is not None and count >= max_n:
+                break
+        idx = np.flatnonzero(acc)
+        self.add_many(geoms[idx], xy[idx], r[idx], None if h is None else h[idx])
+        return acc
+
+    # ------------------------------------------------------------------ insertion
     def add(self, poly, center_xy) -> None:
-        import shapely
+        c, r = self._describe(poly, center_xy)
+        self.add_many(np.array([poly], dtype=object), c[None], [r])
 
-        self._polys.append(poly)
-        self._centers.append((float(center_xy[0]), float(center_xy[1])))
-        if len(self._polys) - self._tree_n >= self.rebuild_every:
-            self._tree = shapely.STRtree(self._polys)
-            self._tree_n = len(self._polys)
+    def add_many(self, geoms, xy, r, heading=None) -> None:
+        """Index footprints (headings: for the lane rule; NaN = none, never in a lane)."""
+        from scipy.spatial import cKDTree
+
+        k = len(geoms)
+        if not k:
+            return
+        need = self._n + k
+        if need > len(self._geoms):
+            cap = max(need, 2 * len(self._geoms))
+            g = np.empty(cap, dtype=object)
+            g[: self._n] = self._geoms[: self._n]
+            self._geoms = g
+            self._xy = np.concatenate([self._xy[: self._n], np.zeros((cap - self._n, 2))])
+            self._r = np.concatenate([self._r[: self._n], np.zeros(cap - self._n)])
+            self._h = np.concatenate([self._h[: self._n], np.zeros(cap - self._n)])
+        self._geoms[self._n:need] = geoms
+        self._xy[self._n:need] = np.asarray(xy, float).reshape(-1, 2)
+        self._r[self._n:need] = np.asarray(r, float).reshape(-1)
+        self._h[self._n:need] = np.nan if heading is None else np.asarray(heading, float).reshape(-1)
+        self._rmax = max(self._rmax, float(np.max(r)))
+        self._n = need
+        if self._n - self._tree_n >= self.rebuild_every:
+            self._tree = cKDTree(self._xy[: self._n].copy())
+            self._tree_n = self._n
 
 
 @dataclass(frozen=True)

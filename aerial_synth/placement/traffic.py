@@ -32,6 +32,11 @@ from .parking_config import PARKING_KINDS
 __all__ = ["place", "PlacementWarning"]
 
 TWO_PI = 2.0 * np.pi
+#: The lane rule keeps this share of the spacing floor centre to centre between vehicles of
+#: one lane (a little below 1: a chord on a curve is shorter than the step along it).
+LANE_RULE_FRACTION = 0.9
+#: Engine marches take steps of COARSE x probe.step_m (see _Engine.coarse_m).
+COARSE = 5
 
 
 class PlacementWarning(UserWarning):
@@ -56,6 +61,7 @@ class _Line:
     heading: float
     edge_dist: float = 0.0
     offset: float = 1.75  # distance d of this line's lane from the road edge
+    lane_index: int = 0  # 0 = the lane at the traffic-side edge, 1 = the next one inwards, ...
     placed: list = field(default_factory=list)  # indices into the vehicle list
     reason: str = ""
 
@@ -77,11 +83,20 @@ class _Engine:
         self.rng = rng
         self.catalog = catalog
         self.prober = Prober(rayscene, cfg.probe)
-        self.index = FootprintIndex(cfg.gap_m, cfg.min_center_distance_m)
+        # Lines keep their spacing floor to vehicles in the same lane, whichever line those
+        # belong to (a seed between two vehicles of a line must not squeeze a third in).
+        lane_rule = None
+        if cfg.kind == "lines" and cfg.spacing is not None and cfg.spacing.lower_m > 0:
+            lane_rule = (LANE_RULE_FRACTION * cfg.spacing.lower_m, 0.5 * cfg.lane_width_m,
+                         np.radians(cfg.probe.max_turn_deg))
+        self.index = FootprintIndex(cfg.gap_m, cfg.min_center_distance_m, lane_spacing=lane_rule)
         self.vehicles: list[PlacedVehicle] = []
         self.lines: list[_Line] = []
         self.side = -1.0 if cfg.traffic == "right" else 1.0  # edge side: right = heading - 90 deg
         self.drivable_ids = self.prober.drivable_ids
+        # Marches step COARSE x probe.step_m (0.25 m at the defaults) and refine the edges
+        # they find to the same precision as the thesis's 0.05 m march (linetrace.Prober.march)
+        self.coarse_m = COARSE * cfg.probe.step_m
         b = rayscene.scene.bounds()
         self.xy_lo, self.xy_hi = b[0, :2], b[1, :2]
         self._seed_pool = np.zeros((0, 2))
@@ -90,17 +105,23 @@ class _Engine:
         self.seed_batches = 0
         self.road_seen = False
         self.limit = None
+        self.stopped_full = False
+        area_ha = float(np.prod(np.maximum(self.xy_hi - self.xy_lo, 0.0))) / 1e4
+        #: random traces seeding may draw: max_seed_attempts, or more on a large scene
+        self.seed_budget = max(int(cfg.max_seed_attempts), int(np.ceil(cfg.seed_attempts_per_ha * area_ha)))
         from ..scene.hints import road_hints  # direction hints: None for most scenes
 
         self.hints = road_hints(rayscene.scene)
 
     # ------------------------------------------------------------------ seeds
-    def next_seeds(self, n: int) -> np.ndarray:
-        """Up to n random road points (vertical traces over the scene's extent, keep road)."""
+    def next_seeds(self, n: int, free: bool = False) -> np.ndarray:
+        """Up to n random road points (vertical traces over the scene's extent, keep road);
+        with ``free``, only points clear of every placed vehicle (a 2 m disc keeps the gap).
+        Draws at most the seeding budget (:attr:`seed_budget`) of traces."""
         out = []
         have = 0
         empty_batches = 0
-        while have < n and self.seeds_tried < self.cfg.max_seed_attempts:
+        while have < n and (len(self._seed_pool) or self.seeds_tried < self.seed_budget):
             if len(self._seed_pool) == 0:
                 k = self.cfg.seed_batch
                 xy = self.rng.uniform(self.xy_lo, self.xy_hi, size=(k, 2))
@@ -118,6 +139,8 @@ class _Engine:
                     continue
             take = self._seed_pool[: n - have]
             self._seed_pool = self._seed_pool[len(take):]
+            if free:
+                take = take[~self.index.near_points(take, 2.0)]
             out.append(take)
             have += len(take)
         return np.concatenate(out) if out else np.zeros((0, 2))
@@ -136,7 +159,7 @@ class _Engine:
         theta = np.asarray(theta, float).reshape(-1)
         a1 = theta + self.side * np.pi / 2
         a2 = a1 - self.side * np.radians(cfg.probe.side_angle_deg)
-        pr = self.prober.march(q, np.stack([a1, a2], axis=1), include_origin=True)
+        pr = self.prober.march(q, np.stack([a1, a2], axis=1), include_origin=True, chunk=12, step_m=self.coarse_m)
         e1, e2 = pr.edge_xy[:, 0], pr.edge_xy[:, 1]
         t = e2 - e1
         tn = np.linalg.norm(t, axis=1)
@@ -197,16 +220,24 @@ class _Engine:
     def sample_variants(self, n: int):
         return self.catalog.sample(self.rng, n) if n else []
 
-    def accept(self, c: _Cand, variants, z, i: int) -> bool:
-        v = variants[i]
-        m = v.model
-        poly = self.index.polygon(c.x[i], c.y[i], c.heading[i], m.length_m, m.width_m)
-        if self.index.collides(poly, (c.x[i], c.y[i])):
-            c.ok[i] = False
-            c.reason[i] = "blocked"
-            return False
-        self.index.add(poly, (c.x[i], c.y[i]))
-        return True
+    def accept_many(self, c: _Cand, variants) -> np.ndarray:
+        """Overlap and gap test of a batch of candidates in order (each against every placed
+        vehicle and the candidates accepted before it), at most as many as the limit leaves.
+        Accepted footprints join the index; the others that were ok are marked "blocked".
+        Returns (n,) bool."""
+        n = len(c.x)
+        L = np.array([v.model.length_m for v in variants]) if n else np.zeros(0)
+        W = np.array([v.model.width_m for v in variants]) if n else np.zeros(0)
+        geoms, xy, r = self.index.polygons(c.x, c.y, c.heading, L, W)
+        max_n = None if self.limit is None else max(0, self.limit - len(self.vehicles))
+        acc = self.index.select(geoms, xy, r, ok=c.ok, max_n=max_n, heading=c.heading)
+        tried = c.ok.copy()
+        if max_n is not None and acc.sum() >= max_n and acc.any():
+            tried[np.flatnonzero(acc)[-1] + 1:] = False  # the limit stopped the batch there
+        blocked = tried & ~acc
+        c.ok[blocked] = False
+        c.reason[blocked] = "blocked"
+        return acc
 
     def add_vehicle(self, c: _Cand, i: int, variant, z: float, line: _Line | None, spacing: float):
         m = variant.model
@@ -307,7 +338,10 @@ class _Engine:
         P = len(seeds)
         D = int(cfg.probe.directions)
         ang = np.tile(np.arange(D) * (TWO_PI / D), (P, 1))
-        pr = self.prober.march(seeds, ang, first_only=True, chunk=24)
+        # Only the direction with the fewest road hits is used (a first heading guess that
+        # the two-direction probe below refines), so this march takes coarse steps: 5 x
+        # step_m (0.25 m at the defaults), without edge refinement.
+        pr = self.prober.march(seeds, ang, first_only=True, chunk=8, step_m=self.coarse_m, refine=False)
         best = np.argmin(pr.count, axis=1)  # fewest road hits: perpendicular to the edge
         has_edge = pr.found[np.arange(P), best]
         phi = ang[np.arange(P), best]
@@ -350,8 +384,10 @@ class _Engine:
         if len(sel):
             pos = np.stack([c.x[sel], c.y[sel]], 1)
             h = c.heading[sel]
-            along_p = self.prober.march(pos, np.stack([h, h + np.pi], 1), max_distance_m=10.0)
-            across_p = self.prober.march(pos, (h - self.side * np.pi / 2)[:, None], max_distance_m=14.0)
+            along_p = self.prober.march(pos, np.stack([h, h + np.pi], 1), max_distance_m=10.0, chunk=12,
+                                        step_m=self.coarse_m)
+            across_p = self.prober.march(pos, (h - self.side * np.pi / 2)[:, None], max_distance_m=14.0,
+                                         chunk=12, step_m=self.coarse_m)
             along = along_p.dist_m[:, 0] + along_p.dist_m[:, 1]
             across = offs[sel] + across_p.dist_m[:, 0]
             bad = sel[along <= across]
@@ -369,11 +405,12 @@ class _Engine:
                 wrong = ii[~crossed & ~lanes_ok[ii]]  # direction hints: tagged lanes say it is ours
                 c.ok[wrong] = False
                 c.reason[wrong] = "opposite_half"
+        acc = self.accept_many(c, variants)
         started = []
         for i in range(P):
             if self.full():
                 break
-            if not c.ok[i] or not self.accept(c, variants, z, i):
+            if not acc[i]:
                 self.start_failures[str(c.reason[i]) or "blocked"] += 1
                 continue
             line = _Line(
@@ -414,11 +451,12 @@ class _Engine:
         L = np.array([v.model.length_m for v in variants])
         W = np.array([v.model.width_m for v in variants])
         z = self.check_footprints(c, L, W)
+        acc = self.accept_many(c, variants)
         started = []
         for i, (ln, _) in enumerate(picks):
             if self.full():
                 break
-            if not c.ok[i] or not self.accept(c, variants, z, i):
+            if not acc[i]:
                 continue
             opp = _Line(
                 line_id=ln.line_id, lane=1, target=cfg.vehicles_per_line.sample(self.rng),
@@ -427,6 +465,66 @@ class _Engine:
             self.lines.append(opp)
             self.add_vehicle(c, i, variants[i], z[i], opp, float("nan"))
             started.append(opp)
+        return started
+
+    def start_adjacent(self, lines: list[_Line]) -> list[_Line]:
+        """Every lane (``fill_lanes``): a finished line starts the line of the next lane
+        inwards, ``lane_width_m`` further from the traffic-side edge, at its first vehicle
+        (the way a double lane starts the opposite lane), while that lane lies on the line's
+        side of the road: its half of an undivided road, the whole carriageway up to a
+        median, or the room direction hints give (one-way roads, tagged lanes)."""
+        cfg = self.cfg
+        if not cfg.fill_lanes or self.full():
+            return []
+        lines = [ln for ln in lines if ln.placed and ln.reason != "limit"]
+        if not lines:
+            return []
+        first = [self.vehicles[ln.placed[0]] for ln in lines]
+        pos = np.array([[v.x_m, v.y_m] for v in first])
+        head = np.array([v.heading_rad for v in first])
+        offs = np.array([ln.offset for ln in lines])
+        lw = float(cfg.lane_width_m)
+        inward = head - self.side * np.pi / 2
+        reach = 2 * cfg.probe.max_distance_m + cfg.probe.median_max_m
+        near, far, crossed, found = self.prober.road_across(pos, inward, reach, cfg.probe.median_max_m)
+        own = np.where(crossed, offs + near, 0.5 * (offs + far))
+        if self.hints is not None:  # direction hints: one-way roads and tagged lanes
+            room = self.hints.lane_room(pos, head)
+            own = np.where(np.isfinite(room), room, own)
+        new_off = offs + lw
+        ok = found & (new_off + 0.5 * lw <= own + 0.25 * lw)
+        idx = np.flatnonzero(ok)
+        if not len(idx):
+            return []
+        q = pos[idx] + unit(inward[idx]) * lw
+        c = self.locate(q, head[idx], new_off[idx])
+        turned = _angdiff(c.heading, head[idx]) > np.radians(cfg.probe.max_turn_deg)
+        jump = np.abs(c.edge_dist - new_off[idx]) > cfg.probe.edge_jump_m
+        bad = c.ok & (turned | jump)
+        c.ok[bad] = False
+        c.reason[bad] = "junction"
+        self.wrong_way(c)  # direction hints
+        self.segment_ok(c, new_off[idx])
+        variants = self.sample_variants(len(idx))
+        L = np.array([v.model.length_m for v in variants])
+        W = np.array([v.model.width_m for v in variants])
+        z = self.check_footprints(c, L, W)
+        acc = self.accept_many(c, variants)
+        started = []
+        for i, k in enumerate(idx):
+            if self.full():
+                break
+            if not acc[i]:
+                continue
+            ln = lines[k]
+            nxt = _Line(
+                line_id=ln.line_id, lane=ln.lane, lane_index=ln.lane_index + 1,
+                target=cfg.vehicles_per_line.sample(self.rng), x=c.x[i], y=c.y[i], heading=c.heading[i],
+                edge_dist=new_off[k], offset=new_off[k],
+            )
+            self.lines.append(nxt)
+            self.add_vehicle(c, i, variants[i], z[i], nxt, float("nan"))
+            started.append(nxt)
         return started
 
     # ------------------------------------------------------------------ advancing
@@ -452,13 +550,14 @@ class _Engine:
         L = np.array([v.model.length_m for v in variants])
         W = np.array([v.model.width_m for v in variants])
         z = self.check_footprints(c, L, W)
+        acc = self.accept_many(c, variants)
         still, done = [], []
         for i, ln in enumerate(active):
             if self.full():
                 ln.reason = ln.reason or "limit"
                 done.append(ln)
                 continue
-            if c.ok[i] and self.accept(c, variants, z, i):
+            if acc[i]:
                 spacing = float(np.hypot(c.x[i] - ln.x, c.y[i] - ln.y))
                 self.add_vehicle(c, i, variants[i], z[i], ln, spacing)
                 if len(ln.placed) >= ln.target:
@@ -480,7 +579,8 @@ class _Engine:
             return
         reach = float(self.cfg.spacing.max_m) + 6.0
         pos = np.array([[ln.x, ln.y] for ln in lines])
-        ahead = self.prober.march(pos, np.array([[ln.heading] for ln in lines]), max_distance_m=reach)
+        ahead = self.prober.march(pos, np.array([[ln.heading] for ln in lines]), max_distance_m=reach,
+                                  chunk=24, step_m=self.coarse_m, refine=False)
         for ln, found in zip(lines, ahead.found[:, 0], strict=True):
             if found:
                 ln.reason = "road_end"
@@ -488,52 +588,68 @@ class _Engine:
     # ------------------------------------------------------------------ scenarios
     def run_lines(self, n_vehicles: int | None, n_lines: int | None, in_flight: int = 64) -> None:
         """Pipelined traffic lines: keep up to ``in_flight`` lines advancing together; a
-        finished line may spawn its opposite lane, and new seeds refill the pool."""
+        finished line may spawn its opposite lane and its next lane inwards, and new seeds
+        (road points clear of every placed vehicle) refill the pool.
+
+        Early stop: seeding ends when the seeds run out (the scene's seeding budget) or when
+        the roads are full: the last ``4 * in_flight`` or more seeds that were probed gave
+        fewer than one vehicle (with the lines they started) per 8 seeds. Asking for far more
+        vehicles than fit therefore costs about what asking for what fits costs."""
         self.limit = n_vehicles
         active: list[_Line] = []
-        fails = 0
         seeds_exhausted = False
+        window: list[tuple[int, int]] = []  # (seeds probed, vehicles gained) per round
+        win_min = 4 * in_flight
         while not self.full():
-            n_fwd = sum(1 for ln in self.lines if ln.lane == 0)
+            before = len(self.vehicles)
+            probed = 0
+            n_fwd = sum(1 for ln in self.lines if ln.lane == 0 and ln.lane_index == 0)
             want = in_flight - len(active)
             if n_lines is not None:
                 want = min(want, n_lines - n_fwd)
-            if want > 0 and not seeds_exhausted and fails <= 4 * in_flight:
-                seeds = self.next_seeds(want)
+            if want > 0 and not seeds_exhausted:
+                seeds = self.next_seeds(want, free=True)
                 if not len(seeds):
                     seeds_exhausted = True
                 else:
-                    free = np.array([not self.index.collides(self.index.point_zone(p)) for p in seeds], bool)
-                    fails += int((~free).sum())
-                    seeds = seeds[free]
-                if len(seeds):
+                    probed = len(seeds)
                     started = self.start_lines(seeds)
-                    fails = 0 if started else fails + len(seeds)
                     for ln in started:
                         if ln.target <= 1:
                             ln.reason = "complete"
                     active += [ln for ln in started if len(ln.placed) < ln.target]
                     finished_now = [ln for ln in started if len(ln.placed) >= ln.target]
-                    active += self._opposites(finished_now)
-            if not active:
-                if seeds_exhausted or fails > 4 * in_flight:
-                    break
-                if n_lines is not None and sum(1 for ln in self.lines if ln.lane == 0) >= n_lines:
-                    break
-                continue
-            still, done = self.advance_round(active)
-            active = still + self._opposites([ln for ln in done if ln.lane == 0])
+                    active += self._followers(finished_now)
+            if active:
+                still, done = self.advance_round(active)
+                active = still + self._followers(done)
+            if probed:
+                window.append((probed, len(self.vehicles) - before))
+                while len(window) > 1 and sum(p for p, _ in window[1:]) >= win_min:
+                    window.pop(0)
+                tried = sum(p for p, _ in window)
+                if tried >= win_min and 8 * sum(g for _, g in window) < tried:
+                    seeds_exhausted = True
+                    self.stopped_full = True
+            if not active and (seeds_exhausted or (n_lines is not None and n_fwd >= n_lines)):
+                break
         for ln in active:
             ln.reason = ln.reason or "limit"
 
-    def _opposites(self, finished: list[_Line]) -> list[_Line]:
-        if not finished or self.full():
-            return []
-        opp = self.start_opposite(finished)
-        for ln in opp:
-            if len(ln.placed) >= ln.target:
-                ln.reason = "complete"
-        return [ln for ln in opp if len(ln.placed) < ln.target]
+    def _followers(self, finished: list[_Line]) -> list[_Line]:
+        """The lines finished lines start: the opposite lane of a seeded line (double lanes)
+        and, with fill_lanes, the next lane inwards of every line. Lines complete at their
+        first vehicle finish at once and start their own followers."""
+        out: list[_Line] = []
+        while finished and not self.full():
+            new = self.start_opposite([ln for ln in finished if ln.lane == 0 and ln.lane_index == 0])
+            new += self.start_adjacent(finished)
+            for ln in new:
+                if len(ln.placed) >= ln.target:
+                    ln.reason = "complete"
+            out += [ln for ln in new if len(ln.placed) < ln.target]
+            finished = [ln for ln in new if len(ln.placed) >= ln.target]
+        return out
 
     def run_random(self, n_vehicles: int) -> None:
         self.limit = n_vehicles
@@ -549,11 +665,12 @@ class _Engine:
             L = np.array([v.model.length_m for v in variants])
             W = np.array([v.model.width_m for v in variants])
             z = self.check_footprints(c, L, W)
+            acc = self.accept_many(c, variants)
             placed_before = len(self.vehicles)
             for i in range(len(seeds)):
                 if self.full():
                     break
-                if c.ok[i] and self.accept(c, variants, z, i):
+                if acc[i]:
                     self.add_vehicle(c, i, variants[i], z[i], None, float("nan"))
             fails = fails + len(seeds) if len(self.vehicles) == placed_before else 0
             if fails > 20000:
@@ -629,8 +746,9 @@ def place(
     stats = {
         "vehicles": len(eng.vehicles),
         "requested_vehicles": asked,
-        "lines": sum(1 for ln in eng.lines if ln.lane == 0),
-        "opposite_lanes": sum(1 for ln in eng.lines if ln.lane == 1),
+        "lines": sum(1 for ln in eng.lines if ln.lane == 0 and ln.lane_index == 0),
+        "opposite_lanes": sum(1 for ln in eng.lines if ln.lane == 1 and ln.lane_index == 0),
+        "inner_lanes": sum(1 for ln in eng.lines if ln.lane_index > 0),
         "line_end_reasons": dict(sorted(reasons.items())),
         # per line: [line id, lane, why it ended, vehicles]
         "line_table": [[ln.line_id, ln.lane, ln.reason or "complete", len(ln.placed)] for ln in eng.lines],
@@ -642,6 +760,7 @@ def place(
             "max": round(float(spac.max()), 4) if len(spac) else None,
         },
         "seed_traces": int(eng.seeds_tried),
+        "stopped_full": bool(eng.stopped_full),
         "seed_failures": dict(sorted(eng.start_failures.items())),
         "rays": int(eng.prober.n_rays),
         "casts": int(eng.prober.n_casts),
