@@ -19,10 +19,13 @@ the same path. A worker that dies mid-image loses nothing: its temporary files n
 become the image's files, the scheduler gives its task to another worker, and the
 stray temporaries are removed before the aggregates are written.
 
-Threads: each worker process gets ``cores of its host // worker processes on that host``
-threads for numba, open3d (Embree) and OpenMP (:func:`limit_threads`,
-:func:`threads_per_worker`), so K processes do not oversubscribe the cores. The local
-process pool can call the same helpers.
+Cores: the K worker processes of one host (numbered by address, :func:`host_slots`) each
+pin themselves to their own share of the host's cores before their first ray cast
+(:mod:`.affinity`; open3d's ray queries use every core the process may run on, whatever
+thread count they are given) and set numba and OpenMP threads to the share's size, so K
+processes do not oversubscribe the cores. A worker whose slot is unknown (one that joined
+after the export started) is not pinned and uses ``cores // processes on its host``
+threads (:func:`threads_per_worker`).
 """
 
 from __future__ import annotations
@@ -34,9 +37,10 @@ import time
 from pathlib import Path
 
 from ..errors import ExportError
+from .affinity import limit_threads, pin_share
 
 __all__ = ["DaskEngine", "plan_tasks", "threads_per_worker", "limit_threads", "parse_dask_address",
-           "probe_scheduler"]
+           "probe_scheduler", "host_slots", "worker_slot"]
 
 #: An unreachable scheduler is reported within this many seconds (the CLI promises 10).
 CONNECT_TIMEOUT_S = 6.0
@@ -51,29 +55,6 @@ def threads_per_worker(workers_on_host: int, ncpu: int | None = None) -> int:
     """Threads per worker process so that ``workers_on_host`` processes share the cores."""
     ncpu = ncpu or os.cpu_count() or 1
     return max(1, int(ncpu) // max(1, int(workers_on_host)))
-
-
-def limit_threads(nthreads: int) -> int:
-    """Limit this process's compute threads: numba (the shading kernels; set for the
-    calling thread, so call it in the thread that renders), OpenMP (``OMP_NUM_THREADS``
-    for libraries that start their OpenMP runtime later) and BLAS pools where
-    ``threadpoolctl`` is installed. open3d's Embree threads are set per RayScene
-    (``nthreads``); pass the same number there. Returns the number applied."""
-    n = max(1, int(nthreads))
-    os.environ["OMP_NUM_THREADS"] = str(n)
-    try:
-        import numba
-
-        numba.set_num_threads(max(1, min(n, numba.config.NUMBA_NUM_THREADS)))
-    except ImportError:  # pragma: no cover - numba is a core dependency
-        pass
-    try:
-        from threadpoolctl import threadpool_limits
-
-        threadpool_limits(n)
-    except ImportError:
-        pass
-    return n
 
 
 def plan_tasks(indices, images_per_placement: int, workers: int) -> list[list[int]]:
@@ -141,8 +122,10 @@ def probe_scheduler(spec: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
 _STATE: dict = {}
 
 
-def _render_run(cfg, out: str, indices: list[int], nthreads_by_worker: dict, extra_formats=()) -> list:
-    """Dask task: render a run of images of one placement group (in order)."""
+def _render_run(cfg, out: str, indices: list[int], nthreads_by_worker: dict, extra_formats=(),
+                slots: dict | None = None) -> list:
+    """Dask task: render a run of images of one placement group (in order); returns once
+    their files are on disk (so a finished task never loses an image to a dead worker)."""
     from distributed import get_worker
 
     from ..formats.registry import names, register
@@ -151,14 +134,57 @@ def _render_run(cfg, out: str, indices: list[int], nthreads_by_worker: dict, ext
     for fmt in extra_formats:  # formats registered at run time in the client
         if fmt.name not in names():
             register(fmt)
-    n = int(nthreads_by_worker.get(get_worker().address, 1))
-    limit_threads(n)
+    me = get_worker()
+    n = int(nthreads_by_worker.get(me.address, 1))
+    slot = worker_slot(slots or {}, me.address, me.name)
+    share = pin_share(*slot) if slot else None  # before this process's first ray cast
+    if share is not None:
+        n = len(share)
+    limit_threads(n)  # numba's thread count is per calling thread: set it in this one
     key = (cfg, out, n)
     w = _STATE.get(key)
     if w is None:
+        for old in _STATE.values():
+            old.close()
         _STATE.clear()
         w = _STATE[key] = ImageWorker(cfg, Path(out), nthreads=n)
-    return [(i, w.render(i)) for i in indices]
+    return w.render_run(indices)
+
+
+def host_slots(workers: dict) -> dict:
+    """Core shares for the workers of a cluster: ``workers`` is the scheduler's
+    ``{address: {"host": ..., "name": ...}}``; returns ``{"address": {address: (k, K)},
+    "name": {name: (k, K)}}`` where the K worker processes of one host are numbered
+    0..K-1 in address order (host, port). A worker the nanny restarted keeps its name but
+    not its address, so it finds its slot by name (names unique across the cluster only)."""
+    by_host: dict = {}
+    for addr, info in workers.items():
+        host = (info or {}).get("host") or addr.rsplit(":", 1)[0]
+        by_host.setdefault(host, []).append(addr)
+
+    def port(a):
+        tail = a.rsplit(":", 1)[-1]
+        return (0, int(tail), a) if tail.isdigit() else (1, 0, a)
+
+    by_addr, by_name, seen = {}, {}, {}
+    for addrs in by_host.values():
+        addrs.sort(key=port)
+        for k, a in enumerate(addrs):
+            by_addr[a] = (k, len(addrs))
+            name = (workers[a] or {}).get("name")
+            if name is not None:
+                seen[name] = seen.get(name, 0) + 1
+                by_name[name] = (k, len(addrs))
+    by_name = {nm: sl for nm, sl in by_name.items() if seen[nm] == 1}
+    return {"address": by_addr, "name": by_name}
+
+
+def worker_slot(slots: dict, address: str, name=None) -> tuple | None:
+    """This worker's (k, K) from :func:`host_slots`, or None when unknown (no pinning)."""
+    sl = (slots.get("address") or {}).get(address)
+    if sl is None and name is not None:
+        sl = (slots.get("name") or {}).get(name)
+    return None if sl is None else (int(sl[0]), int(sl[1]))
 
 
 def _cpu_count() -> int:
@@ -265,11 +291,12 @@ class DaskEngine:
         nworkers = max(1, self.n_workers())
         tasks = plan_tasks(indices, cfg.images_per_placement, nworkers)
         threads = self.worker_threads()
+        slots = host_slots(self.client.scheduler_info(n_workers=-1).get("workers", {}))
         extra = [get(n) for n in cfg.formats if n not in BUILTIN]
         out = str(Path(build).resolve())
         token = f"{os.getpid()}-{time.time_ns()}"
         futures = [
-            self.client.submit(_render_run, cfg, out, t, threads, extra,
+            self.client.submit(_render_run, cfg, out, t, threads, extra, slots,
                                key=f"aerial-synth-image-{t[0]:06d}-{t[-1]:06d}-{token}", pure=False)
             for t in tasks
         ]

@@ -161,11 +161,17 @@ def export_dataset(
                 done += engine.run(cfg, build, todo, bar)
             elif workers == 1 or len(tasks) <= 1:
                 w = ImageWorker(cfg, build, nthreads=0, scene=scene, catalog=catalog)
-                for task in tasks:
-                    for i in task:
-                        w.render(i)
-                        done += 1
-                        bar.update(1)
+
+                def step(n):
+                    nonlocal done
+                    done += n
+                    bar.update(n)
+
+                try:
+                    for task in tasks:  # images encode and write while the next renders
+                        w.render_run(task, progress=step)
+                finally:
+                    w.close()
             else:
                 done += _run_pool(cfg, build, tasks, workers, bar)
             summary = write_aggregates(cfg, build, geo)
@@ -208,12 +214,15 @@ def _run_pool(cfg: ExportConfig, build: Path, tasks, workers: int, bar) -> int:
     from ..formats.registry import BUILTIN, get
 
     extra = [get(n) for n in cfg.formats if n not in BUILTIN]  # run-time formats travel along
-    ncpu = os.cpu_count() or 1
-    nthreads = max(1, ncpu // int(workers))
+    from .affinity import allowed_cores
+
+    size = min(int(workers), len(tasks))
+    nthreads = max(1, len(allowed_cores()) // size)
     ctx = mp.get_context("spawn")
+    slots = ctx.Value("i", 0)  # worker k of the pool takes the k-th share of the cores
     done = 0
-    with ctx.Pool(min(int(workers), len(tasks)), initializer=init_pool_worker,
-                  initargs=(cfg, str(build), nthreads, os.getpid(), extra)) as pool:
+    with ctx.Pool(size, initializer=init_pool_worker,
+                  initargs=(cfg, str(build), nthreads, os.getpid(), extra, slots, size)) as pool:
         for res in pool.imap_unordered(run_group, tasks):
             done += len(res)
             bar.update(len(res))

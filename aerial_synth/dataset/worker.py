@@ -73,7 +73,11 @@ def _check_parent() -> None:
 
 def _load_scene(cfg: ExportConfig):
     """The export's scene, with its distractors (drawn once per dataset, so every worker and
-    engine builds the same scene)."""
+    engine builds the same scene). A tiled export (``cfg.tile_m``) gets its TiledWorld."""
+    if getattr(cfg, "tile_m", None) is not None:
+        from .tiled import load_world
+
+        return load_world(cfg)
     from ..scene import load_scene
 
     scene = load_scene(cfg.scene, labels=cfg.labels, seed=cfg.scene_seed, bbox=cfg.bbox,
@@ -89,6 +93,14 @@ def _load_scene(cfg: ExportConfig):
 class ImageWorker:
     """Per-process state: scene, catalog and the current placement group."""
 
+    def __new__(cls, cfg=None, *args, **kwargs):
+        """A tiled export (``cfg.tile_m``) gets a :class:`.tiled.TiledImageWorker`."""
+        if cls is ImageWorker and getattr(cfg, "tile_m", None) is not None:
+            from .tiled import TiledImageWorker
+
+            cls = TiledImageWorker
+        return super().__new__(cls)
+
     def __init__(self, cfg: ExportConfig, out: Path, nthreads: int = 0, scene=None, catalog=None):
         self.cfg = cfg
         self.out = Path(out)
@@ -99,6 +111,7 @@ class ImageWorker:
         self._rayscene = None
         self._placement = None
         self._placement_warnings: list[str] = []
+        self._writer: ImageWriter | None = None
 
     @property
     def scene(self):
@@ -217,12 +230,71 @@ class ImageWorker:
         )
         return rec, frame.rgb
 
-    def render(self, index: int) -> dict:
-        """Render, annotate and write image ``index``; returns its summary counts."""
+    def render(self, index: int, wait: bool = True) -> dict:
+        """Render and annotate image ``index``, and write its files; returns its summary
+        counts. The files are encoded and written by this worker's writer thread while the
+        next image renders; with ``wait`` (the default) this returns only once they are on
+        disk (or raises the writer's error). With ``wait=False`` call :meth:`drain` before
+        reporting the image as finished."""
         _check_parent()
+        self._writer_error()  # a failed write stops the run before more rendering
         rec, rgb = self.record(index)
-        write_image_files(self.cfg, self.out, rec, rgb)
+        self.writer.submit(self.cfg, self.out, rec, _to_bgr(rgb))
+        if wait:
+            self.drain()
         return record_counts(rec)
+
+    @property
+    def writer(self) -> "ImageWriter":
+        if self._writer is None:
+            self._writer = ImageWriter()
+        return self._writer
+
+    def _writer_error(self) -> None:
+        if self._writer is not None:
+            self._writer.raise_error()
+
+    @property
+    def written(self) -> int:
+        """Images whose files are on disk (written by this worker so far)."""
+        return 0 if self._writer is None else self._writer.written
+
+    def drain(self) -> None:
+        """Wait until every submitted image's files are on disk; raise the first write error
+        (the image that failed has no metadata file, so it is not done)."""
+        if self._writer is not None:
+            self._writer.drain()
+
+    def render_run(self, indices, progress=None) -> list[tuple[int, dict]]:
+        """Render a run of images in order, writing in the background; returns once all
+        their files are on disk: [(index, counts)]. ``progress(n)`` is called in this
+        thread with the number of images newly on disk."""
+        out, seen = [], self.written
+        try:
+            for i in indices:
+                _check_parent()
+                out.append((int(i), self.render(int(i), wait=False)))
+                if progress is not None and self.written != seen:
+                    progress(self.written - seen)
+                    seen = self.written
+        except BaseException as exc:
+            if self._writer is not None:  # nothing keeps writing after a failure
+                try:
+                    self._writer.drain()
+                except BaseException as werr:  # both failed: report both
+                    if exc.__context__ is None:
+                        exc.__context__ = werr
+            raise
+        self.drain()
+        if progress is not None and self.written != seen:
+            progress(self.written - seen)
+        return out
+
+    def close(self) -> None:
+        """Drain and stop the writer thread."""
+        if self._writer is not None:
+            w, self._writer = self._writer, None
+            w.close()
 
 
 # Engine-agnostic entry point -------------------------------------------------------------
@@ -236,19 +308,112 @@ def render_image(cfg: ExportConfig, out_dir, index: int) -> dict:
     key = (cfg, str(out_dir))
     w = _CACHE.get(key)
     if w is None:
+        for old in _CACHE.values():
+            old.close()
         _CACHE.clear()
         w = _CACHE[key] = ImageWorker(cfg, Path(out_dir))
-    return w.render(int(index))
+    return w.render(int(index))  # waits: the files are on disk when this returns
 
 
 # ------------------------------------------------------------------ writing
 
 
-def encode_image(rgb: np.ndarray, ext: str) -> bytes:
-    """(H, W, 3) uint8 RGB -> PNG (zlib level 1) or JPEG (quality 95) bytes."""
+class ImageWriter:
+    """One background thread that encodes and writes images, one at a time, in the order
+    they were submitted (PNG/JPEG encoding and file writes release the GIL, so the next
+    frame renders meanwhile).
+
+    At most ``depth`` images wait in the queue (``submit`` blocks beyond that), so memory
+    stays bounded. The first error raised while writing is kept and raised in the
+    submitting thread by the next :meth:`submit`, :meth:`drain` or :meth:`raise_error`;
+    images queued after a failure are not written (until the next :meth:`drain`). Every write is atomic and the
+    metadata is written last (see :func:`write_image_files`), so an image whose write
+    failed or was cut short is simply not done."""
+
+    def __init__(self, depth: int = 1):
+        import queue
+        import threading
+
+        self._q: queue.Queue = queue.Queue(maxsize=max(1, int(depth)))
+        self._error: BaseException | None = None  # to raise in the submitting thread
+        self._failed = False  # a write failed: skip the queued images until drained
+        self._pending = 0
+        self._cv = threading.Condition()
+        self.written = 0
+        self._thread = threading.Thread(target=self._loop, name="aerial-synth-writer", daemon=True)
+        self._thread.start()
+
+    def _loop(self) -> None:
+        while True:
+            job = self._q.get()
+            if job is None:
+                return
+            try:
+                if not self._failed:
+                    cfg, out, rec, bgr = job
+                    _write_files(cfg, out, rec, encode_bgr(bgr, cfg.image_ext))
+                    self.written += 1
+            except BaseException as exc:  # kept for the submitting thread
+                self._failed = True
+                if self._error is None:
+                    self._error = exc
+            finally:
+                with self._cv:
+                    self._pending -= 1
+                    self._cv.notify_all()
+
+    def raise_error(self) -> None:
+        """Raise the first write error, once (the writer writes again after a drain)."""
+        if self._error is not None:
+            err, self._error = self._error, None
+            raise err
+
+    def submit(self, cfg: ExportConfig, out: Path, record, bgr: np.ndarray) -> None:
+        """Queue one image (its BGR pixels, which the caller no longer changes)."""
+        self.raise_error()
+        if not self._thread.is_alive():
+            raise ExportError("the image writer thread has stopped")
+        with self._cv:
+            self._pending += 1
+        self._q.put((cfg, Path(out), record, bgr))
+
+    def drain(self, raise_error: bool = True) -> None:
+        """Wait until every submitted image is written (or failed)."""
+        with self._cv:
+            while self._pending > 0 and self._thread.is_alive():
+                self._cv.wait(0.5)
+            if self._pending == 0:
+                self._failed = False  # the images after a failure were all skipped
+        if raise_error:
+            self.raise_error()
+
+    def close(self) -> None:
+        try:
+            self.drain()
+        finally:
+            self._q.put(None)
+            self._thread.join()
+
+
+def _to_bgr(rgb: np.ndarray) -> np.ndarray:
+    """A new C-contiguous (H, W, 3) uint8 BGR copy of ``rgb`` (OpenCV's channel order)."""
     import cv2
 
-    bgr = np.ascontiguousarray(np.asarray(rgb, dtype=np.uint8)[..., ::-1])
+    a = np.asarray(rgb, dtype=np.uint8)
+    if a.ndim == 3 and a.shape[2] == 3:
+        return cv2.cvtColor(np.ascontiguousarray(a), cv2.COLOR_RGB2BGR)  # a fresh array
+    return np.ascontiguousarray(a[..., ::-1])
+
+
+def encode_image(rgb: np.ndarray, ext: str) -> bytes:
+    """(H, W, 3) uint8 RGB -> PNG (zlib level 1) or JPEG (quality 95) bytes."""
+    return encode_bgr(_to_bgr(rgb), ext)
+
+
+def encode_bgr(bgr: np.ndarray, ext: str) -> bytes:
+    """(H, W, 3) uint8 BGR -> PNG (zlib level 1) or JPEG (quality 95) bytes."""
+    import cv2
+
     if ext == "png":
         ok, buf = cv2.imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, 1])
     else:
@@ -277,12 +442,15 @@ def _link_or_copy(src: Path, dst: Path) -> None:
 def write_image_files(cfg: ExportConfig, out: Path, record, rgb: np.ndarray) -> None:
     """The image (once, hard-linked into every other format's folder), every format's
     per-image label file, then the metadata (the image's "done" mark), each atomically."""
+    _write_files(cfg, out, record, encode_image(rgb, cfg.image_ext))
+
+
+def _write_files(cfg: ExportConfig, out: Path, record, data: bytes) -> None:
     from ..formats import meta
     from ..formats.registry import get
 
     out = Path(out)
     paths = image_paths(cfg, out, record.index)
-    data = encode_image(rgb, cfg.image_ext)
     _check_parent()
     atomic_write_bytes(paths[0], data)
     for p in paths[1:]:
@@ -321,32 +489,44 @@ _POOL_WORKER: ImageWorker | None = None
 
 
 def init_pool_worker(cfg: ExportConfig, out: str, nthreads: int, parent_pid: int,
-                     extra_formats=()) -> None:
+                     extra_formats=(), slots=None, pool_size: int = 0) -> None:
     """Pool initializer: watch the parent, share the cores, register run-time formats.
+
+    Cores: the ``pool_size`` workers of the pool take the slots 0, 1, ... of the shared
+    counter ``slots`` (a ``multiprocessing.Value``) in start order, and worker ``k`` pins
+    itself to its share of the cores (:func:`.affinity.pin_share`) before open3d or numba
+    start a thread; its numba/OpenMP threads follow the share. Without a counter (or where
+    pinning is refused) it only sets ``nthreads`` threads.
+
     Ctrl-C is the parent's to handle (it stops the pool): workers ignore SIGINT, so an
     interrupted export prints no worker tracebacks."""
     import signal
 
+    from .affinity import limit_threads, pin_share
+
     global _POOL_WORKER
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _watch_parent(parent_pid)
+    share = None
+    if slots is not None and int(pool_size) > 1:
+        with slots.get_lock():
+            k = slots.value
+            slots.value += 1
+        share = pin_share(k % int(pool_size), int(pool_size))
+    if share is None:
+        limit_threads(nthreads)
+    else:
+        nthreads = len(share)
     from ..formats.registry import names, register
 
     for fmt in extra_formats:  # formats registered at run time in the parent
         if fmt.name not in names():
             register(fmt)
-    os.environ.setdefault("OMP_NUM_THREADS", str(max(1, nthreads)))
-    import numba  # the shading kernels' threads: share the cores among the workers
-
-    numba.set_num_threads(max(1, min(int(nthreads), numba.config.NUMBA_NUM_THREADS)))
     _POOL_WORKER = ImageWorker(cfg, Path(out), nthreads=nthreads)
 
 
 def run_group(indices: list[int]) -> list[tuple[int, dict]]:
-    """Pool task: the images of one placement group, in order."""
+    """Pool task: the images of one run of a placement group, in order; returns once every
+    one of their files is on disk."""
     assert _POOL_WORKER is not None
-    out = []
-    for i in indices:
-        _check_parent()
-        out.append((i, _POOL_WORKER.render(i)))
-    return out
+    return _POOL_WORKER.render_run(indices)

@@ -343,7 +343,7 @@ def test_failure_during_run_leaves_nothing(tiny_scene, tmp_path, monkeypatch):
     corrected rerun is not refused."""
     from aerial_synth.dataset import worker
 
-    def boom(self, index):
+    def boom(self, index, *args, **kwargs):
         raise ExportError("placement group 0: placed no vehicles")
 
     monkeypatch.setattr(worker.ImageWorker, "render", boom)

@@ -1,0 +1,133 @@
+"""The worker's background writer (encode + write while the next frame renders) and core
+partitioning of pool workers: errors surface in the caller, a finished run has its files
+on disk, bytes are those of a synchronous write, pool workers get disjoint core shares."""
+
+import os
+import threading
+import time
+
+import pytest
+
+from aerial_synth.dataset import worker as W
+from aerial_synth.dataset.export import ExportConfig
+from aerial_synth.dataset.layout import image_paths, is_done, meta_path
+
+from .conftest import tree_bytes
+
+
+def _cfg(scene, **kw):
+    base = dict(scene=scene, images=4, formats="dota,coco", split=0.5, seed=11, images_per_placement=2,
+                n_vehicles=8, width_px=128, height_px=128, simple_vehicles=True)
+    base.update(kw)
+    return ExportConfig(**base)
+
+
+def test_run_returns_with_every_file_on_disk(tiny_scene, tmp_path, monkeypatch):
+    """A slow writer: render_run still returns only once all its images are done, and the
+    bytes equal a synchronous render-then-write of the same images."""
+    cfg = _cfg(tiny_scene)
+    real = W._write_files
+    started = []
+
+    def slow(*a, **k):
+        started.append(threading.current_thread().name)
+        time.sleep(0.3)
+        real(*a, **k)
+
+    monkeypatch.setattr(W, "_write_files", slow)
+    w = W.ImageWorker(cfg, tmp_path / "piped")
+    seen = []
+    res = w.render_run([0, 1, 2], progress=seen.append)
+    assert [i for i, _ in res] == [0, 1, 2]
+    assert all(is_done(cfg, tmp_path / "piped", i) for i in (0, 1, 2))
+    assert not meta_path(tmp_path / "piped", 3).exists()
+    assert sum(seen) == 3 and w.written == 3
+    assert set(started) == {"aerial-synth-writer"}  # written off the rendering thread
+    w.close()
+
+    ref = tmp_path / "sync"
+    w2 = W.ImageWorker(cfg, ref)
+    for i in (0, 1, 2):
+        rec, rgb = w2.record(i)
+        W.write_image_files(cfg, ref, rec, rgb)  # the synchronous path, in this thread
+    assert tree_bytes(tmp_path / "piped") == tree_bytes(ref)
+
+
+def test_render_waits_by_default(tiny_scene, tmp_path):
+    cfg = _cfg(tiny_scene)
+    w = W.ImageWorker(cfg, tmp_path)
+    w.render(1)
+    assert is_done(cfg, tmp_path, 1)
+    w.close()
+
+
+@pytest.mark.parametrize("exc", [OSError(28, "No space left on device"), W.ExportError("disk gone")])
+def test_writer_error_surfaces_and_leaves_no_meta(tiny_scene, tmp_path, monkeypatch, exc):
+    """A label write of image 1 fails in the writer thread: the caller gets that error, image
+    1 (and every later one) has no metadata, image 0 is complete."""
+    cfg = _cfg(tiny_scene)
+    real = W.atomic_write_text
+
+    def failing(path, text, *a, **k):
+        if "000001" in str(path):
+            raise exc
+        return real(path, text, *a, **k)
+
+    monkeypatch.setattr(W, "atomic_write_text", failing)
+    w = W.ImageWorker(cfg, tmp_path)
+    with pytest.raises(type(exc)) as e:
+        w.render_run([0, 1, 2, 3])
+    assert e.value is exc
+    assert is_done(cfg, tmp_path, 0)
+    assert [i for i in (1, 2, 3) if meta_path(tmp_path, i).exists()] == []
+    assert not image_paths(cfg, tmp_path, 3)[0].exists()  # nothing written after the failure
+    # the error was reported once; the worker writes again afterwards
+    monkeypatch.setattr(W, "atomic_write_text", real)
+    w.render_run([1])
+    assert is_done(cfg, tmp_path, 1)
+    w.close()
+
+
+def test_writer_error_fails_the_export(tiny_scene, tmp_path, monkeypatch):
+    """Through export_dataset (one worker): the write error is raised, never lost."""
+    from aerial_synth.dataset.export import export_dataset
+
+    def failing(*a, **k):
+        raise OSError(5, "Input/output error")
+
+    monkeypatch.setattr(W, "_write_files", failing)
+    with pytest.raises(OSError, match="Input/output"):
+        export_dataset(_cfg(tiny_scene, images=2), tmp_path / "ds", progress=False)
+    assert not (tmp_path / "ds").exists()
+
+
+def _probe(_):
+    """Pool task: this worker's core share and numba threads (held long enough that every
+    worker of the pool takes one task)."""
+    import numba
+
+    from aerial_synth.dataset.affinity import current_share
+
+    time.sleep(1.0)
+    return sorted(os.sched_getaffinity(0)), numba.get_num_threads(), current_share()
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_getaffinity") or len(os.sched_getaffinity(0)) < 2,
+                    reason="needs at least 2 cores and sched_getaffinity")
+def test_pool_workers_get_disjoint_core_shares(tiny_scene, tmp_path):
+    """The export pool's initializer pins worker k of K to its share of the cores."""
+    import multiprocessing as mp
+
+    allowed = sorted(os.sched_getaffinity(0))
+    ctx = mp.get_context("spawn")
+    slots = ctx.Value("i", 0)
+    with ctx.Pool(2, initializer=W.init_pool_worker,
+                  initargs=(_cfg(tiny_scene), str(tmp_path), 1, os.getpid(), (), slots, 2)) as pool:
+        res = pool.map(_probe, range(2), chunksize=1)
+    shares = sorted(r[0] for r in res)
+    assert sorted(c for s in shares for c in s) == allowed  # disjoint, covering
+    assert all(len(s) >= 1 for s in shares)
+    for cores, nthreads, cur in res:
+        assert nthreads == len(cores)
+        assert cur is not None and list(cur[2]) == cores and cur[1] == 2
+    assert sorted(r[2][0] for r in res) == [0, 1]
