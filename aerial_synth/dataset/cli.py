@@ -100,6 +100,14 @@ def register(sub) -> None:
     r.add_argument("--distractors", type=arg_float("--distractors", 0.0, 1000.0), default=0.0,
                    metavar="PER_HA", help="unlabelled street objects (manholes, containers, "
                    "signs, ...) per hectare; 0 = none, render's default is 6 (0)")
+    t = p.add_argument_group("tiled world (docs/scale.md)")
+    t.add_argument("--tile-m", type=arg_float("--tile-m", 0.0, lo_open=True), default=None,
+                   metavar="M", help="cut the world into square tiles of M metres: each worker "
+                   "holds only the tiles a placement group needs (a city spec is generated per "
+                   "window; other scenes are loaded once and cut)")
+    t.add_argument("--margin-m", type=arg_float("--margin-m", 0.0), default=None, metavar="M",
+                   help="placement margin: how far a tile's placement window reaches past its "
+                   "core, as place-tiled (60); cameras see past their tile by their own reach")
     p.add_argument("--simple-vehicles", action="store_true",
                    help="box-shaped vehicles instead of catalog meshes (quick tests)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -158,6 +166,8 @@ def config_from_args(args):
         render_preset=None if args.preset == "full" else args.preset,
         randomise=None if args.randomise == "none" else args.randomise,
         distractors=args.distractors or None,
+        tile_m=args.tile_m,
+        margin_m=args.margin_m,
     )
 
 

@@ -25,7 +25,8 @@ IMAGE_EXTS = ("png", "jpg")
 #: rendering on 2 cores at 0.8 s an image): a larger dataset is several exports
 MAX_IMAGES = 1_000_000
 #: parameters that appear in the manifest only when set (added after manifest version 1)
-_OPTIONAL_FIELDS = ("bbox", "crs", "render_preset", "randomise", "distractors")
+_OPTIONAL_FIELDS = ("bbox", "crs", "render_preset", "randomise", "distractors", "tile_m",
+                    "margin_m")
 #: render presets and randomisation modes (aerial_synth.render.shading); kept here as text so
 #: that reading a config imports no renderer
 RENDER_PRESETS = ("full", "fast")
@@ -56,6 +57,9 @@ class ExportConfig:
     distractors         : distractors per hectare (manholes, containers, signs, ...; never
                           labelled), drawn once per dataset from SeedSequence([seed,
                           DISTRACTOR_KEY]); None or 0 = none
+    tile_m / margin_m   : render a tiled world (aerial_synth.dataset.tiled): square tiles of
+                          tile_m metres, each worker holding only the tiles a placement group
+                          needs; margin_m is the placement margin (None = 60 m, resolved here)
     """
 
     scene: str = "city_park"
@@ -82,6 +86,8 @@ class ExportConfig:
     render_preset: str | None = None
     randomise: str | None = None
     distractors: float | None = None
+    tile_m: float | None = None
+    margin_m: float | None = None
 
     def __post_init__(self):
         from ..formats.registry import parse_names
@@ -120,6 +126,13 @@ class ExportConfig:
         if self.distractors is not None:
             s(self, "distractors", v.in_range("--distractors", self.distractors, 0.0, 1000.0,
                                               error=E))
+        if self.tile_m is not None:
+            from .tiled import check_tiled_config
+
+            s(self, "tile_m", float(v.in_range("--tile-m", self.tile_m, 0.0, 1e9, lo_open=True, error=E)))
+            s(self, "margin_m", check_tiled_config(self))
+        elif self.margin_m is not None:
+            raise E(f"--margin-m: only with --tile-m (a tiled export), got --margin-m {v.show(self.margin_m)}")
         if not isinstance(self.box, BoxConfig):
             raise ConfigError(f"box: expected a BoxConfig, got {type(self.box).__name__}")
 

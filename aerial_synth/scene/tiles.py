@@ -194,6 +194,12 @@ class TiledWorld:
                 return cls.from_spec(data, seed=seed)
         return cls.from_scene(load_scene(name_or_path, seed=seed))
 
+    def georeference(self) -> dict:
+        """``Scene.georeference()`` of the world's scenes (a generated city: origin 0, no CRS)."""
+        if self._scene is not None:
+            return self._scene.georeference()
+        return {"origin": [0.0, 0.0, 0.0], "crs": None}
+
     def grid(self, tile_m: float, margin_m: float = 0.0) -> TileGrid:
         return TileGrid(self.bounds, tile_m, margin_m)
 
