@@ -14,6 +14,17 @@ A model is either *procedural* (``body`` names one of :data:`BODY_TYPES`; the ca
 gives length, width and height) or a *user mesh* (``mesh`` is a glTF/GLB/OBJ path inside
 the catalog's folder; its size comes from the mesh bounds after scale and axis change).
 
+Trim options. A procedural model may come with an option built into its mesh: a sunroof,
+a roof rack or a roof box on cars, a refrigeration unit on box trucks, a ladder rack on
+delivery vans, a shipping container on semi-trailers (:data:`OPTION_BODIES`). How often
+each is drawn is :data:`DEFAULT_OPTION_RATES` per body, or the model's ``options:
+{name: probability}`` in the catalog. A vehicle with an option is the model ``base+option``
+(e.g. ``sedan+sunroof``): same class, length and width, its height raised by the option's
+:data:`OPTION_RISE_M`; :meth:`Catalog.model` resolves such names. :meth:`Catalog.sample`
+draws the options from a stream of its own, keyed by the generator's state on entry, so
+models, colours and every later draw of the caller's generator are exactly what they were
+without options.
+
 Vehicle frame (every mesh): metres, origin at the footprint centre on the ground,
 +x forward, +y left, z up.
 """
@@ -47,12 +58,63 @@ __all__ = [
     "Catalog",
     "load_catalog",
     "bundled_catalog_path",
+    "OPTION_BODIES",
+    "OPTION_RISE_M",
+    "DEFAULT_OPTION_RATES",
+    "with_option",
 ]
+
+
+def with_option(model: VehicleModel, option: str) -> VehicleModel:
+    """The model ``model.name+option``: same size but for the option's height."""
+    import dataclasses
+
+    if model.options or not model.is_procedural or model.body not in OPTION_BODIES.get(option, ()):
+        fits = ", ".join(b for b in BODY_TYPES if b in OPTION_BODIES.get(option, ())) or "none"
+        raise AssetError(f"vehicle model {model.name!r}: option {option!r} does not fit it "
+                         f"(option {option!r} fits bodies: {fits})")
+    return dataclasses.replace(model, name=f"{model.name}+{option}",
+                               height_m=model.height_m + OPTION_RISE_M[option], options=(option,))
+
+
+def _stream_key(rng: np.random.Generator) -> int:
+    """An integer that depends only on the generator's state (which it leaves untouched)."""
+    import hashlib
+
+    d = hashlib.sha256(repr(rng.bit_generator.state).encode()).digest()
+    return int.from_bytes(d[:16], "little")
 
 #: The catalog file format version this code reads (``version:`` in the YAML).
 CATALOG_VERSION = 1
 
-_PROCEDURAL_KEYS = {"name", "pack", "body", "class", "length_m", "width_m", "height_m", "weight"}
+_PROCEDURAL_KEYS = {"name", "pack", "body", "class", "length_m", "width_m", "height_m", "weight",
+                    "options"}
+
+#: Trim option -> the procedural bodies it fits.
+OPTION_BODIES: dict[str, tuple[str, ...]] = {
+    "sunroof": ("sport", "hatchback", "sedan", "suv"),
+    "roof_rack": ("hatchback", "sedan", "suv", "delivery_van"),
+    "roof_box": ("hatchback", "sedan", "suv"),
+    "reefer": ("box_truck",),
+    "container": ("semi_trailer",),
+}
+#: Height an option adds on top of the model (metres): bars 8 cm, a roof box 42 cm.
+OPTION_RISE_M: dict[str, float] = {"sunroof": 0.0, "roof_rack": 0.08, "roof_box": 0.42,
+                                   "reefer": 0.0, "container": 0.0}
+#: Default option probabilities per body (the rest: no option). Rough shares of what one
+#: sees on European roads and car parks (no published census of roof racks was found): a
+#: glass roof or sunroof on a quarter of mid-size cars and a third of SUVs, roof bars or a
+#: box on a few percent, refrigerated bodies on a third of small trucks, ladder racks on a
+#: third of panel vans, containers on a third of semi-trailers.
+DEFAULT_OPTION_RATES: dict[str, dict[str, float]] = {
+    "sport": {"sunroof": 0.10},
+    "hatchback": {"sunroof": 0.15, "roof_rack": 0.03, "roof_box": 0.02},
+    "sedan": {"sunroof": 0.25, "roof_rack": 0.02, "roof_box": 0.02},
+    "suv": {"sunroof": 0.30, "roof_rack": 0.06, "roof_box": 0.05},
+    "box_truck": {"reefer": 0.30},
+    "delivery_van": {"roof_rack": 0.30},
+    "semi_trailer": {"container": 0.35},
+}
 _MESH_KEYS = {"name", "pack", "mesh", "scale", "forward", "up", "class", "paint_material", "weight"}
 _COLOR_KEYS = {"name", "rgb", "weight"}
 
@@ -70,11 +132,14 @@ class Catalog:
     models : tuple of :class:`VehicleModel` (names unique)
     colors : tuple of :class:`VehicleColor` (names unique)
     path   : the catalog file (None when built in memory)
+    option_rates : model name -> {option: probability}; models not named use
+             :data:`DEFAULT_OPTION_RATES` of their body (user meshes: none)
     """
 
     models: tuple[VehicleModel, ...]
     colors: tuple[VehicleColor, ...]
     path: Path | None = None
+    option_rates: dict = field(default_factory=dict, compare=False)
     _model_index: dict = field(default_factory=dict, repr=False, compare=False)
     _color_index: dict = field(default_factory=dict, repr=False, compare=False)
 
@@ -99,12 +164,30 @@ class Catalog:
 
     # ------------------------------------------------------------------ look-ups
     def model(self, name: str) -> VehicleModel:
+        """A model by name; ``base+option`` names give the base model with that option."""
         try:
             return self._model_index[name]
         except KeyError:
-            raise AssetError(
-                f"unknown vehicle model {name!r}; expected one of {', '.join(self._model_index)}"
-            ) from None
+            pass
+        base, plus, opt = name.partition("+")
+        if plus and base in self._model_index and "+" not in base:
+            if opt not in OPTION_BODIES:
+                raise AssetError(f"vehicle model {name!r}: unknown option {opt!r}; expected one of "
+                                 f"{', '.join(OPTION_BODIES)}")
+            m = with_option(self._model_index[base], opt)
+            self._model_index[name] = m
+            return m
+        raise AssetError(
+            f"unknown vehicle model {name!r}; expected one of "
+            f"{', '.join(k for k in self._model_index if '+' not in k)}"
+        ) from None
+
+    def options_of(self, model: VehicleModel) -> dict[str, float]:
+        """{option: probability} drawn for a model (empty: never an option)."""
+        if not model.is_procedural:
+            return {}
+        rates = self.option_rates.get(model.name)
+        return dict(DEFAULT_OPTION_RATES.get(model.body, {}) if rates is None else rates)
 
     def color(self, name: str) -> VehicleColor:
         try:
@@ -132,24 +215,41 @@ class Catalog:
         return [VehicleVariant(m, c) for m in self.models for c in self.colors]
 
     def sample(self, rng: np.random.Generator, n: int) -> list[VehicleVariant]:
-        """Draw ``n`` variants: model by model weight, colour (independently) by colour weight.
+        """Draw ``n`` variants: model by model weight, colour (independently) by colour weight,
+        then each vehicle's trim option (:meth:`options_of`; a variant with an option has
+        the model ``base+option``).
 
         Deterministic for a seeded ``rng``. Draws the n model indices first, then the n
-        colour indices.
+        colour indices, from ``rng`` (as always); the options come from a generator of
+        their own seeded by ``rng``'s state on entry, so ``rng`` advances exactly as it did
+        without options.
         """
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
         n = int(n)
         if n < 0:
             raise ValueError(f"n must be >= 0, got {n}")
+        key = _stream_key(rng) if n else 0
         mi = rng.choice(len(self.models), size=n, p=self.model_probabilities)
         ci = rng.choice(len(self.colors), size=n, p=self.color_probabilities)
-        return [VehicleVariant(self.models[i], self.colors[j]) for i, j in zip(mi, ci)]
+        u = np.random.default_rng(np.random.SeedSequence([key, 17])).random(n) if n else []
+        out = []
+        for i, j, x in zip(mi, ci, u):
+            m = self.models[i]
+            acc = 0.0
+            for opt, p in self.options_of(m).items():
+                acc += p
+                if x < acc:
+                    m = self.model(f"{m.name}+{opt}")
+                    break
+            out.append(VehicleVariant(m, self.colors[j]))
+        return out
 
     def with_models(self, models) -> "Catalog":
         """A copy restricted to the given models (names or VehicleModel objects)."""
         picked = [self.model(m) if isinstance(m, str) else m for m in models]
-        return Catalog(models=tuple(picked), colors=self.colors, path=self.path)
+        return Catalog(models=tuple(picked), colors=self.colors, path=self.path,
+                       option_rates=self.option_rates)
 
 
 # --------------------------------------------------------------------------- loading
@@ -200,7 +300,32 @@ def catalog_from_mapping(data: Any, path: Path | None = None) -> Catalog:
             raise AssetError(f"{where}: {key}: expected a non-empty list, got {got}")
     colors = tuple(_parse_color(where, i, e) for i, e in enumerate(raw_colors))
     models = tuple(_parse_model(where, folder, i, e) for i, e in enumerate(raw_models))
-    return Catalog(models=models, colors=colors, path=path)
+    rates = {}
+    for i, (m, e) in enumerate(zip(models, raw_models)):
+        if "options" in e:
+            rates[m.name] = _parse_options(where, _entry_name("models", i, e), m, e["options"])
+    return Catalog(models=models, colors=colors, path=path, option_rates=rates)
+
+
+def _parse_options(where: str, ent: str, model: VehicleModel, value: Any) -> dict[str, float]:
+    """A model's ``options: {name: probability}`` (probabilities in [0, 1], sum <= 1)."""
+    name = f"{where}: {ent} field options"
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise AssetError(f"{name}: expected a mapping of option: probability, got {value!r}")
+    out = {}
+    for k, p in value.items():
+        fits = [o for o, bodies in OPTION_BODIES.items() if model.body in bodies]
+        if k not in fits:
+            raise AssetError(f"{name}: option {k!r} does not fit body {model.body!r}; expected one "
+                             f"of {', '.join(fits) or 'none'}")
+        if isinstance(p, bool) or not isinstance(p, (int, float)) or not (0.0 <= p <= 1.0):
+            raise AssetError(f"{name}.{k}: expected a probability in [0, 1], got {p!r}")
+        out[str(k)] = float(p)
+    if sum(out.values()) > 1.0 + 1e-9:
+        raise AssetError(f"{name}: expected probabilities that sum to at most 1, got {sum(out.values()):g}")
+    return out
 
 
 def _entry_name(kind: str, i: int, entry: Any) -> str:
@@ -258,6 +383,9 @@ def _parse_model(where: str, folder: Path, i: int, entry: Any) -> VehicleModel:
     if not isinstance(entry, Mapping):
         raise AssetError(f"{where}: {ent}: expected a mapping, got {entry!r}")
     name = _string(where, ent, entry, "name")
+    if "+" in name:
+        raise AssetError(f"{where}: {ent} field name: expected a name without '+' (it joins a "
+                         f"model and a trim option), got {name!r}")
     is_mesh = "mesh" in entry
     allowed = _MESH_KEYS if is_mesh else _PROCEDURAL_KEYS
     unknown = set(entry) - allowed

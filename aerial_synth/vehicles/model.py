@@ -97,6 +97,8 @@ class VehicleModel:
     scale       : user mesh: uniform scale applied to the file's units (to metres)
     forward, up : user mesh: the file's axes that become +x and +z (e.g. ``"-z"``, ``"+y"``)
     paint_material : user mesh: material name whose faces take the variant colour
+    options     : procedural trim options built into the mesh (``sunroof``, ``roof_rack``,
+                  ...; see :mod:`.catalog`); the model's name is then ``base+option``
     """
 
     name: str
@@ -113,8 +115,10 @@ class VehicleModel:
     forward: str = "+x"
     up: str = "+z"
     paint_material: str = ""
+    options: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "options", tuple(self.options))
         for f in ("length_m", "width_m", "height_m"):
             v = getattr(self, f)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
@@ -130,6 +134,11 @@ class VehicleModel:
         if not self.source:
             src = f"procedural:{self.body}" if self.body else "mesh"
             object.__setattr__(self, "source", src)
+
+    @property
+    def base_name(self) -> str:
+        """The catalog model this one derives from (its name without ``+option``)."""
+        return self.name.split("+", 1)[0]
 
     @property
     def is_procedural(self) -> bool:

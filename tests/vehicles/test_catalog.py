@@ -91,7 +91,7 @@ def test_sampling_matches_weights(cat):
     draws = cat.sample(np.random.default_rng(12345), n)
     model_idx = {m.name: i for i, m in enumerate(cat.models)}
     color_idx = {c.name: i for i, c in enumerate(cat.colors)}
-    mc = np.bincount([model_idx[v.model.name] for v in draws], minlength=len(cat.models))
+    mc = np.bincount([model_idx[v.model.base_name] for v in draws], minlength=len(cat.models))
     cc = np.bincount([color_idx[v.color.name] for v in draws], minlength=len(cat.colors))
     for counts, p in ((mc, cat.model_probabilities), (cc, cat.color_probabilities)):
         assert not counts[p == 0].any()  # weight 0 (the large vehicles): never drawn
@@ -99,7 +99,7 @@ def test_sampling_matches_weights(cat):
     # and model and colour are drawn independently
     table = np.zeros((len(cat.models), len(cat.colors)))
     for v in draws:
-        table[model_idx[v.model.name], color_idx[v.color.name]] += 1
+        table[model_idx[v.model.base_name], color_idx[v.color.name]] += 1
     table = table[cat.model_probabilities > 0]
     assert stats.chi2_contingency(table).pvalue > 1e-3
 
