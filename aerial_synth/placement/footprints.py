@@ -264,11 +264,12 @@ class FootprintIndex:
         return bool(self.collides_many(np.array([poly], dtype=object), c[None], [r],
                                        centers=center_xy is not None)[0])
 
-    def select(self, geoms, xy, r, ok=None, max_n: int | None = None, heading=None) -> np.ndarray:
+    def select(self, geoms, xy, r, ok=None, max_n: int | None = None, heading=None, counts=None) -> np.ndarray:
         """Decide a batch in order: footprint k is accepted when it keeps the rules with every
         indexed footprint and every footprint of the batch accepted before it (as testing and
-        adding them one by one would); at most ``max_n`` are accepted. Candidates with ``ok``
-        False are skipped. The accepted ones are added; returns (n,) bool."""
+        adding them one by one would); acceptance stops once ``max_n`` accepted ones that
+        ``counts`` (default: all) have been reached. Candidates with ``ok`` False are skipped.
+        The accepted ones are added; returns (n,) bool."""
         from scipy.spatial import cKDTree
 
         geoms = np.asarray(geoms, dtype=object)
@@ -298,11 +299,12 @@ class FootprintIndex:
                 for p, q in zip(hi[hit].tolist(), lo[hit].tolist()):
                     earlier.setdefault(p, []).append(q)
         count = 0
+        cnt = np.ones(n, np.int64) if counts is None else np.asarray(counts, bool).astype(np.int64)
         for k in sel.tolist():
             if any(acc[q] for q in earlier.get(k, ())):
                 continue
             acc[k] = True
-            count += 1
+            count += int(cnt[k])
             if max_n is not None and count >= max_n:
                 break
         idx = np.flatnonzero(acc)

@@ -5,7 +5,10 @@ For every tile of a :class:`~aerial_synth.scene.tiles.TileGrid`, in raster order
 1. build the scene of the tile's **window** (core + margin) and its RayScene;
 2. call the public :func:`aerial_synth.placement.place` on it with the tile's own seed
    (``SeedSequence(entropy, spawn_key + (i, j))`` of the caller's seed; a grid of one tile
-   uses the caller's seed itself, so it equals untiled placement);
+   uses the caller's seed itself, so it equals untiled placement); in a grid of several
+   tiles a traffic scenario seeds its lines in the core only and counts the vehicles the
+   core owns (``place(..., region=...)``): lines still run on into the margin, where they
+   see the roads and vehicles around the core, but nothing is placed there for nothing;
 3. keep only the vehicles whose footprint centre lies in the tile's **core** (cores are
    half-open, so each point of the world has exactly one owner: a vehicle is decided once,
    by one tile);
@@ -17,8 +20,9 @@ merged in raster order and a vehicle near its core's border that collides with a
 kept vehicle of another tile is dropped (counted in ``stats["tiles"]["dropped_at_borders"]``).
 Ids are renumbered 1..N in merge order; line ids are offset per tile so they stay unique.
 
-``n_vehicles`` is for the whole world: each tile asks for its window's share by area
-(the core keeps about its core's share). None uses the scenario's default per tile.
+``n_vehicles`` is for the whole world: each tile asks for its core's share by area (traffic;
+parking scenarios: its window's share, of which the core keeps about its core's share).
+None uses the scenario's default per tile.
 """
 
 from __future__ import annotations
@@ -102,14 +106,19 @@ def place_tiled(
     single_stats = None
     t_scene = t_place = 0.0
     t0 = time.perf_counter()
+    from .parking_config import PARKING_KINDS
+
+    # traffic: a tile seeds its lines in its core and counts the vehicles its core owns, so it
+    # asks for its core's share; parking scenarios fill the window and ask for its share
+    by_core = cfg.kind not in PARKING_KINDS and n_tiles > 1
     wants = []
     for tile in tiles:
         want = None
         if n_vehicles is not None:
-            x0, y0, x1, y1 = tile.window
+            x0, y0, x1, y1 = tile.core if by_core else tile.window
             want = n_vehicles if n_tiles == 1 else max(1, int(round(n_vehicles * (x1 - x0) * (y1 - y0) / world_area)))
         wants.append(want)
-    jobs = [(world, grid, tile, cfg, tile_seed(seed, tile.i, tile.j, n_tiles), want, catalog, 0)
+    jobs = [(world, grid, tile, cfg, tile_seed(seed, tile.i, tile.j, n_tiles), want, catalog, 0, by_core)
             for tile, want in zip(tiles, wants)]
     if executor is not None:
         results = executor.map(_place_tile, jobs)
@@ -137,7 +146,9 @@ def place_tiled(
             ))
             n_kept += 1
         line_base += res["max_line"] + 1
-        per_tile.append({"tile": [tile.i, tile.j], "placed": res["placed"], "kept": n_kept})
+        per_tile.append({"tile": [tile.i, tile.j], "placed": res["placed"], "kept": n_kept,
+                         "rays": res.get("rays", 0), "casts": res.get("casts", 0),
+                         "stopped_full": res.get("stopped_full", False)})
         if progress is not None:
             progress(k + 1, n_tiles, len(kept))
         if n_tiles == 1 and res["stats"] is not None:
@@ -178,27 +189,32 @@ def _place_tile(job) -> dict:
     from . import place
     from .traffic import PlacementWarning
 
-    world, grid, tile, cfg, seed, want, catalog, nthreads = job
+    world, grid, tile, cfg, seed, want, catalog, nthreads, by_core = job
     ts = time.perf_counter()
     scene = world.scene_for(tile.window)
     rs = RayScene(scene, nthreads=nthreads)
+    rs.trace_labels(np.zeros((1, 2)))  # builds the BVH now: it is part of the scene build
     scene_s = time.perf_counter() - ts
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", PlacementWarning)
         try:
+            region = (tile.core, lambda xy: grid.owns(tile, xy)) if by_core else None
             pl = place(rs, cfg, np.random.default_rng(seed), n_vehicles=want, catalog=catalog,
-                       scene_name=world.name)
+                       scene_name=world.name, region=region)
         except PlacementError as exc:
             if "found no road" not in str(exc):
                 raise
             pl = None  # a tile without roads (a park, a lake) holds no vehicles
     out = {"warnings": [str(w.message) for w in caught], "scene_s": scene_s, "place_s": 0.0,
-           "owned": [], "placed": 0, "max_line": -1, "stats": None}
+           "owned": [], "placed": 0, "max_line": -1, "stats": None, "rays": 0, "casts": 0,
+           "stopped_full": False}
     if pl is None:
         return out
     xy = np.array([[v.x_m, v.y_m] for v in pl.vehicles]).reshape(-1, 2)
     own = grid.owns(tile, xy) if len(xy) else np.zeros(0, bool)
     out.update(place_s=pl.timing.get("seconds", 0.0), placed=len(pl.vehicles), stats=pl.stats,
+               rays=int(pl.stats.get("rays", 0)), casts=int(pl.stats.get("casts", 0)),
+               stopped_full=bool(pl.stats.get("stopped_full", False)),
                owned=[v for v, o in zip(pl.vehicles, own) if o],
                max_line=max([v.line_id for v in pl.vehicles], default=-1))
     return out
@@ -221,7 +237,7 @@ def _pool_map(jobs, workers: int):
     from concurrent.futures import ProcessPoolExecutor
 
     n = max(1, (os.cpu_count() or 1) // int(workers))
-    jobs = [j[:-1] + (n,) for j in jobs]
+    jobs = [j[:7] + (n,) + j[8:] for j in jobs]
     with ProcessPoolExecutor(int(workers), mp_context=mp.get_context("spawn"), initializer=_pool_init,
                              initargs=(n,)) as ex:
         yield from ex.map(_place_tile, jobs)

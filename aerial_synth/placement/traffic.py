@@ -77,7 +77,7 @@ class _Cand:
 
 
 class _Engine:
-    def __init__(self, rayscene, cfg: ScenarioConfig, rng: np.random.Generator, catalog):
+    def __init__(self, rayscene, cfg: ScenarioConfig, rng: np.random.Generator, catalog, region=None):
         self.rs = rayscene
         self.cfg = cfg
         self.rng = rng
@@ -99,6 +99,14 @@ class _Engine:
         self.coarse_m = COARSE * cfg.probe.step_m
         b = rayscene.scene.bounds()
         self.xy_lo, self.xy_hi = b[0, :2], b[1, :2]
+        # tiled placement: seeds only inside the tile's core; the limit counts the vehicles
+        # the core owns (region = ((x0, y0, x1, y1), owns(xy) -> (n,) bool))
+        self.owns = None
+        if region is not None:
+            rect, self.owns = region
+            self.xy_lo = np.maximum(self.xy_lo, np.asarray(rect[:2], float))
+            self.xy_hi = np.maximum(self.xy_lo, np.minimum(self.xy_hi, np.asarray(rect[2:], float)))
+        self.counted = 0
         self._seed_pool = np.zeros((0, 2))
         self.seeds_tried = 0
         self.start_failures: Counter = Counter()
@@ -229,8 +237,9 @@ class _Engine:
         L = np.array([v.model.length_m for v in variants]) if n else np.zeros(0)
         W = np.array([v.model.width_m for v in variants]) if n else np.zeros(0)
         geoms, xy, r = self.index.polygons(c.x, c.y, c.heading, L, W)
-        max_n = None if self.limit is None else max(0, self.limit - len(self.vehicles))
-        acc = self.index.select(geoms, xy, r, ok=c.ok, max_n=max_n, heading=c.heading)
+        max_n = None if self.limit is None else max(0, self.limit - self.counted)
+        counts = None if self.owns is None or not n else self.owns(xy)
+        acc = self.index.select(geoms, xy, r, ok=c.ok, max_n=max_n, heading=c.heading, counts=counts)
         tried = c.ok.copy()
         if max_n is not None and acc.sum() >= max_n and acc.any():
             tried[np.flatnonzero(acc)[-1] + 1:] = False  # the limit stopped the batch there
@@ -260,6 +269,7 @@ class _Engine:
             **self._original(float(c.x[i]), float(c.y[i]), float(z)),
         )
         self.vehicles.append(pv)
+        self.counted += 1 if self.owns is None else int(self.owns(np.array([[pv.x_m, pv.y_m]]))[0])
         if line is not None:
             line.placed.append(len(self.vehicles) - 1)
             line.x, line.y, line.heading = pv.x_m, pv.y_m, pv.heading_rad
@@ -329,7 +339,7 @@ class _Engine:
         return lanes_ok
 
     def full(self) -> bool:
-        return self.limit is not None and len(self.vehicles) >= self.limit
+        return self.limit is not None and self.counted >= self.limit
 
     # ------------------------------------------------------------------ line starts
     def start_lines(self, seeds: np.ndarray) -> list[_Line]:
@@ -586,20 +596,24 @@ class _Engine:
                 ln.reason = "road_end"
 
     # ------------------------------------------------------------------ scenarios
-    def run_lines(self, n_vehicles: int | None, n_lines: int | None, in_flight: int = 64) -> None:
-        """Pipelined traffic lines: keep up to ``in_flight`` lines advancing together; a
+    def run_lines(self, n_vehicles: int | None, n_lines: int | None, in_flight: int | None = None) -> None:
+        """Pipelined traffic lines: keep up to ``in_flight`` lines advancing together (64, or
+        one per 40 vehicles asked for, at most 512: a large request takes fewer, larger
+        casts); a
         finished line may spawn its opposite lane and its next lane inwards, and new seeds
         (road points clear of every placed vehicle) refill the pool.
 
         Early stop: seeding ends when the seeds run out (the scene's seeding budget) or when
-        the roads are full: the last ``4 * in_flight`` or more seeds that were probed gave
+        the roads are full: the last 256 or more seeds that were probed gave
         fewer than one vehicle (with the lines they started) per 8 seeds. Asking for far more
         vehicles than fit therefore costs about what asking for what fits costs."""
         self.limit = n_vehicles
         active: list[_Line] = []
         seeds_exhausted = False
         window: list[tuple[int, int]] = []  # (seeds probed, vehicles gained) per round
-        win_min = 4 * in_flight
+        if in_flight is None:
+            in_flight = int(np.clip((n_vehicles or 0) // 40, 64, 512))
+        win_min = 256
         while not self.full():
             before = len(self.vehicles)
             probed = 0
@@ -688,6 +702,7 @@ def place(
     seed: int | None = None,
     scene_name: str | None = None,
     obstacles=None,
+    region=None,
 ) -> Placement:
     """Place vehicles on the roads of ``rayscene`` for one traffic scenario.
 
@@ -698,6 +713,10 @@ def place(
     catalog   : vehicle catalog (default: the bundled one)
     obstacles : vehicles already standing (PlacedVehicle, e.g. parked ones): footprints keep
                 gap_m from them (the ``mixed`` scenario, placement/parking.py)
+    region    : tiled placement (placement/tiled.py), traffic scenarios: ``((x0, y0, x1, y1),
+                owns)``: line seeds are drawn inside the rectangle only and ``n_vehicles``
+                counts the vehicles whose centres ``owns(xy) -> (n,) bool`` accepts (lines
+                may run on beyond it; the caller drops those vehicles)
     Returns a :class:`Placement`. If the roads hold fewer vehicles than asked for, it places
     what fits, records the shortfall in ``stats`` and emits a :class:`PlacementWarning`.
     """
@@ -721,7 +740,7 @@ def place(
         return place_parking(rayscene, cfg, rng, catalog, seed=seed, scene_name=scene_name,
                              n_vehicles=n_vehicles, n_lines=n_lines, place_traffic=place)
     t0 = time.perf_counter()
-    eng = _Engine(rayscene, cfg, rng, catalog)
+    eng = _Engine(rayscene, cfg, rng, catalog, region=region)
     for v in obstacles or ():
         eng.index.add(eng.index.polygon(v.x_m, v.y_m, v.heading_rad, v.length_m, v.width_m), (v.x_m, v.y_m))
     if cfg.kind == "random":
@@ -777,9 +796,9 @@ def place(
         timing=timing,
         georeference=rayscene.scene.georeference(),
     )
-    if asked is not None and len(eng.vehicles) < asked:
-        msg = (f"the roads of {placement.scene!r} held {len(eng.vehicles)} of the {asked} vehicles asked "
+    if asked is not None and eng.counted < asked:
+        msg = (f"the roads of {placement.scene!r} held {eng.counted} of the {asked} vehicles asked "
                f"for ({cfg.name})")
-        stats["shortfall"] = asked - len(eng.vehicles)
+        stats["shortfall"] = asked - eng.counted
         warnings.warn(msg, PlacementWarning, stacklevel=2)
     return placement

@@ -58,8 +58,10 @@ def test_every_vehicle_decided_once_by_its_owner(world, tiled):
         warnings.simplefilter("ignore")
         for t in g.tiles():
             sc = world.scene_for(t.window)
-            want = max(1, int(round(N * (t.window[2] - t.window[0]) * (t.window[3] - t.window[1]) / 500.0**2)))
-            own = place(RayScene(sc), "jam", np.random.default_rng(tile_seed(7, t.i, t.j, 4)), n_vehicles=want)
+            # a tile of a grid seeds in its core and asks for its core's share
+            want = max(1, int(round(N * (t.core[2] - t.core[0]) * (t.core[3] - t.core[1]) / 500.0**2)))
+            own = place(RayScene(sc), "jam", np.random.default_rng(tile_seed(7, t.i, t.j, 4)), n_vehicles=want,
+                        region=(t.core, lambda xy, t=t: g.owns(t, xy)))
             oxy = np.array([[v.x_m, v.y_m] for v in own.vehicles])
             mine = {tuple(round(c, 6) for c in (v.x_m, v.y_m, v.heading_rad))
                     for v, o in zip(own.vehicles, g.owns(t, oxy)) if o}
