@@ -14,7 +14,10 @@ Sections (each also records its command and wall time):
 * ``dask``       the same export on a 2-process Dask LocalCluster: images/s (and its
                  ratios to the 1-worker runs of this suite);
 * ``tiles``      tiled placement of ``city_2km`` (4 km^2) in a child process per grid:
-                 peak RSS for 1 tile and for 16 tiles, vehicles, seconds;
+                 peak RSS for 1 tile and for 16 tiles, vehicles, seconds; an export
+                 worker's peak RSS untiled / tiled (tools/bench_tiled_export.py:
+                 ``export_untiled_peak_rss_mb``, ``export_tiled_peak_rss_mb``,
+                 ``export_tiled_20km_peak_rss_mb``);
 * ``cli``        the cold ``aerial-synth --help`` time (median of 5 fresh processes).
 
 Timings on a shared machine are noisy: compare ratios within one run (the suite records
@@ -150,6 +153,15 @@ def bench_tiles(a) -> dict:
         d["wall_s_with_imports"] = round(wall, 1)
         res[label] = d
     res["command"] = "place_tiled(TiledWorld.load('city_2km'), grid(tile_m, 60), 'jam', seed=0, n_vehicles=N) in a child process"
+    if not a.tile_runs or "export" in a.tile_runs.split(","):
+        # an export worker's peak RSS, untiled and tiled city_2km and a tiled 20 km city
+        cmd = [PY, "tools/bench_tiled_export.py", "--json", "--images", str(min(a.images, 20))]
+        out, wall = _run(cmd, timeout=3600)
+        d = json.loads(out.strip().splitlines()[-1])
+        res.update({k: v for k, v in d.items() if k.endswith("_peak_rss_mb") or k.endswith("_rss")})
+        res["export_runs"] = d
+    elif "export_runs" in prev:
+        res.update({k: v for k, v in prev.items() if k.startswith("export_")})
     return res
 
 
@@ -236,7 +248,7 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="small runs (8 images, 1 repeat) to check the suite")
     ap.add_argument("--merge", action="store_true", help="keep the other sections of an existing --out file")
     ap.add_argument("--tile-runs", default="", help="only these tiles runs (one_tile, sixteen_tiles, "
-                    "one_tile_of_50km_world); with --merge the others are kept")
+                    "one_tile_of_50km_world, export); with --merge the others are kept")
     a = ap.parse_args(argv)
     if a.quick:
         a.images, a.repeat, a.place_vehicles, a.tile_vehicles = 8, 1, 300, 3000
