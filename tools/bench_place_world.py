@@ -7,7 +7,9 @@ the largest resident set of the child and of the pool workers it waited for). A 
 vehicles placed, the scene build seconds (window meshes, the RayScene and its Embree BVH,
 summed over tiles), the placement seconds (``place()`` calls, summed over tiles), the wall
 seconds of the whole tiled placement (builds and placement, tiles in parallel with
-``--workers``), vehicles/s of placement and of the wall time, rays and casts, and the peak RSS.
+``--workers``) and its CPU seconds (this process and its pool workers, user + system),
+vehicles/s of placement and of the wall time, rays and casts, the peak RSS and the load
+average before and after (on a shared machine compare CPU seconds and ratios, not walls).
 
     .venv/bin/python tools/bench_place_world.py [--scene city_dense_2km] [--vehicles 20000]
         [--runs 1x1,16x2] [--json]
@@ -40,9 +42,15 @@ k = int(round(tiles ** 0.5))
 size = float(max(hi[0] - lo[0], hi[1] - lo[1]))
 grid = w.grid(size / k + (1e-6 if k > 1 else 0.0), 60.0)
 t_imp = time.perf_counter() - t0
+import resource
+def cpu():
+    a, b = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return a.ru_utime + a.ru_stime + b.ru_utime + b.ru_stime
+c1 = cpu()
 t1 = time.perf_counter()
 pl = place_tiled(w, grid, "jam", seed=seed, n_vehicles=n, catalog=cat, workers=workers)
 wall = time.perf_counter() - t1
+cpu_s = cpu() - c1
 st = pl.stats
 print(json.dumps({
     "scene": scene, "tiles": len(grid), "grid": list(grid.shape), "workers": workers,
@@ -50,6 +58,9 @@ print(json.dumps({
     "scene_seconds": round(pl.timing["scene_seconds"], 2),
     "place_seconds": round(pl.timing["place_seconds"], 2),
     "wall_seconds": round(wall, 2),
+    "cpu_seconds": round(cpu_s, 2),
+    "scene_cpu_seconds": round(pl.timing["scene_cpu_seconds"], 2),
+    "place_cpu_seconds": round(pl.timing["place_cpu_seconds"], 2),
     "import_and_load_seconds": round(t_imp, 2),
     "vehicles_per_s_place": round(len(pl.vehicles) / max(pl.timing["place_seconds"], 1e-9), 1),
     "vehicles_per_s_wall": round(len(pl.vehicles) / max(wall, 1e-9), 1),
@@ -111,9 +122,10 @@ def main(argv=None) -> int:
         d = run_one(a.scene, a.vehicles, tiles, workers, a.seed)
         res["runs"][spec] = d
         print(f"{a.scene}, {tiles} tile(s), {workers} worker(s): {d['vehicles']} of {a.vehicles} vehicles; "
-              f"scene build {d['scene_seconds']:.2f} s, placement {d['place_seconds']:.2f} s "
+              f"scene build {d['scene_seconds']:.2f} s (CPU {d['scene_cpu_seconds']:.1f} s), "
+              f"placement {d['place_seconds']:.2f} s (CPU {d['place_cpu_seconds']:.1f} s) "
               f"({d['vehicles_per_s_place']:.0f} vehicles/s), wall {d['wall_seconds']:.2f} s "
-              f"({d['vehicles_per_s_wall']:.0f} vehicles/s); {d['rays']:,} rays in {d['casts']:,} casts; "
+              f"({d['vehicles_per_s_wall']:.0f} vehicles/s), CPU {d['cpu_seconds']:.1f} s; {d['rays']:,} rays in {d['casts']:,} casts; "
               f"peak RSS {d['peak_rss_mb']:.0f} MB; load {d['load_before']} -> {d['load_after']}")
     if a.json:
         print(json.dumps(res))

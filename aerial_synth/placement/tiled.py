@@ -104,7 +104,7 @@ def place_tiled(
     dropped = 0
     warned: list[str] = []
     single_stats = None
-    t_scene = t_place = 0.0
+    t_scene = t_place = c_scene = c_place = 0.0
     t0 = time.perf_counter()
     from .parking_config import PARKING_KINDS
 
@@ -130,6 +130,8 @@ def place_tiled(
         warned += res["warnings"]
         t_scene += res["scene_s"]
         t_place += res["place_s"]
+        c_scene += res.get("scene_cpu_s", 0.0)
+        c_place += res.get("place_cpu_s", 0.0)
         x0, y0, x1, y1 = tile.core
         n_kept = 0
         for v in res["owned"]:
@@ -175,7 +177,8 @@ def place_tiled(
         vehicles=kept,
         stats=stats,
         timing={"seconds": elapsed, "vehicles_per_s": len(kept) / elapsed if elapsed else 0.0,
-                "scene_seconds": t_scene, "place_seconds": t_place},
+                "scene_seconds": t_scene, "place_seconds": t_place,
+                "scene_cpu_seconds": c_scene, "place_cpu_seconds": c_place},
     )
     if warned and n_tiles == 1:
         warnings.warn(warned[0], PlacementWarning, stacklevel=2)
@@ -191,10 +194,12 @@ def _place_tile(job) -> dict:
 
     world, grid, tile, cfg, seed, want, catalog, nthreads, by_core = job
     ts = time.perf_counter()
+    cs = _cpu()
     scene = world.scene_for(tile.window)
     rs = RayScene(scene, nthreads=nthreads)
     rs.trace_labels(np.zeros((1, 2)))  # builds the BVH now: it is part of the scene build
     scene_s = time.perf_counter() - ts
+    scene_cpu = _cpu() - cs
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", PlacementWarning)
         try:
@@ -206,6 +211,7 @@ def _place_tile(job) -> dict:
                 raise
             pl = None  # a tile without roads (a park, a lake) holds no vehicles
     out = {"warnings": [str(w.message) for w in caught], "scene_s": scene_s, "place_s": 0.0,
+           "scene_cpu_s": scene_cpu, "place_cpu_s": _cpu() - cs - scene_cpu,
            "owned": [], "placed": 0, "max_line": -1, "stats": None, "rays": 0, "casts": 0,
            "stopped_full": False}
     if pl is None:
@@ -218,6 +224,14 @@ def _place_tile(job) -> dict:
                owned=[v for v, o in zip(pl.vehicles, own) if o],
                max_line=max([v.line_id for v in pl.vehicles], default=-1))
     return out
+
+
+def _cpu() -> float:
+    """CPU seconds of this process so far (user + system, all its threads)."""
+    import resource
+
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
 
 
 def _pool_init(nthreads: int) -> None:
