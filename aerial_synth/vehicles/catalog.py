@@ -232,18 +232,18 @@ class Catalog:
         key = _stream_key(rng) if n else 0
         mi = rng.choice(len(self.models), size=n, p=self.model_probabilities)
         ci = rng.choice(len(self.colors), size=n, p=self.color_probabilities)
-        u = np.random.default_rng(np.random.SeedSequence([key, 17])).random(n) if n else []
-        out = []
-        for i, j, x in zip(mi, ci, u):
-            m = self.models[i]
-            acc = 0.0
-            for opt, p in self.options_of(m).items():
-                acc += p
-                if x < acc:
-                    m = self.model(f"{m.name}+{opt}")
-                    break
-            out.append(VehicleVariant(m, self.colors[j]))
-        return out
+        u = np.random.default_rng(np.random.SeedSequence([key, 17])).random(n) if n else np.zeros(0)
+        picked = [self.models[i] for i in mi]
+        for i in np.unique(mi):  # option k of a model: the first whose cumulative rate > u
+            rates = self.options_of(self.models[i])
+            if not rates:
+                continue
+            sel = np.flatnonzero(mi == i)
+            k = np.searchsorted(np.cumsum(list(rates.values())), u[sel], side="right")
+            names = list(rates)
+            for s, kk in zip(sel[k < len(names)], k[k < len(names)]):
+                picked[s] = self.model(f"{self.models[i].name}+{names[kk]}")
+        return [VehicleVariant(m, self.colors[j]) for m, j in zip(picked, ci)]
 
     def with_models(self, models) -> "Catalog":
         """A copy restricted to the given models (names or VehicleModel objects)."""

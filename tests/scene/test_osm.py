@@ -355,8 +355,10 @@ def _left_offset(road, v):
 
 # ---------------------------------------------------------------------------- the rest
 def test_buildings_heights_from_tags(scene, rs):
-    roofs = next(o for o in scene.objects if o.name == "building_roofs")
-    heights = set(np.round(np.unique(roofs.vertices[:, 2]), 3))
+    roofs = [o for o in scene.objects if o.name.startswith("building_roofs_")]
+    assert {o.material for o in roofs} <= {"roof_gravel", "roof_tiles", "roof_metal"}
+    assert len({o.material for o in roofs}) == len(roofs)
+    heights = set(np.round(np.unique(np.concatenate([o.vertices[:, 2] for o in roofs])), 3))
     # levels x 3 m (5 and 4 levels), house default, height tag
     assert heights == {15.0, 12.0, 7.0, 12.5}
     xy = local(scene, [(-40, 32), (-47, -32), (80, 35), (10, 70)])

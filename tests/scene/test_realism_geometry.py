@@ -234,3 +234,28 @@ def test_same_seed_same_vertices(gen):
     assert generate(spec, seed=9).vertex_hash() != a.vertex_hash()
     assert any(o.material == "track" for o in a.objects)
     assert any(o.name.startswith("roof_details_") for o in a.objects)
+
+
+def test_glb_export_keeps_roofs_tracks_and_species(tmp_path):
+    import collections
+
+    from aerial_synth.scene import load_scene
+    from aerial_synth.scene.io import export_glb
+
+    a = generate(_small())
+    b = load_scene(export_glb(a, tmp_path / "s.glb"))
+    key = lambda sc: collections.Counter((o.label, o.material, o.n_triangles) for o in sc.objects)  # noqa: E731
+    assert key(a) == key(b)
+    assert {"roof_gravel", "track"} <= {o.material for o in b.objects}
+
+
+def test_osm_roof_covering_from_tags():
+    from aerial_synth.scene.procedural.roofs import covering_from_tags
+
+    assert covering_from_tags({"building": "house"}) == "roof_tiles"
+    assert covering_from_tags({"building": "warehouse"}) == "roof_metal"
+    assert covering_from_tags({"building": "apartments"}) == "roof_gravel"
+    assert covering_from_tags({"building": "yes"}) == "roof_gravel"
+    assert covering_from_tags({"building": "house", "roof:material": "metal"}) == "roof_metal"
+    assert covering_from_tags({"building": "industrial", "roof:material": "Gravel"}) == "roof_gravel"
+    assert covering_from_tags({"building": "industrial", "roof:material": "straw"}) == "roof_metal"

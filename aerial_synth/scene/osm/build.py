@@ -446,9 +446,20 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
         n_buildings = int(len(np.unique(pidx)))
         if len(parts):
             h = np.array([building_height_m(data.areas[i][2]) for i in bsel])[pidx]
-            (v, f), (wv, wf) = _roofs_and_walls(parts, h)
-            if len(f):
-                objects.append(SceneObject("building_roofs", "building", v, f, "roof"))
+            from ..build import merge_meshes
+            from ..procedural.roofs import ROOF_MATERIALS, covering_from_tags
+
+            cov = np.array([covering_from_tags(data.areas[i][2]) for i in bsel])[pidx]
+            walls = []
+            for mat in ROOF_MATERIALS:  # one roof object per covering, from the tags
+                sel = np.flatnonzero(cov == mat)
+                if not len(sel):
+                    continue
+                (v, f), w = _roofs_and_walls(parts[sel], h[sel])
+                walls.append(w)
+                if len(f):
+                    objects.append(SceneObject(f"building_roofs_{mat[5:]}", "building", v, f, mat))
+            wv, wf = merge_meshes(walls)
             if len(wf):
                 objects.append(SceneObject("building_walls", "building", wv, wf, "wall"))
 

@@ -307,3 +307,29 @@ def building_objects(buildings, seeds, spec: Mapping, names=None):
         objs.append(SceneObject(name, "building", *rp.body, material=rp.material, color=rp.color))
         parts.append(rp)
     return objs + detail_objects(parts)
+
+
+#: OSM ``roof:material`` values -> covering.
+_OSM_ROOF_MATERIAL = {
+    "roof_tiles": "roof_tiles", "tile": "roof_tiles", "tiles": "roof_tiles", "clay": "roof_tiles",
+    "slate": "roof_tiles", "concrete_tiles": "roof_tiles",
+    "metal": "roof_metal", "metal_sheet": "roof_metal", "copper": "roof_metal", "tin": "roof_metal",
+    "zinc": "roof_metal", "steel": "roof_metal", "aluminium": "roof_metal",
+    "gravel": "roof_gravel", "concrete": "roof_gravel", "asphalt": "roof_gravel",
+    "tar_paper": "roof_gravel", "roofing_felt": "roof_gravel", "pebblestone": "roof_gravel",
+}
+_OSM_TILED = {"house", "detached", "semidetached_house", "terrace", "bungalow", "farm", "cabin",
+              "hut", "church", "chapel", "villa"}
+_OSM_METAL = {"industrial", "warehouse", "retail", "supermarket", "hangar", "shed", "garages",
+              "garage", "barn", "service", "carport", "farm_auxiliary", "transportation",
+              "manufacture", "storage_tank", "cowshed", "stable"}
+
+
+def covering_from_tags(tags: Mapping) -> str:
+    """Roof covering of an OSM building: its ``roof:material`` when known, else by
+    ``building`` type (houses tiles, sheds and halls metal, everything else gravel)."""
+    m = _OSM_ROOF_MATERIAL.get(str(tags.get("roof:material", "")).lower())
+    if m:
+        return m
+    b = str(tags.get("building", ""))
+    return "roof_tiles" if b in _OSM_TILED else "roof_metal" if b in _OSM_METAL else "roof_gravel"
