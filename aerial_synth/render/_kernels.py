@@ -18,7 +18,7 @@ from . import _materials
 #: sha256 (first 16 hex digits) of ``_materials.py``. :func:`compose` inlines its helpers,
 #: but numba's disk cache checks only this file's content, so this line must change
 #: whenever ``_materials.py`` does (tests/render/test_materials.py checks it).
-MATERIALS_SHA = "f1f7f2161f589f73"
+MATERIALS_SHA = "985acd3111da2903"
 
 
 @njit(parallel=True, **_OPTS)
@@ -359,7 +359,8 @@ def _wear(m, wear, ids, qx, qy, nf, t0, t1, t2, ar, ag, ab):  # pragma: no cover
     """Surface wear by world position, ``wear`` in [0, 1] (the frame's road age):
     asphalt (ids[0]): repair patches (4 m field, sharp edged, darker or lighter), a crack
     network (zero crossings of a 1.5 m fractal field), oil stains (0.8 m blobs);
-    markings (ids[1]): faded towards the asphalt grey; grass (ids[2]): bare soil patches at
+    markings (ids[1]): faded towards the asphalt grey in patches at 8 m, 1 m and 0.1 m
+    scales; grass (ids[2]): bare soil patches at
     3 m and 12 m scales."""
     one = np.float32(1.0)
     if m == ids[0]:
@@ -386,8 +387,11 @@ def _wear(m, wear, ids, qx, qy, nf, t0, t1, t2, ar, ag, ab):  # pragma: no cover
         ag *= g
         ab *= g
     elif m == ids[1]:
-        f = _bilinear(t1, qx + np.float32(7.0), qy + np.float32(3.0)) + np.float32(0.5) * nf
-        k = np.float32(0.85) * wear * _smooth((f + np.float32(0.6)) * np.float32(0.7))
+        # patchy at three scales: whole dashes (8 m), scuffs (1 m), flakes (0.1 m)
+        f = (_bilinear(t1, qx + np.float32(7.0), qy + np.float32(3.0)) + np.float32(0.5) * nf
+             + np.float32(0.7) * _bilinear(t2, qx * np.float32(0.125) + np.float32(23.0),
+                                           qy * np.float32(0.125) + np.float32(41.0)))
+        k = np.float32(0.85) * wear * _smooth((f + np.float32(0.8)) * np.float32(0.6))
         ar += k * (np.float32(0.2) - ar)
         ag += k * (np.float32(0.2) - ag)
         ab += k * (np.float32(0.21) - ab)

@@ -5,6 +5,9 @@ Every pattern is a pure function of the hit's world position, the face's tangent
 texture noise tiles and a hash of (texture seed, cell index), so a place keeps its look
 from frame to frame and the image does not depend on the thread count.
 
+Editing this file: numba's disk cache of ``compose`` checks only ``_kernels.py``, so
+update ``_kernels.MATERIALS_SHA`` to the new file's sha256 (a test checks it).
+
 Coordinates: ``u`` runs along the face's tangent (down the slope of a pitched face, along
 the longest outline edge of a flat one: the run of a sidewalk or road strip), ``v`` across
 it, both horizontal, in metres. Thin lines (paving joints, roof courses, standing seams)
@@ -38,10 +41,6 @@ KIND_PAVING = 6
 KIND_CONCRETE = 7
 KIND_VEGETATION = 8
 KIND_WATER = 9
-
-#: kinds whose pattern uses the face tangent (u, v) and the pixel footprint
-ORIENTED = (KIND_TILES, KIND_METAL, KIND_TRACK, KIND_ASPHALT, KIND_PAVING, KIND_CONCRETE,
-            KIND_GRAVEL)
 
 # pattern sizes, metres
 TILE_COURSE_M = 0.32  # tile course pitch down the slope

@@ -110,7 +110,7 @@ class RenderConfig:
     tone_shoulder: tuple[float, float] = (0.0, 0.6)
     white_balance: tuple[float, float] = (-0.2, 0.1)
     tint: tuple[float, float] = (-0.04, 0.04)
-    saturation: tuple[float, float] = (0.3, 0.85)
+    saturation: tuple[float, float] = (0.3, 0.75)
     grayscale_probability: float = 0.1
     blur_sigma_px: tuple[float, float] = (0.4, 0.9)
     chromatic_blur: tuple[float, float] = (0.0, 0.35)
@@ -121,7 +121,7 @@ class RenderConfig:
     vignetting: tuple[float, float] = (0.0, 0.25)
     asphalt_albedo: tuple[float, float] = (0.3, 0.8)
     concrete_albedo: tuple[float, float] = (0.8, 1.15)
-    ground_albedo: tuple[float, float] = (0.75, 1.2)
+    ground_albedo: tuple[float, float] = (0.45, 0.85)
     vegetation_dryness: tuple[float, float] = (0.0, 0.8)
     road_wear: tuple[float, float] = (0.2, 1.0)
     sky_light: tuple[float, float] = (1.3, 2.2)
