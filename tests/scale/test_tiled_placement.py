@@ -141,6 +141,44 @@ def test_two_processes_same_result(world, tiled):
     assert par.stats["tiles"] == pl.stats["tiles"]
 
 
+class _ReversedExecutor:
+    """Places the tiles in reverse order (as a pool whose workers finish in any order
+    would), yields the results in tile order, as ``Executor.map`` does."""
+
+    def __init__(self):
+        self.jobs = 0
+
+    def map(self, fn, jobs):
+        jobs = list(jobs)
+        self.jobs = len(jobs)
+        out = [fn(j) for j in reversed(jobs)]
+        return iter(out[::-1])
+
+
+def test_same_result_whatever_order_tiles_are_placed_in(world, tiled):
+    """Tiles are independent until the raster-order merge: placing them in another order
+    (any number of workers) gives the same vehicles, ids and stats."""
+    g, pl = tiled
+    ex = _ReversedExecutor()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rev = place_tiled(world, g, "jam", seed=7, n_vehicles=N, executor=ex)
+    assert ex.jobs == 4
+    assert _dicts(rev) == _dicts(pl)
+    assert rev.stats["tiles"] == pl.stats["tiles"]
+
+
+def test_tiles_ask_for_their_core_share(world, tiled):
+    """A tile seeds in its core and counts what its core owns: the merged world holds the
+    vehicles asked for, less only those dropped at borders."""
+    g, pl = tiled
+    per = pl.stats["tiles"]["per_tile"]
+    asked = sum(max(1, int(round(N * (t.core[2] - t.core[0]) * (t.core[3] - t.core[1]) / 500.0**2)))
+                for t in g.tiles())
+    assert len(pl.vehicles) == asked - pl.stats["tiles"]["dropped_at_borders"]
+    assert all(t["kept"] <= t["placed"] for t in per)
+
+
 def test_only_some_tiles(world, tiled):
     """A part of the world (one machine's share) gives the same vehicles for its tiles."""
     g, pl = tiled
