@@ -259,3 +259,21 @@ def test_osm_roof_covering_from_tags():
     assert covering_from_tags({"building": "house", "roof:material": "metal"}) == "roof_metal"
     assert covering_from_tags({"building": "industrial", "roof:material": "Gravel"}) == "roof_gravel"
     assert covering_from_tags({"building": "industrial", "roof:material": "straw"}) == "roof_metal"
+
+
+def test_two_way_roads_with_several_lanes_get_lane_lines():
+    from shapely.geometry import LineString
+
+    from aerial_synth.scene.procedural.markings import road_markings
+
+    line = LineString([(-50, 0), (50, 0)])
+    m2 = road_markings(Road("a", line, 14.0, lanes=2), None, {})
+    m1 = road_markings(Road("a", line, 14.0, lanes=1), None, {})
+    xs = np.linspace(-45, 45, 901)
+    for y in (3.5, -3.5):  # between lane 1 and 2 of each direction: dashes
+        on = shapely.contains_xy(m2, xs, np.full_like(xs, y))
+        assert 0.2 < on.mean() < 0.5
+        assert not shapely.contains_xy(m1, xs, np.full_like(xs, y)).any()
+    # the tracks of the lanes stay clear of the lane lines
+    t = road_tracks(Road("a", line, 14.0, lanes=2), None, {})
+    assert not t.intersects(m2)

@@ -61,6 +61,11 @@ def road_markings(r: Road, others_area, cfg: Mapping):
         if w >= float(cfg.get("edge_line_min_width_m", 7.0)):
             parts.append(solid(offset_line(r.line, w / 2 - edge_in), mw))
             parts.append(solid(offset_line(r.line, -(w / 2 - edge_in)), mw))
+        # dashed lane lines between the lanes of one direction (lanes >= 2 per direction)
+        lw = w / (2 * r.lanes)
+        for k in range(1, r.lanes):
+            for sign in (1.0, -1.0):
+                parts.append(dashes(offset_line(r.line, sign * k * lw), dash, gap, mw))
     m = shapely.union_all([p for p in parts if not p.is_empty])
     own = r.line.buffer(w / 2 - 0.05, cap_style="flat")
     m = m.intersection(own)
