@@ -17,7 +17,10 @@ Sections (each also records its command and wall time):
                  peak RSS for 1 tile and for 16 tiles, vehicles, seconds; an export
                  worker's peak RSS untiled / tiled (tools/bench_tiled_export.py:
                  ``export_untiled_peak_rss_mb``, ``export_tiled_peak_rss_mb``,
-                 ``export_tiled_20km_peak_rss_mb``);
+                 ``export_tiled_20km_peak_rss_mb``); ``world_20k``: 20,000 jam vehicles
+                 asked for on city_dense_2km as 1 tile and as 16 tiles on 2 workers
+                 (tools/bench_place_world.py: vehicles, scene build and placement
+                 seconds, wall and CPU, vehicles/s, peak RSS);
 * ``cli``        the cold ``aerial-synth --help`` time (median of 5 fresh processes).
 
 Timings on a shared machine are noisy: compare ratios within one run (the suite records
@@ -153,6 +156,17 @@ def bench_tiles(a) -> dict:
         d["wall_s_with_imports"] = round(wall, 1)
         res[label] = d
     res["command"] = "place_tiled(TiledWorld.load('city_2km'), grid(tile_m, 60), 'jam', seed=0, n_vehicles=N) in a child process"
+    if not a.tile_runs or "world" in a.tile_runs.split(","):
+        # issue 14's target: 20,000 vehicles on 4 km^2 (city_dense_2km holds them), as 1 tile
+        # and as 16 tiles on 2 workers: vehicles, scene build and placement seconds (wall and
+        # CPU), vehicles/s, peak RSS (tools/bench_place_world.py)
+        cmd = [PY, "tools/bench_place_world.py", "--json", "--vehicles", str(a.world_vehicles), "--runs", "1x1,16x2"]
+        out, wall = _run(cmd)
+        d = json.loads(out.strip().splitlines()[-1])
+        res["world_20k"] = {"command": " ".join(cmd[1:]), "scene": d["scene"], "requested": d["requested"],
+                            "one_tile": d["runs"]["1x1"], "sixteen_tiles_2_workers": d["runs"]["16x2"]}
+    elif "world_20k" in prev:
+        res["world_20k"] = prev["world_20k"]
     if not a.tile_runs or "export" in a.tile_runs.split(","):
         # an export worker's peak RSS, untiled and tiled city_2km and a tiled 20 km city
         cmd = [PY, "tools/bench_tiled_export.py", "--json", "--images", str(min(a.images, 20))]
@@ -244,14 +258,17 @@ def main(argv=None) -> int:
     ap.add_argument("--export-presets", default="full", help="export readings for these presets (full,fast)")
     ap.add_argument("--place-vehicles", type=int, default=1000)
     ap.add_argument("--tile-vehicles", type=int, default=20000)
+    ap.add_argument("--world-vehicles", type=int, default=20000,
+                    help="vehicles asked for on city_dense_2km (tiles section, world_20k)")
     ap.add_argument("--only", default=",".join(SECTIONS), help=f"comma list of {', '.join(SECTIONS)}")
     ap.add_argument("--quick", action="store_true", help="small runs (8 images, 1 repeat) to check the suite")
     ap.add_argument("--merge", action="store_true", help="keep the other sections of an existing --out file")
     ap.add_argument("--tile-runs", default="", help="only these tiles runs (one_tile, sixteen_tiles, "
-                    "one_tile_of_50km_world, export); with --merge the others are kept")
+                    "one_tile_of_50km_world, export, world); with --merge the others are kept")
     a = ap.parse_args(argv)
     if a.quick:
         a.images, a.repeat, a.place_vehicles, a.tile_vehicles = 8, 1, 300, 3000
+        a.world_vehicles = 3000
         a.images_per_placement = 4
     only = [s.strip() for s in a.only.split(",") if s.strip()]
     bad = [s for s in only if s not in SECTIONS]
