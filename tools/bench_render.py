@@ -2,10 +2,12 @@
 
 Times render_frame (instance, semantic, depth, visibility, shaded RGB with shadow rays)
 against the bare ``RayScene`` calls for the same rays: the primary ``cast_rays`` alone (the
-issue's "frame <= 2x bare cast_rays" target), and every batch the frame casts (primary,
-amodal silhouettes, shadow any-hit tests), recorded from the same frame and replayed. After
-a warm-up frame (Embree scenes are built once per placement and reported separately; the
-first frame also loads the compiled shading kernels).
+targets: full preset <= 2.5x, fast preset <= 1.5x the bare primary cast), and every batch
+the frame casts (primary, amodal silhouettes, shadow and ambient-occlusion any-hit tests),
+recorded from the same frame and replayed. After a warm-up frame (Embree scenes are built
+once per placement and reported separately; the first frame also loads the compiled
+shading kernels). Prints the median of every stage of the frame, in ms and as a multiple
+of the bare primary cast, for both presets with ``--compare-presets``.
 
     .venv/bin/python tools/bench_render.py [--scene city_park] [--vehicles 400] [--repeat 5]
         [--preset full|fast] [--compare-presets]
@@ -34,15 +36,18 @@ from aerial_synth.scene.raycast import RayScene  # noqa: E402
 
 
 def _record_calls(rs, fn) -> list[tuple[str, np.ndarray, frozenset, dict]]:
-    """Run ``fn`` and return every (method, rays, ignore, keywords) batch it cast."""
+    """Run ``fn`` and return every (method, rays, ignore, keywords) batch it cast. The
+    renderer's primary cast goes through ``RayScene._cast_raw`` (Embree's answer, mapped
+    by the frame's own compiled pass); it is recorded as a ``cast_rays`` batch, so the
+    reference stays the public ``cast_rays`` (Embree plus face and label mapping)."""
     calls = []
-    originals = {k: getattr(rs, k) for k in ("cast_rays", "test_occlusions")}
+    originals = {k: getattr(rs, k) for k in ("cast_rays", "test_occlusions", "_cast_raw")}
 
     def spy(kind):
         def call(rays, ignore=(), **kw):
-            calls.append((kind, np.array(rays, np.float32, copy=True), frozenset(ignore),
-                          dict(kw)))
-            return originals[kind](rays, ignore=ignore, **kw)
+            calls.append((kind if kind != "_cast_raw" else "cast_rays",
+                          np.array(rays, np.float32, copy=True), frozenset(ignore), dict(kw)))
+            return originals[kind](rays, ignore=frozenset(ignore), **kw)
         return call
 
     for k in originals:
@@ -92,6 +97,7 @@ def main(argv=None) -> int:
     t_bvh = time.perf_counter() - t
 
     frames, bare, bare_all, stages, in_view, n_rays, others = [], [], [], [], [], [], []
+    ostages = []
     for i in range(a.repeat + 1):
         seed = np.random.SeedSequence([a.seed, i])
         cam = sample_pose_targeted(cfg, pl, np.random.default_rng(seed), within_xy=scene.bounds()[:, :2])
@@ -110,11 +116,11 @@ def main(argv=None) -> int:
         t = time.perf_counter()
         fr = render_frame(rs, cam, pl, np.random.default_rng(seed), rcfg)
         t_frame = time.perf_counter() - t
-        t_other = None
+        t_other = ofr = None
         if a.compare_presets:
             cam.__dict__.pop("_rays_cache", None)
             t = time.perf_counter()
-            render_frame(rs, cam, pl, np.random.default_rng(seed), ocfg)
+            ofr = render_frame(rs, cam, pl, np.random.default_rng(seed), ocfg)
             t_other = time.perf_counter() - t
         if i == 0:
             continue  # warm-up (compiles or loads the shading kernels)
@@ -123,6 +129,7 @@ def main(argv=None) -> int:
         frames.append(t_frame)
         if t_other is not None:
             others.append(t_other)
+            ostages.append(ofr.timings_s)
         stages.append(fr.timings_s)
         in_view.append(len(fr.visibility))
         n_rays.append({k: sum(len(r) for kk, r, _, _ in calls if kk == k)
@@ -134,8 +141,19 @@ def main(argv=None) -> int:
     print(f"vehicles in view per frame: {in_view}")
     print("rays per frame (cast_rays / test_occlusions: shadow + ambient occlusion): "
           + ", ".join(f"{r['cast_rays']:,} / {r['test_occlusions']:,}" for r in n_rays))
-    for k in [k for k in stages[0] if k != "total"]:
-        print(f"  {k:18s} median {statistics.median(s[k] for s in stages) * 1000:7.1f} ms")
+    print(f"stages, median ms and / median bare primary cast ({a.preset}"
+          + (f" | {other})" if ostages else ")"))
+    keys = [k for k in stages[0] if k != "total"]
+    keys += [k for k in (ostages[0] if ostages else {}) if k not in keys and k != "total"]
+    for k in keys:
+        line = f"  {k:22s}"
+        for st in (stages, ostages) if ostages else (stages,):
+            v = [s_[k] for s_ in st if k in s_]
+            med = statistics.median(v) * 1000 if v else 0.0
+            line += f" {med:7.1f} ms {med / (1000 * med_b):5.2f}x"
+            if st is stages and ostages:
+                line += " |"
+        print(line)
     print(f"frame 1024x1024 ({a.preset}) median {med_f * 1000:.1f} ms "
           f"(min {min(frames) * 1000:.1f})")
     print(f"bare cast_rays, primary rays: median {med_b * 1000:.1f} ms -> frame / bare "
@@ -145,9 +163,13 @@ def main(argv=None) -> int:
         print(f"frame ({other}) median {med_o * 1000:.1f} ms -> frame / bare {med_o / med_b:.2f}")
     print(f"bare calls, every ray the frame casts (primary, amodal, shadow): median "
           f"{med_a * 1000:.1f} ms -> frame / bare {med_f / med_a:.2f}")
-    ok = med_f <= 0.5 and (med_f <= 2.5 * med_b if a.preset == "full" else med_f <= 2 * med_b)
-    print(f"targets (<= 0.5 s, <= {'2.5' if a.preset == 'full' else '2'}x bare primary cast):",
-          "met" if ok else "NOT met")
+    limit = {"full": 2.5, "fast": 1.5}  # issue 15: everything on; issue 14: a frame
+    ok = med_f <= limit[a.preset] * med_b
+    line = f"target {a.preset} <= {limit[a.preset]}x bare primary cast: {'met' if ok else 'NOT met'}"
+    if others:
+        ok_o = statistics.median(others) <= limit[other] * med_b
+        line += f"; {other} <= {limit[other]}x: {'met' if ok_o else 'NOT met'}"
+    print(line)
     return 0
 
 
