@@ -6,9 +6,9 @@ For every tile of a :class:`~aerial_synth.scene.tiles.TileGrid`, in raster order
 2. call the public :func:`aerial_synth.placement.place` on it with the tile's own seed
    (``SeedSequence(entropy, spawn_key + (i, j))`` of the caller's seed; a grid of one tile
    uses the caller's seed itself, so it equals untiled placement); in a grid of several
-   tiles a traffic scenario seeds its lines in the core only and counts the vehicles the
-   core owns (``place(..., region=...)``): lines still run on into the margin, where they
-   see the roads and vehicles around the core, but nothing is placed there for nothing;
+   tiles a traffic scenario seeds its lines in the core only and places only vehicles the
+   core owns (``place(..., region=...)``; a line ends at the core's border): the margin is
+   there for the traces (roads and edges beyond the border), nothing is placed there;
 3. keep only the vehicles whose footprint centre lies in the tile's **core** (cores are
    half-open, so each point of the world has exactly one owner: a vehicle is decided once,
    by one tile);

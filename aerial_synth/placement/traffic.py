@@ -99,8 +99,9 @@ class _Engine:
         self.coarse_m = COARSE * cfg.probe.step_m
         b = rayscene.scene.bounds()
         self.xy_lo, self.xy_hi = b[0, :2], b[1, :2]
-        # tiled placement: seeds only inside the tile's core; the limit counts the vehicles
-        # the core owns (region = ((x0, y0, x1, y1), owns(xy) -> (n,) bool))
+        # tiled placement: seeds only inside the tile's core, vehicles only where the core
+        # owns them (region = ((x0, y0, x1, y1), owns(xy) -> (n,) bool)); the rest of the
+        # window is there to be seen by the traces (roads and edges beyond the border)
         self.owns = None
         if region is not None:
             rect, self.owns = region
@@ -250,7 +251,14 @@ class _Engine:
         W = np.array([v.model.width_m for v in variants]) if n else np.zeros(0)
         geoms, xy, r = self.index.polygons(c.x, c.y, c.heading, L, W)
         max_n = None if self.limit is None else max(0, self.limit - self.counted)
-        counts = None if self.owns is None or not n else self.owns(xy)
+        counts = None
+        if self.owns is not None and n:
+            # tiled placement: a vehicle the core does not own would be dropped; its line
+            # ends at the core's border instead ("tile_border")
+            counts = self.owns(xy)
+            out = c.ok & ~counts
+            c.ok[out] = False
+            c.reason[out] = "tile_border"
         acc = self.index.select(geoms, xy, r, ok=c.ok, max_n=max_n, heading=c.heading, counts=counts)
         tried = c.ok.copy()
         if max_n is not None and acc.sum() >= max_n and acc.any():
@@ -615,7 +623,7 @@ class _Engine:
     # ------------------------------------------------------------------ scenarios
     def run_lines(self, n_vehicles: int | None, n_lines: int | None, in_flight: int | None = None) -> None:
         """Pipelined traffic lines: keep up to ``in_flight`` lines advancing together (64, or
-        one per 40 vehicles asked for, at most 512: a large request takes fewer, larger
+        one per 10 vehicles asked for, at most 512: a large request takes fewer, larger
         casts); a
         finished line may spawn its opposite lane and its next lane inwards, and new seeds
         (road points clear of every placed vehicle) refill the pool.
@@ -629,7 +637,7 @@ class _Engine:
         seeds_exhausted = False
         window: list[tuple[int, int]] = []  # (seeds probed, vehicles gained) per round
         if in_flight is None:
-            in_flight = int(np.clip((n_vehicles or 0) // 40, 64, 512))
+            in_flight = int(np.clip((n_vehicles or 0) // 10, 64, 512))
         win_min = 256
         while not self.full():
             before = len(self.vehicles)
@@ -731,9 +739,9 @@ def place(
     obstacles : vehicles already standing (PlacedVehicle, e.g. parked ones): footprints keep
                 gap_m from them (the ``mixed`` scenario, placement/parking.py)
     region    : tiled placement (placement/tiled.py), traffic scenarios: ``((x0, y0, x1, y1),
-                owns)``: line seeds are drawn inside the rectangle only and ``n_vehicles``
-                counts the vehicles whose centres ``owns(xy) -> (n,) bool`` accepts (lines
-                may run on beyond it; the caller drops those vehicles)
+                owns)``: line seeds are drawn inside the rectangle only, and only vehicles
+                whose centres ``owns(xy) -> (n,) bool`` accepts are placed (a line ends
+                at the border: reason "tile_border"); the traces still see the whole scene
     Returns a :class:`Placement`. If the roads hold fewer vehicles than asked for, it places
     what fits, records the shortfall in ``stats`` and emits a :class:`PlacementWarning`.
     """
