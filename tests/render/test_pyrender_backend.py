@@ -56,7 +56,7 @@ def test_pyrender_silhouettes_match_raycast_on_a_bundled_scene_frame():
 
     scene = load_scene("suburb")
     rs = RayScene(scene)
-    pl = place(rs, "jam", np.random.default_rng(0), n_vehicles=150)
+    pl = place(rs, "jam", np.random.default_rng(0), n_vehicles=300)  # >= 8 in this view
     add_placement(rs, pl)
     cam = sample_pose_targeted(CameraConfig(width_px=512, height_px=512), pl,
                                np.random.default_rng(0), within_xy=scene.bounds()[:, :2])
