@@ -55,11 +55,14 @@ def _pair(name: str, value, lo: float, hi: float) -> tuple[float, float]:
 
 
 #: Named presets (keyword overrides of the defaults): ``full`` is every realism factor on
-#: (the default); ``fast`` drops ambient occlusion and the sun-disk sampling and casts one
-#: shadow ray per 4 x 4 block (see docs/rendering.md for the measured costs).
+#: (the default); ``fast`` drops ambient occlusion, the sun-disk sampling, procedural
+#: texture and material detail (so also the light through crown gaps) and the mirror rays
+#: of wet roads, and casts one shadow ray per 4 x 4 block (see docs/rendering.md, "Speed",
+#: for the measured costs: fast stays within 1.5 x the bare primary cast).
 PRESETS: dict[str, dict] = {
     "full": {},
-    "fast": {"ambient_occlusion": False, "soft_shadows": False, "shadow_step": 4},
+    "fast": {"ambient_occlusion": False, "soft_shadows": False, "shadow_step": 4,
+             "texture": False, "wet_reflections": False},
 }
 
 _PAIRS = {  # name: (lowest, highest) allowed

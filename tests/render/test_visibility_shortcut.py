@@ -124,3 +124,13 @@ def test_fused_buffers_equal_the_mapped_cast(pose):
     np.testing.assert_array_equal(buf.normal, n)
     assert set(np.unique(buf.instance)) >= {1, 2, 3}
     assert buf.face.min() == -1 or (buf.face >= 0).all()
+
+
+def test_fast_preset_leaves_out_the_costly_factors():
+    from aerial_synth.render import RenderConfig
+
+    fast, full = RenderConfig.preset("fast"), RenderConfig.preset("full")
+    assert not fast.ambient_occlusion and not fast.soft_shadows and fast.shadow_step == 4
+    assert not fast.texture and not fast.wet_reflections  # moved out for the 1.5x budget
+    assert full.ambient_occlusion and full.soft_shadows and full.texture
+    assert full.wet_reflections and full.shadow_step == 3
