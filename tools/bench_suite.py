@@ -97,14 +97,25 @@ def bench_placement(a) -> dict:
     }
 
 
+def _stage_lines(out: str) -> list[str]:
+    """bench_render's per-stage lines (name, ms and / bare primary cast, for both presets)."""
+    if "stages, median ms" not in out:
+        return []
+    block = out.split("stages, median ms", 1)[1].split("frame 1024x1024", 1)[0]
+    return [ln.strip() for ln in block.strip().splitlines()[1:]]
+
+
 def bench_frame(a) -> dict:
-    cmd = [PY, "tools/bench_render.py", "--repeat", str(a.repeat)]
+    cmd = [PY, "tools/bench_render.py", "--repeat", str(a.repeat), "--compare-presets"]
     out, wall = _run(cmd)
     return {
         "command": " ".join(cmd[1:]),
         "frame_ms_median": _num(r"frame 1024x1024 \(\w+\) median ([\d.]+) ms", out),
         "bare_primary_cast_ms": _num(r"bare cast_rays, primary rays: median ([\d.]+) ms", out),
         "frame_over_bare_primary": _num(r"primary rays: median [\d.]+ ms -> frame / bare ([\d.]+)", out),
+        "fast_frame_ms_median": _num(r"frame \(fast\) median ([\d.]+) ms", out),
+        "fast_frame_over_bare_primary": _num(r"frame \(fast\) median [\d.]+ ms -> frame / bare ([\d.]+)", out),
+        "stages": _stage_lines(out),
         "wall_s": round(wall, 1),
     }
 
