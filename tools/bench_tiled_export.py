@@ -6,7 +6,9 @@ per run, or with ``--json`` one JSON object (``tools/bench_suite.py`` stores it 
 ``tiles`` section):
 
     export_untiled_peak_rss_mb, export_tiled_peak_rss_mb, export_tiled_20km_peak_rss_mb
-    (+ seconds, images, tiles placed per group, load averages)
+    (+ seconds, images, tiles placed per group, load averages), and the same keys with
+    ``_group_`` for a child that only builds placement group 0 (scene or window, placement,
+    RayScene; no frame): the part of the peak that depends on the world
 
 The target (issue 14): the per-worker peak follows the tile, not the world, <= 1.5 GB.
 Timings are noisy on a shared machine; memory is what this measures.
@@ -35,6 +37,16 @@ from aerial_synth.dataset.export import ExportConfig, export_dataset
 scene, tile, n, images, out = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4]), sys.argv[5]
 cfg = ExportConfig(scene=scene, images=images, images_per_placement=images, n_vehicles=n, seed=0,
                    tile_m=None if tile == "none" else float(tile))
+if sys.argv[6] == "group":  # the world's part only: group 0's scene, placement and RayScene
+    from aerial_synth.dataset.worker import ImageWorker
+    t0 = time.perf_counter()
+    w = ImageWorker(cfg, Path(out))
+    w._ensure_group(0)
+    print(json.dumps({"seconds": round(time.perf_counter() - t0, 1), "vehicles": len(w._placement.vehicles),
+                      "triangles": int(w._rayscene.scene.n_triangles),
+                      "windows_built": getattr(w.scene, "windows_built", None),
+                      "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)}))
+    sys.exit(0)
 t0 = time.perf_counter()
 res = export_dataset(cfg, out, workers=1, progress=False)
 wall = time.perf_counter() - t0
@@ -54,11 +66,11 @@ def _load() -> list[float]:
         return []
 
 
-def _run(scene: str, tile: str, n: int, images: int, tmp: Path) -> dict:
+def _run(scene: str, tile: str, n: int, images: int, tmp: Path, mode: str = "export") -> dict:
     out = tmp / f"ds_{len(list(tmp.iterdir()))}"
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     before = _load()
-    r = subprocess.run([sys.executable, "-c", _CHILD, scene, tile, str(n), str(images), str(out)],
+    r = subprocess.run([sys.executable, "-c", _CHILD, scene, tile, str(n), str(images), str(out), mode],
                        capture_output=True, text=True, env=env, cwd=ROOT, timeout=3600)
     if r.returncode != 0:
         raise RuntimeError(f"export of {scene} (tile {tile}) failed: {r.stderr.strip()[-500:]}")
@@ -99,6 +111,12 @@ def main(argv=None) -> int:
             res[f"{key}_peak_rss_mb"] = r["peak_rss_mb"]
             if not a.json:
                 print(f"{key}: {json.dumps(r)}", flush=True)
+            # the world's share of it: group 0's scene, placement and RayScene, no frame
+            g = _run(scene, tile, n, a.images, tmp, mode="group")
+            res[f"{key}_group"] = g
+            res[f"{key}_group_peak_rss_mb"] = g["peak_rss_mb"]
+            if not a.json:
+                print(f"{key} (group only): {json.dumps(g)}", flush=True)
     res["tiled_over_untiled_peak_rss"] = round(res["export_tiled_peak_rss_mb"] / res["export_untiled_peak_rss_mb"], 3)
     if a.json:
         print(json.dumps(res))

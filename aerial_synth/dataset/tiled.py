@@ -121,13 +121,12 @@ def hop_m(scenario_cfg, catalog) -> float:
 def _cells_met(edges: np.ndarray, span: float) -> int:
     """The most cells (between consecutive ``edges``) a closed interval of length ``span``
     can meet."""
-    best = 1
     n = len(edges) - 1
-    for k in range(n):
-        a = edges[k + 1]  # starts on the far edge of cell k: meets k and what follows
-        m = 1 + int(np.searchsorted(edges[k + 1:n], a + span, side="right"))
-        best = max(best, min(m, n - k))
-    return best
+    k = np.arange(n)
+    # an interval starting on the far edge of cell k meets k and the cells whose near edge
+    # it reaches (the most for closed intervals is reached with an end on an edge)
+    m = 1 + np.searchsorted(edges[:n], edges[1:] + span, side="right") - (k + 1)
+    return int(max(1, np.minimum(m, n - k).max()))
 
 
 def dependency_m(grid, hop: float) -> float:
