@@ -123,7 +123,7 @@ _STATE: dict = {}
 
 
 def _render_run(cfg, out: str, indices: list[int], nthreads_by_worker: dict, extra_formats=(),
-                slots: dict | None = None) -> list:
+                slots: dict | None = None, scene=None, catalog=None) -> list:
     """Dask task: render a run of images of one placement group (in order); returns once
     their files are on disk (so a finished task never loses an image to a dead worker)."""
     from distributed import get_worker
@@ -147,7 +147,7 @@ def _render_run(cfg, out: str, indices: list[int], nthreads_by_worker: dict, ext
         for old in _STATE.values():
             old.close()
         _STATE.clear()
-        w = _STATE[key] = ImageWorker(cfg, Path(out), nthreads=n)
+        w = _STATE[key] = ImageWorker(cfg, Path(out), nthreads=n, scene=scene, catalog=catalog)
     return w.render_run(indices)
 
 
@@ -273,13 +273,23 @@ class DaskEngine:
             hosts[h] = hosts.get(h, 0) + 1
         return {addr: threads_per_worker(hosts[addr.rsplit(":", 1)[0]], n) for addr, n in ncpu.items()}
 
+    def _scatter(self, scene, catalog) -> tuple:
+        if scene is None:
+            return None, None
+        try:
+            return tuple(self.client.scatter([scene, catalog], broadcast=True, hash=False))
+        except Exception:  # workers then load the scene themselves
+            return None, None
+
     def n_workers(self) -> int:
         return len(self.client.scheduler_info(n_workers=-1).get("workers", {}))
 
-    def run(self, cfg, build, indices, bar=None) -> int:
+    def run(self, cfg, build, indices, bar=None, scene=None, catalog=None) -> int:
         """Render ``indices`` of the export ``cfg`` into ``build``; returns images finished.
 
-        Progress: ``bar.update(n)`` per finished task (a tqdm bar or anything alike)."""
+        Progress: ``bar.update(n)`` per finished task (a tqdm bar or anything alike).
+        ``scene``/``catalog``: the client's loaded objects, scattered once to every worker
+        (instead of every worker loading the scene again); None = each worker loads them."""
         from distributed import as_completed
 
         from ..formats.registry import BUILTIN, get
@@ -295,8 +305,9 @@ class DaskEngine:
         extra = [get(n) for n in cfg.formats if n not in BUILTIN]
         out = str(Path(build).resolve())
         token = f"{os.getpid()}-{time.time_ns()}"
+        shared = self._scatter(scene, catalog)
         futures = [
-            self.client.submit(_render_run, cfg, out, t, threads, extra, slots,
+            self.client.submit(_render_run, cfg, out, t, threads, extra, slots, *shared,
                                key=f"aerial-synth-image-{t[0]:06d}-{t[-1]:06d}-{token}", pure=False)
             for t in tasks
         ]

@@ -489,7 +489,7 @@ _POOL_WORKER: ImageWorker | None = None
 
 
 def init_pool_worker(cfg: ExportConfig, out: str, nthreads: int, parent_pid: int,
-                     extra_formats=(), slots=None, pool_size: int = 0) -> None:
+                     extra_formats=(), slots=None, pool_size: int = 0, scene=None, catalog=None) -> None:
     """Pool initializer: watch the parent, share the cores, register run-time formats.
 
     Cores: the ``pool_size`` workers of the pool take the slots 0, 1, ... of the shared
@@ -497,6 +497,9 @@ def init_pool_worker(cfg: ExportConfig, out: str, nthreads: int, parent_pid: int
     itself to its share of the cores (:func:`.affinity.pin_share`) before open3d or numba
     start a thread; its numba/OpenMP threads follow the share. Without a counter (or where
     pinning is refused) it only sets ``nthreads`` threads.
+
+    ``scene``/``catalog``: the parent's (already loaded and validated) objects, pickled
+    to the worker in a few milliseconds instead of loading the scene again (seconds).
 
     Ctrl-C is the parent's to handle (it stops the pool): workers ignore SIGINT, so an
     interrupted export prints no worker tracebacks."""
@@ -522,7 +525,7 @@ def init_pool_worker(cfg: ExportConfig, out: str, nthreads: int, parent_pid: int
     for fmt in extra_formats:  # formats registered at run time in the parent
         if fmt.name not in names():
             register(fmt)
-    _POOL_WORKER = ImageWorker(cfg, Path(out), nthreads=nthreads)
+    _POOL_WORKER = ImageWorker(cfg, Path(out), nthreads=nthreads, scene=scene, catalog=catalog)
 
 
 def run_group(indices: list[int]) -> list[tuple[int, dict]]:
