@@ -1,0 +1,104 @@
+"""Smooth shading normals for organic surfaces (tree-crown clumps).
+
+Crown clumps are low-poly (an icosahedron per clump keeps the ray-cast cost low), and their
+flat facets shaded with the geometric normal read as faceted rocks from above. Here the
+shading normal of a foliage hit is interpolated from area-weighted vertex normals with the
+hit's barycentric coordinates (Embree's ``primitive_uvs``: point = (1 - u - v) a + u b + v c),
+the classic Phong normal interpolation. Only the shading changes: faces, labels, depth and
+instance ids come from the geometric hit as before.
+
+The per-corner normal table is built once per RayScene for its static objects whose material
+is in :data:`SMOOTH_MATERIALS` and cached on the RayScene.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from ..numba_setup import KERNEL_OPTIONS as _OPTS
+from ..scene.model import MATERIAL_IDS
+
+__all__ = ["SMOOTH_MATERIALS", "corner_normals", "smooth_shading_normals"]
+
+#: materials whose shading normals are interpolated across faces
+SMOOTH_MATERIALS: tuple[str, ...] = ("foliage",)
+
+
+def corner_normals(rayscene) -> tuple[np.ndarray, np.ndarray]:
+    """(row (F_static,) int32: -1 or the face's row in ``corners``; corners (k, 3, 3)
+    float32 unit vertex normals at each face corner) for the static faces of smooth
+    materials, cached on ``rayscene``."""
+    cached = getattr(rayscene, "_smooth_normals_cache", None)
+    if cached is not None:
+        return cached
+    ids = {MATERIAL_IDS[m] for m in SMOOTH_MATERIALS}
+    objs = rayscene.scene.objects
+    n_static = sum(o.n_triangles for o in objs)
+    row = np.full(n_static, -1, np.int32)
+    parts = []
+    base = 0
+    k = 0
+    for o in objs:
+        nf = o.n_triangles
+        if MATERIAL_IDS[o.material] in ids and nf:
+            v = np.asarray(o.vertices, np.float64)
+            f = np.asarray(o.faces, np.int64)
+            fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])  # area-weighted
+            vn = np.zeros_like(v)
+            for c in range(3):
+                np.add.at(vn, f[:, c], fn)
+            ln = np.linalg.norm(vn, axis=1, keepdims=True)
+            vn = np.where(ln > 0, vn / np.maximum(ln, 1e-30), 0.0)
+            parts.append(vn[f].astype(np.float32))
+            row[base:base + nf] = np.arange(k, k + nf, dtype=np.int32)
+            k += nf
+        base += nf
+    corners = np.concatenate(parts) if parts else np.zeros((0, 3, 3), np.float32)
+    rayscene._smooth_normals_cache = (row, np.ascontiguousarray(corners))
+    return rayscene._smooth_normals_cache
+
+
+@njit(parallel=True, **_OPTS)
+def _apply(face, uv, rays, row, corners, normal):  # pragma: no cover - compiled
+    n = face.shape[0]
+    nrow = row.shape[0]
+    for i in prange(n):
+        f = face[i]
+        if f < 0 or f >= nrow:
+            continue
+        k = row[f]
+        if k < 0:
+            continue
+        u = uv[i, 0]
+        v = uv[i, 1]
+        w0 = np.float32(1.0) - u - v
+        sx = w0 * corners[k, 0, 0] + u * corners[k, 1, 0] + v * corners[k, 2, 0]
+        sy = w0 * corners[k, 0, 1] + u * corners[k, 1, 1] + v * corners[k, 2, 1]
+        sz = w0 * corners[k, 0, 2] + u * corners[k, 1, 2] + v * corners[k, 2, 2]
+        ln = np.sqrt(sx * sx + sy * sy + sz * sz)
+        if ln <= np.float32(1e-12):
+            continue
+        sx /= ln
+        sy /= ln
+        sz /= ln
+        gx, gy, gz = normal[i, 0], normal[i, 1], normal[i, 2]  # camera-facing geometric
+        if sx * gx + sy * gy + sz * gz < 0:  # same side as the geometric normal
+            sx, sy, sz = -sx, -sy, -sz
+        if sx * rays[i, 3] + sy * rays[i, 4] + sz * rays[i, 5] >= 0:
+            continue  # a grazing hit whose smooth normal faces away: keep the facet's
+        normal[i, 0] = sx
+        normal[i, 1] = sy
+        normal[i, 2] = sz
+
+
+def smooth_shading_normals(rayscene, face: np.ndarray, uv: np.ndarray, rays: np.ndarray,
+                           normal: np.ndarray) -> None:
+    """Replace, in place, the (n, 3) float32 camera-facing ``normal`` of every hit on a
+    smooth-material static face (``face`` (n,) global face index, -1 = miss) by the
+    interpolated vertex normal at the hit's barycentric ``uv`` (n, 2)."""
+    row, corners = corner_normals(rayscene)
+    if not len(corners):
+        return
+    _apply(np.ascontiguousarray(face), np.ascontiguousarray(uv, dtype=np.float32),
+           np.ascontiguousarray(rays, dtype=np.float32), row, corners, normal)
