@@ -199,6 +199,7 @@ def _export(a, *engine: str, preset: str = "full") -> dict:
     out, wall = _run(cmd)
     d = json.loads(out.strip().splitlines()[-1])
     return {"images": d["images"], "seconds": round(d["seconds"], 1), "images_per_s": d["images_per_s"],
+            "cpu_s_per_image": d.get("cpu_s_per_image"),
             "command": " ".join(cmd[1:]), "load_avg_before": d["load_avg_before"],
             "load_avg_after": d["load_avg_after"]}
 
