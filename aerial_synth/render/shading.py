@@ -713,7 +713,12 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
     gains /= float(_LUMA @ gains)
     shoulder = float(factors.get("tone_shoulder", 0.25))
     if factors.get("exposure_mode", "fixed") == "auto":
-        sub = lin[::4, ::4].reshape(-1, 3).astype(np.float64) @ (_LUMA * gains)
+        # meter what the sensor records: the luma softened by the frame's optical blur
+        # (metering sharp pixels overestimated the final gray sd by ~2.5 on average)
+        y = cv2.transform(lin, (_LUMA * gains).reshape(1, 3).astype(np.float32))
+        if factors["blur_sigma_px"] > 0.05:
+            y = cv2.GaussianBlur(y, (0, 0), float(factors["blur_sigma_px"]))
+        sub = y[::4, ::4].reshape(-1).astype(np.float64)
         gain, power = solve_tone(sub, float(factors["key_gray"]),
                                  float(factors["target_gray_sd"]), shoulder)
     else:

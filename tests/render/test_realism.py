@@ -284,3 +284,17 @@ def test_wet_roads_mirror_the_scene_not_only_the_sky(world):
     assert on.factors["wet_reflections"] and not off.factors["wet_reflections"]
     # frames that are not wet never trace mirror rays
     assert "rgb_wet_reflections" not in dry.timings_s
+
+
+def test_auto_contrast_meets_the_target_after_the_optical_blur(world):
+    """The camera meters the blurred luma, so the recorded gray sd is the drawn target even
+    though the sensor blur removes fine texture after the tone curve."""
+    rs, pl, cam = world
+    for sig in (0.0, 0.9):
+        cfg = RenderConfig(**{**PLAIN, "exposure_mode": "auto", "key_gray": (110, 110),
+                              "contrast_cv": (0.3, 0.3), "texture": True,
+                              "blur_sigma_px": (sig, sig)})
+        f = render_frame(rs, cam, pl, np.random.default_rng(0), cfg)
+        gray = f.rgb.astype(float) @ [0.299, 0.587, 0.114]
+        assert gray.std() == pytest.approx(f.factors["target_gray_sd"], abs=1.2), sig
+        assert gray.mean() == pytest.approx(110.0, abs=3.0)
