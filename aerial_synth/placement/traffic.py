@@ -183,6 +183,26 @@ class _Engine:
         pos = foot + d * inward
         return _Cand(pos[:, 0], pos[:, 1], _wrap(head), ok, reason, pr.dist_m[:, 0])
 
+    def relocate_on_curves(self, c: _Cand, head: np.ndarray, offs: np.ndarray, min_turn_deg: float = 2.0,
+                           max_disagree_deg: float = 8.0) -> None:
+        """On a curve the line through the two edge points runs along the edge near those
+        points, which a straight step from the previous vehicle left behind. Where the
+        heading turned by more than ``min_turn_deg``, probe again from the vehicle's position
+        with the heading found: on a smooth curve the two agree within a few degrees and the
+        second is the road's heading at the vehicle; where they disagree by more than
+        ``max_disagree_deg`` the edge is no smooth curve (a road joins it, a junction's
+        flare) and the line ends there ("junction"). Updates c in place."""
+        k = np.flatnonzero(c.ok & (_angdiff(c.heading, head) > np.radians(min_turn_deg)))
+        if not len(k):
+            return
+        r = self.locate(np.stack([c.x[k], c.y[k]], 1), c.heading[k], offs[k])
+        agree = r.ok & (_angdiff(r.heading, c.heading[k]) <= np.radians(max_disagree_deg))
+        good, bad = k[agree], k[~agree]
+        c.x[good], c.y[good], c.heading[good] = r.x[agree], r.y[agree], r.heading[agree]
+        c.edge_dist[good] = r.edge_dist[agree]
+        c.ok[bad] = False
+        c.reason[bad] = "junction"
+
     def segment_ok(self, c: _Cand, offs: np.ndarray, reach_m: float = 5.0) -> None:
         """Check harder than the thesis at a line's first vehicle: re-probe ``reach_m`` ahead
         of and behind it as a line step would; the road direction there must agree and the
@@ -574,6 +594,7 @@ class _Engine:
         q = prev + unit(head) * s[:, None]
         offs = np.array([ln.offset for ln in active])
         c = self.locate(q, head, offs)
+        self.relocate_on_curves(c, head, offs)
         turned = _angdiff(c.heading, head) > np.radians(cfg.probe.max_turn_deg)
         jump = np.abs(c.edge_dist - offs) > cfg.probe.edge_jump_m
         bad = c.ok & (turned | jump)
