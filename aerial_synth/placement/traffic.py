@@ -645,24 +645,22 @@ class _Engine:
     def run_lines(self, n_vehicles: int | None, n_lines: int | None, in_flight: int | None = None) -> None:
         """Pipelined traffic lines: keep up to ``in_flight`` lines advancing together (64, or
         one per 10 vehicles asked for, at most 512: a large request takes fewer, larger
-        casts); a
-        finished line may spawn its opposite lane and its next lane inwards, and new seeds
-        (road points clear of every placed vehicle) refill the pool.
+        casts); a finished line may spawn its opposite lane and its next lane inwards, and
+        new seeds (road points clear of every placed vehicle) refill the pool.
 
         Early stop: seeding ends when the seeds run out (the scene's seeding budget) or when
-        the roads are full: the last 256 or more seeds that were probed gave
-        fewer than one vehicle (with the lines they started) per 8 seeds. Asking for far more
-        vehicles than fit therefore costs about what asking for what fits costs."""
+        the roads are full: the last 256 or more seeds that were probed started fewer than
+        one line per 8 seeds. Asking for far more vehicles than fit therefore costs a bounded
+        multiple of what asking for what fits costs."""
         self.limit = n_vehicles
         active: list[_Line] = []
         seeds_exhausted = False
-        window: list[tuple[int, int]] = []  # (seeds probed, vehicles gained) per round
+        window: list[tuple[int, int]] = []  # (seeds probed, lines they started) per round
         if in_flight is None:
             in_flight = int(np.clip((n_vehicles or 0) // 10, 64, 512))
         win_min = 256
         while not self.full():
-            before = len(self.vehicles)
-            probed = 0
+            probed = n_started = 0
             n_fwd = sum(1 for ln in self.lines if ln.lane == 0 and ln.lane_index == 0)
             want = in_flight - len(active)
             if n_lines is not None:
@@ -674,6 +672,7 @@ class _Engine:
                 else:
                     probed = len(seeds)
                     started = self.start_lines(seeds)
+                    n_started = len(started)
                     for ln in started:
                         if ln.target <= 1:
                             ln.reason = "complete"
@@ -684,7 +683,7 @@ class _Engine:
                 still, done = self.advance_round(active)
                 active = still + self._followers(done)
             if probed:
-                window.append((probed, len(self.vehicles) - before))
+                window.append((probed, n_started))
                 while len(window) > 1 and sum(p for p, _ in window[1:]) >= win_min:
                     window.pop(0)
                 tried = sum(p for p, _ in window)
