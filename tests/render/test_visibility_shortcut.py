@@ -134,3 +134,23 @@ def test_fast_preset_leaves_out_the_costly_factors():
     assert not fast.texture and not fast.wet_reflections  # moved out for the 1.5x budget
     assert full.ambient_occlusion and full.soft_shadows and full.texture
     assert full.wet_reflections and full.shadow_step == 3
+
+
+def test_vehicles_crossing_the_camera_plane_are_bounded_and_give_the_same_result():
+    from aerial_synth.render.raycast import _corners
+
+    # 75 degrees off nadir: the camera stands ~223 m south of its target; cars ~16 m
+    # further south straddle its image plane (their bounds are clipped, not dropped)
+    extra = [(20 + k, -3.0 + 3 * k, -239.0 + 1.5 * (k % 3), 0.3 * k, 4.5, 1.8, 1.5)
+             for k in range(6)]
+    rs, pl = make_world(SPECS + extra, building=True, crown_at=(8.5, -1.0))
+    cam = Camera.look_at_ground(SMALL, (1.0, 1.0, 0.0), tilt_deg=75.0, tilt_axis_deg=0.0)
+    ids, b = rs._vehicle_bounds()
+    z = cam.to_camera(_corners(b).reshape(-1, 3)).reshape(len(ids), 8, 3)[..., 2]
+    assert ((z > 0).any(axis=1) & (z <= 0).any(axis=1)).sum() >= 2
+    buf = cast_buffers(rs, cam)
+    full, full_masks = compute_visibility(rs, cam, buf.instance, pl.vehicles)
+    fast, fast_masks = compute_visibility(rs, cam, buf.instance, pl.vehicles, depth=buf.depth)
+    assert len(full) >= 5 and fast == full
+    for k in ("ids", "rows", "cols"):
+        np.testing.assert_array_equal(getattr(fast_masks, k), getattr(full_masks, k))
