@@ -198,6 +198,26 @@ def test_labelled_vehicles_are_the_whole_worlds(tmp_path):
     assert merged_away >= 1  # the border merge dropped vehicles inside a group's area
 
 
+def test_huge_world_builds_only_nearby_windows(tmp_path):
+    """A 20 km x 20 km city cut into 17,956 tiles of 150 m: one image builds the windows of
+    the group's tile and its neighbours and one render window, nothing else."""
+    scene = _city_yaml(tmp_path, 20.0, name="city_20km")
+    cfg = ExportConfig(scene=scene, tile_m=150.0, margin_m=20.0, images=1, n_vehicles=200_000, **SMALL_CAM)
+    w = ImageWorker(cfg, tmp_path / "ds")
+    rec, rgb = w.record(0)
+    assert len(w.grid) == 134 * 134
+    tile = rec.placement["parameters"]["tile"]
+    assert tile["tiles_placed"] <= 9
+    assert w.scene.windows_built == tile["tiles_placed"] + 1
+    x0, y0, x1, y1 = tile["core_m"]
+    b = w._rayscene.scene.bounds()
+    reach = tile["camera_reach_m"]
+    # the render window only (objects that straddle its edge are kept whole: 30 m of slack)
+    assert (b[0, :2] >= np.array([x0, y0]) - reach - 80.0 - 30.0).all()
+    assert (b[1, :2] <= np.array([x1, y1]) + reach + 80.0 + 30.0).all()
+    assert rgb.shape == (96, 96, 3)
+
+
 @pytest.mark.slow  # 9 tiles of a 20 km city placed and one window built: about 1 min on a busy machine
 def test_large_world_builds_only_the_touched_tiles(tmp_path):
     """A 20 km x 20 km city (1600 tiles of 500 m): two images build the windows of the
