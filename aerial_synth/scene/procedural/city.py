@@ -206,6 +206,7 @@ def generate_city(b: Builder, spec: Mapping) -> None:
         raise SceneError("city: field 'size_km' (world edge length in km) is required")
     key = int(b.rng.integers(2**62))  # the world key: the first draw of the spec's seed
     lay = city_layout(spec, key)
+    b._city_key = key
     half = lay.half_m
     win = spec.get("window_m")
     if win is None:
@@ -244,7 +245,7 @@ def generate_city(b: Builder, spec: Mapping) -> None:
     ex, ey = lay.block_edges(0), lay.block_edges(1)
     ix = np.flatnonzero((ex[1:] > x0 - 40.0) & (ex[:-1] < x1 + 40.0))
     iy = np.flatnonzero((ey[1:] > y0 - 40.0) & (ey[:-1] < y1 + 40.0))
-    buildings: list[tuple] = []  # (polygon, height, roof seed)
+    buildings: list[tuple] = []  # (polygon, height, unused draw)
     trees: list[np.ndarray] = []  # (k, 7) x, y, crown r, height, species, shape u, colour u
     park_f = _positive(spec, "park_fraction", 0.0, 1.0)
     lot_f = _positive(spec, "parking_fraction", 0.0, 1.0)
@@ -352,7 +353,9 @@ def _built(rng, box, heights, lot_f, b: Builder, buildings: list, trees: list, e
         if blocked is not None and poly.intersects(blocked):
             continue
         h = float(hmin + (hmax - hmin) * rng.uniform(0.0, 1.0) ** (2.5 - 2.0 * tall))
-        buildings.append((poly, h, int(rng.integers(2**62))))  # the building's roof seed
+        # the draw that picked a roof colour before roofs had seeds of their own (kept, so
+        # the block's later draws and hence every layout stay as they were)
+        buildings.append((poly, h, int(rng.integers(7))))
     # a few courtyard trees
     n = int(rng.integers(0, 6))
     if n and (iy1 - iy0) > 2 * depth + 12 and (ix1 - ix0) > 2 * depth + 12:
@@ -373,9 +376,11 @@ def _city_scene(b: Builder, source: str, meta: dict):
     if poles:
         v, f = merge_meshes([_trunk(x, y, 0.12, h) for x, y, h in poles])
         objs.append(SceneObject("poles", "pole", v, f))
-    bl = b._city_buildings  # roofs from each building's own seed (procedural/roofs.py)
-    names = [f"building_{p.centroid.x:.2f}_{p.centroid.y:.2f}" for p, _, _ in bl]
-    objs.extend(building_objects([(p, h) for p, h, _ in bl], [s for _, _, s in bl], b.spec, names))
+    bl = b._city_buildings  # roofs from each building's own seed: world key and position
+    cents = [(p.centroid.x, p.centroid.y) for p, _, _ in bl]
+    names = [f"building_{x:.2f}_{y:.2f}" for x, y in cents]
+    seeds = [(b._city_key, int(round(x * 100)) + 2**40, int(round(y * 100)) + 2**40) for x, y in cents]
+    objs.extend(building_objects([(p, h) for p, h, _ in bl], seeds, b.spec, names))
     tr = b._city_trees
     if len(tr):  # clumped crowns by species and colour (procedural/trees.py)
         objs.extend(tree_objects(tr, sub=int(b.spec.get("tree_subdivisions", 0))))

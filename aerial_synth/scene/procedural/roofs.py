@@ -286,8 +286,8 @@ def building_objects(buildings, seeds, spec: Mapping, names=None):
     """Scene objects of buildings with their roofs: one object per building (walls and
     covering) and one per detail material.
 
-    buildings : [(footprint polygon, height)]; seeds : one integer per building (its roof
-    draws come from ``default_rng(seed)``); spec : the scene spec (``roofs`` section,
+    buildings : [(footprint polygon, height)]; seeds : one integer (or tuple of integers
+    >= 0) per building, its roof's seed; spec : the scene spec (``roofs`` section,
     ``generator``); names : object names (default ``building_000``, ...)."""
     from ..model import SceneObject
 
@@ -296,7 +296,7 @@ def building_objects(buildings, seeds, spec: Mapping, names=None):
     on, det = cfg.get("enabled", True), cfg.get("details", True)
     objs, parts = [], []
     for i, ((poly, hgt), seed) in enumerate(zip(buildings, seeds)):
-        rng = np.random.default_rng(np.random.SeedSequence([int(seed), 3]))
+        rng = np.random.default_rng(np.random.SeedSequence([*map(int, np.atleast_1d(seed)), 3]))
         name = names[i] if names is not None else f"building_{i:03d}"
         if not on:  # plain prisms in the old 'roof' material
             cols = ROOF_COLORS["roof_tiles"] + ROOF_COLORS["roof_gravel"]
