@@ -6,6 +6,8 @@ A small hand-built plot with every patterned material (a road with tyre tracks, 
 sidewalk, a concrete lot, gravel / tiled / metal roofs turned at several angles, grass,
 soil, water), rendered at nadir with the sun at 40 degrees: one row at 0.06 m GSD, one at
 0.12 m (the export default), and one at 0.12 m with the default random camera and light.
+Columns: tiled roofs (one turned 30 degrees), metal roof, gravel roof, road with tyre
+tracks beside a pond, concrete lot with joints.
 """
 
 from __future__ import annotations
@@ -92,7 +94,8 @@ def main(argv=None) -> int:
     for gsd, cfg, seed in ((0.06, RenderConfig(**fixed), 0), (0.12, RenderConfig(**fixed), 0),
                            (0.12, RenderConfig(), 5)):
         tiles = []
-        for centre in ((-22.0, 16.0), (30.0, 16.0), (-30.0, -16.0), (28.0, -12.0)):
+        for centre in ((-21.0, 18.0), (10.0, 18.0), (31.0, 21.0), (-36.0, -6.0),
+                       (28.0, -12.0)):
             px = int(round(22.0 / gsd))
             size = min(px, 384)
             cam = Camera.look_at_ground(CameraConfig(width_px=size, height_px=size, gsd_m=gsd),

@@ -247,6 +247,7 @@ _WEAR_IDS = np.array([MATERIAL_IDS[k] for k in ("asphalt", "marking", "grass")],
 _DRY_RGB = np.array([0.40, 0.36, 0.24], np.float32)  # dry grass / straw albedo
 _CONCRETE = [MATERIAL_IDS[k] for k in ("concrete", "paving")]
 _GROUND = [MATERIAL_IDS[k] for k in ("grass", "soil")]
+_WATER = MATERIAL_IDS["water"]
 
 
 def material_gains(factors: dict) -> np.ndarray:
@@ -260,6 +261,10 @@ def material_gains(factors: dict) -> np.ndarray:
     for name, k in (("grass", 1.0), ("foliage", 0.4)):  # towards dry straw / autumn leaves
         base = np.asarray(DEFAULT_COLOR_FOR_MATERIAL[name], np.float32)
         g[MATERIAL_IDS[name]] *= 1.0 + k * dry * (_DRY_RGB / base - 1.0)
+    # open water reflects 2-8 % of visible light from below its surface; the base albedo
+    # (luma ~0.18) is that of shallow or turbid water, so x 0.4 (its sky reflection, a
+    # specular term, comes on top)
+    g[_WATER] *= np.float32(0.4)
     if factors.get("material_rgb_gain") is not None:
         g *= np.asarray(factors["material_rgb_gain"], np.float32)
     return g
