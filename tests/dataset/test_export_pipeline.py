@@ -105,11 +105,24 @@ def _probe(_):
     """Pool task: this worker's core share and numba threads (held long enough that every
     worker of the pool takes one task)."""
     import numba
+    import numpy as np
+    import open3d as o3d
 
     from aerial_synth.dataset.affinity import current_share
 
     time.sleep(1.0)
-    return sorted(os.sched_getaffinity(0)), numba.get_num_threads(), current_share()
+    before = len(os.listdir("/proc/self/task"))
+    sc = o3d.t.geometry.RaycastingScene()
+    sc.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(o3d.geometry.TriangleMesh.create_box()))
+    rays = np.zeros((100000, 6), np.float32)
+    rays[:, :3] = (0.5, 0.5, 5.0)
+    rays[:, 5] = -1.0
+    hit = sc.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
+    assert np.allclose(hit, 4.0)
+    threads = [int(t) for t in os.listdir("/proc/self/task")]
+    per_thread = {tuple(sorted(os.sched_getaffinity(t))) for t in threads}
+    return (sorted(os.sched_getaffinity(0)), numba.get_num_threads(), current_share(), per_thread,
+            len(threads) - before)
 
 
 @pytest.mark.skipif(not hasattr(os, "sched_getaffinity") or len(os.sched_getaffinity(0)) < 2,
@@ -127,7 +140,10 @@ def test_pool_workers_get_disjoint_core_shares(tiny_scene, tmp_path):
     shares = sorted(r[0] for r in res)
     assert sorted(c for s in shares for c in s) == allowed  # disjoint, covering
     assert all(len(s) >= 1 for s in shares)
-    for cores, nthreads, cur in res:
+    for cores, nthreads, cur, per_thread, new_threads in res:
         assert nthreads == len(cores)
         assert cur is not None and list(cur[2]) == cores and cur[1] == 2
+        assert per_thread == {tuple(cores)}  # every thread, open3d's ray threads included
+        if len(cores) == 1:
+            assert new_threads == 0  # TBB sized its pool by the share: no extra ray thread
     assert sorted(r[2][0] for r in res) == [0, 1]
