@@ -11,7 +11,7 @@ from numba import njit
 
 from ..numba_setup import KERNEL_OPTIONS as _OPTS
 
-__all__ = ["amodal_cast_mask"]
+__all__ = ["amodal_cast_mask", "amodal_groups"]
 
 
 @njit(**_OPTS)
@@ -83,3 +83,51 @@ def amodal_cast_mask(rows, cols, multi, instance, depth, centre, rot, fx, fy, cx
         elif not deep[r, c]:
             out[j] = False
     return out
+
+
+@njit(**_OPTS)
+def amodal_groups(ids, prow, pcol, h, w):  # pragma: no cover - compiled
+    """Per vehicle of the (id, pixel) pairs ``ids`` (m,) sorted, with pixel rows / columns
+    ``prow``, ``pcol`` (m,) (may lie outside the (h, w) image):
+
+    returns ``inside`` (m,) bool (pixel in the image), and per distinct id (g,): the id,
+    its pair count (pixels in and out of the image), its count inside the image, its box
+    of all pixels and its box of the pixels inside (g, 4) int64 [x0, y0, x1, y1] (pixel
+    edges; [0, 0, 0, 0] without such pixels).
+    """
+    m = ids.shape[0]
+    inside = np.empty(m, np.bool_)
+    g = 0
+    for j in range(m):
+        r, c = prow[j], pcol[j]
+        inside[j] = r >= 0 and r < h and c >= 0 and c < w
+        if j == 0 or ids[j] != ids[j - 1]:
+            g += 1
+    uid = np.empty(g, np.int64)
+    count = np.zeros(g, np.int64)
+    n_in = np.zeros(g, np.int64)
+    box_all = np.zeros((g, 4), np.int64)
+    box_in = np.zeros((g, 4), np.int64)
+    k = -1
+    for j in range(m):
+        r, c = np.int64(prow[j]), np.int64(pcol[j])
+        if j == 0 or ids[j] != ids[j - 1]:
+            k += 1
+            uid[k] = ids[j]
+            box_all[k, 0], box_all[k, 1] = c, r
+            box_all[k, 2], box_all[k, 3] = c + 1, r + 1
+        count[k] += 1
+        box_all[k, 0] = min(box_all[k, 0], c)
+        box_all[k, 1] = min(box_all[k, 1], r)
+        box_all[k, 2] = max(box_all[k, 2], c + 1)
+        box_all[k, 3] = max(box_all[k, 3], r + 1)
+        if inside[j]:
+            if n_in[k] == 0:
+                box_in[k, 0], box_in[k, 1] = c, r
+                box_in[k, 2], box_in[k, 3] = c + 1, r + 1
+            n_in[k] += 1
+            box_in[k, 0] = min(box_in[k, 0], c)
+            box_in[k, 1] = min(box_in[k, 1], r)
+            box_in[k, 2] = max(box_in[k, 2], c + 1)
+            box_in[k, 3] = max(box_in[k, 3], r + 1)
+    return inside, uid, count, n_in, box_all, box_in

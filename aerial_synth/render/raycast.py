@@ -234,10 +234,6 @@ def _box_exit_t(rays: np.ndarray, frames: np.ndarray) -> np.ndarray:
     return np.where(near.max(axis=1) <= t_out, t_out, -np.inf)
 
 
-def _box_xyxy(rows: np.ndarray, cols: np.ndarray) -> tuple[int, int, int, int]:
-    return (int(cols.min()), int(rows.min()), int(cols.max()) + 1, int(rows.max()) + 1)
-
-
 def _candidate_boxes(rayscene, camera, vehicles, margin_px: int = 1):
     """Every vehicle of ``rayscene`` whose mesh may show in the image, for
     :func:`._vis_kernels.amodal_cast_mask`: (cand (k, 12) float64, ids (k,) int64).
@@ -423,30 +419,25 @@ def compute_visibility(
     ids = key >> 32
     pix = key & 0xFFFFFFFF
     prow, pcol = rows[pix], cols[pix]
-    inside = (prow >= 0) & (prow < h) & (pcol >= 0) & (pcol < w)
+    from ._kernels import instance_boxes
+    from ._vis_kernels import amodal_groups
 
+    inside, uid, count, n_ins, box_all, box_in = amodal_groups(ids, prow, pcol, h, w)
     masks = AmodalMasks(ids[inside], prow[inside], pcol[inside])
     by_id = {int(v.id): (k, v) for k, v in enumerate(vehicles)}
     # visible pixel counts and boxes: one pass over the instance image
-    from ._kernels import instance_boxes
-
     vis_counts, vis_boxes = instance_boxes(instance, int(max(by_id)) + 1)
 
-    full_u, full_start, full_count = np.unique(ids, return_index=True, return_counts=True)
     out: dict[int, VehicleVisibility] = {}
     centre_world = np.array(
         [[v.x_m, v.y_m, v.z_m + 0.5 * v.height_m] for v in vehicles], dtype=np.float64
     )
     centre_uv = camera.project(centre_world)
-    for vid, s, c in zip(full_u, full_start, full_count):
-        vid = int(vid)
-        ins = inside[s : s + c]
-        n_in = int(ins.sum())
+    for vid, c, n_in, b_all, b_in in zip(uid.tolist(), count.tolist(), n_ins.tolist(),
+                                         box_all.tolist(), box_in.tolist()):
         if n_in == 0 or vid not in by_id:
             continue
         k, v = by_id[vid]
-        r_all, c_all = prow[s : s + c], pcol[s : s + c]
-        r_in, c_in = r_all[ins], c_all[ins]
         visible = int(vis_counts[vid])
         amodal = max(n_in, visible)
         vb = tuple(int(x) for x in vis_boxes[vid]) if visible else None
@@ -455,11 +446,11 @@ def compute_visibility(
             visible_px=visible,
             amodal_px=amodal,
             visible_fraction=min(1.0, visible / amodal),
-            amodal_bbox_xyxy=_box_xyxy(r_in, c_in),
+            amodal_bbox_xyxy=tuple(b_in),
             truncated=bool(c > n_in),
             truncated_fraction=float(c - n_in) / float(c),
             amodal_px_full=int(c),
-            amodal_bbox_full_xyxy=_box_xyxy(r_all, c_all),
+            amodal_bbox_full_xyxy=tuple(b_all),
             visible_bbox_xyxy=vb,
             centre_px=(float(centre_uv[k, 0]), float(centre_uv[k, 1])),
             cls=str(getattr(v, "cls", "")),
