@@ -248,6 +248,7 @@ _DRY_RGB = np.array([0.40, 0.36, 0.24], np.float32)  # dry grass / straw albedo
 _CONCRETE = [MATERIAL_IDS[k] for k in ("concrete", "paving")]
 _GROUND = [MATERIAL_IDS[k] for k in ("grass", "soil")]
 _WATER = MATERIAL_IDS["water"]
+_GLASS = MATERIAL_IDS["glass"]
 
 
 def material_gains(factors: dict) -> np.ndarray:
@@ -265,6 +266,8 @@ def material_gains(factors: dict) -> np.ndarray:
     # (luma ~0.18) is that of shallow or turbid water, so x 0.4 (its sky reflection, a
     # specular term, comes on top)
     g[_WATER] *= np.float32(0.4)
+    # glass: the dark cabin seen through it (car windows read near black from above)
+    g[_GLASS] *= np.float32(0.5)
     if factors.get("material_rgb_gain") is not None:
         g *= np.asarray(factors["material_rgb_gain"], np.float32)
     return g
@@ -365,7 +368,7 @@ _SPEC = _table(0.0, paint=0.35, glass=0.9, water=0.8, metal=0.3, roof=0.03, carg
                roof_tiles=0.03, track=0.07)
 _SHINE = _table(20.0, paint=80.0, glass=300.0, water=400.0, metal=40.0, light_front=100.0,
                 light_rear=100.0, roof_metal=30.0, track=25.0)
-_F0 = _table(0.0, paint=0.05, glass=0.09, water=0.06, metal=0.2, light_front=0.05,
+_F0 = _table(0.0, paint=0.05, glass=0.05, water=0.06, metal=0.2, light_front=0.05,
              light_rear=0.05, cargo=0.02, roof_metal=0.12, track=0.025)
 # how strongly wetness darkens and glosses a material
 _WETK = _table(0.0, asphalt=1.0, marking=0.7, concrete=0.9, paving=0.9, soil=0.6, roof=0.4,
