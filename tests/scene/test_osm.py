@@ -515,3 +515,19 @@ def test_left_hand_traffic_keeps_legal_directions(scene, rs):
             assert dev <= 10 or dev >= 170, (road.name, dev, v.x_m, v.y_m)
             side = _left_offset(road, v) * (1 if dev <= 10 else -1)
             assert side > -0.25, road.name
+
+
+def test_tyre_tracks_lie_on_the_roads_a_few_mm_up(scene, rs):
+    tracks = [o for o in scene.objects if o.material == "track"]
+    assert len(tracks) == 1 and tracks[0].label == "road" and tracks[0].name == "tyre_tracks"
+    v = tracks[0].vertices
+    road = scene.truth.road_area
+    assert shapely.contains_xy(road.buffer(1e-6), v[:, 0], v[:, 1]).all()
+    assert np.all(v[:, 2] == pytest.approx(0.005))
+    # traced from above, a share of the road surface is track, all of it drivable
+    minx, miny, maxx, maxy = road.bounds
+    pts = np.random.default_rng(0).uniform((minx, miny), (maxx, maxy), (20000, 2))
+    pts = pts[shapely.contains_xy(road, pts[:, 0], pts[:, 1])]
+    tr = rs.trace_down(pts, ignore=())
+    on = tr.is_label({"road"})
+    assert 0.05 < np.mean(np.abs(tr.z[on] - 0.005) < 1e-6) < 0.6

@@ -6,7 +6,9 @@ centre's projected coordinates (float64) and ``Scene.crs`` the CRS. Terrain is f
 
 Layers (heights keep coincident surfaces apart so the first hit of a vertical trace is the
 right one): ground plane -0.10 m, grass/soil -0.08, water -0.06, sidewalk -0.04,
-parking -0.02, road 0.00, lane markings +0.01; buildings, trees and trunks stand on 0.
+parking -0.02, road 0.00, tyre tracks +0.005 (label road, material track), lane markings
++0.01; buildings, trees and trunks stand on 0. Roofs take a covering from the tags
+(procedural/roofs.py).
 """
 
 from __future__ import annotations
@@ -37,7 +39,9 @@ ATTRIBUTION = "© OpenStreetMap contributors"
 
 #: surface heights, metres
 Z = {"ground": -0.10, "grass": -0.08, "water": -0.06, "sidewalk": -0.04, "parking": -0.02,
-     "road": 0.0, "marking": 0.01}
+     "road": 0.0, "track": 0.005, "marking": 0.01}
+#: tyre tracks (as procedural/markings.py): strip width, centre distance, extra junction clearance
+TRACK_W_M, TRACK_GAUGE_M, TRACK_JUNCTION_M = 0.6, 1.8, 2.0
 
 #: morphological closing radius of the road surface (fills slivers and cracks in junctions)
 CLOSE_M = 0.5
@@ -181,6 +185,39 @@ def _markings(roads: list[_Road], road_area, junctions):
     clip = shapely.buffer(road_area, -EDGE_INSET_M / 2)
     if len(junctions):
         disks = shapely.buffer(shapely.points(junctions[:, :2]), junctions[:, 2])
+        clip = shapely.difference(clip, shapely.union_all(disks))
+    shapely.prepare(clip)
+    inside = shapely.contains_properly(clip, polys)
+    rest = polys[~inside]
+    if len(rest):
+        rest = shapely.get_parts(shapely.intersection(rest, clip))
+        rest = rest[shapely.get_type_id(rest) == 3]
+    return np.concatenate([polys[inside], rest])
+
+
+def _tracks(roads: list[_Road], road_area, junctions):
+    """Two worn wheel paths per lane (0.6 m wide, centres 1.8 m apart, centred on the lane)
+    of every road with lanes at least 2.4 m wide, kept 2 m further out of junctions than the
+    markings and inside the road surface."""
+    import shapely
+
+    ls, offs = [], []
+    for r in roads:
+        w = r.p.width_m
+        n = min(max(1, r.p.marking_lanes), int(w // 2.4))
+        for k in range(n):
+            c = w / 2 - (k + 0.5) * w / n  # lane centre, > 0: left of the line's direction
+            for d in (-TRACK_GAUGE_M / 2, TRACK_GAUGE_M / 2):
+                ls.append(r.line)
+                offs.append(c + d)
+    if not ls:
+        return np.array([], dtype=object)
+    curves = shapely.offset_curve(np.array(ls, dtype=object), np.array(offs), quad_segs=4)
+    polys = shapely.buffer(curves, TRACK_W_M / 2, cap_style="flat", quad_segs=2)
+    polys = polys[~shapely.is_empty(polys)]
+    clip = shapely.buffer(road_area, -EDGE_INSET_M / 2)
+    if len(junctions):
+        disks = shapely.buffer(shapely.points(junctions[:, :2]), junctions[:, 2] + TRACK_JUNCTION_M)
         clip = shapely.difference(clip, shapely.union_all(disks))
     shapely.prepare(clip)
     inside = shapely.contains_properly(clip, polys)
@@ -387,6 +424,7 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
     t_roads = time.perf_counter()
     junctions = _junctions(roads)
     markings = _markings(roads, road_area, junctions)
+    tracks = _tracks(roads, road_area, junctions)
 
     # -------------------------------------------------------------- other surfaces
     side_l = np.flatnonzero(kinds == "sidewalk")
@@ -433,6 +471,7 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
     flat("sidewalks", "sidewalk", sidewalk, Z["sidewalk"])
     flat("parking", "parking", parking, Z["parking"])
     flat("road", "road", road_area, Z["road"])
+    flat("tyre_tracks", "road", tracks, Z["track"], "track")  # drivable: label road
     flat("lane_markings", "lane_marking", markings, Z["marking"])
 
     # -------------------------------------------------------------- buildings
