@@ -159,6 +159,7 @@ def cast_buffers(rayscene, camera) -> Buffers:
     camera-facing normals in one compiled pass (:func:`._kernels.finish_buffers`); the
     result is the same as mapping :meth:`RayScene.cast_rays` hits."""
     from ._kernels import finish_buffers
+    from .smooth import smooth_shading_normals
 
     h, w = camera.height_px, camera.width_px
     n = h * w
@@ -176,6 +177,8 @@ def cast_buffers(rayscene, camera) -> Buffers:
     finish_buffers(rays, t, ans["geometry_ids"], ans["primitive_ids"], lut, offs,
                    rayscene.face_label, rayscene.face_instance, normal, face, depth, semantic,
                    instance)
+    # shading only: crown clumps get interpolated vertex normals (faces, labels untouched)
+    smooth_shading_normals(rayscene, face, ans["primitive_uvs"], rays, normal)
     return Buffers(h, w, instance.reshape(h, w), semantic.reshape(h, w), depth.reshape(h, w),
                    face, t, normal, rays)
 

@@ -121,6 +121,12 @@ def test_fused_buffers_equal_the_mapped_cast(pose):
     np.testing.assert_array_equal(buf.depth.ravel(), np.where(hits.hit, hits.t, 0))
     n = hits.normal * np.where(np.sum(hits.normal * cam.pixel_rays()[:, 3:], axis=1) > 0,
                                -1, 1)[:, None].astype(np.float32)
+    # crown (foliage) hits carry the interpolated shading normal (render/smooth.py)
+    from aerial_synth.render.smooth import smooth_shading_normals
+
+    rays = cam.pixel_rays().astype(np.float32)
+    uv = rs._cast_raw(rays)["primitive_uvs"]
+    smooth_shading_normals(rs, hits.face, uv, rays, n)
     np.testing.assert_array_equal(buf.normal, n)
     assert set(np.unique(buf.instance)) >= {1, 2, 3}
     assert buf.face.min() == -1 or (buf.face >= 0).all()
