@@ -133,6 +133,12 @@ def _bus_common(L, W, H, *, body_rgb, roof_h, window_lo, clear, front_slope, cor
             xc = ac_at - ac_len / 2 - 0.9
         parts.append(_part("roof_hatch", "glass", (0.20, 0.21, 0.22),
                            _box(xc - 0.45, xc + 0.45, -0.40, 0.40, roof_h - 0.02, roof_h + 0.05)))
+    # roof vents: small boxes near both ends, clear of the AC unit and the hatches
+    for xv in (x1 - front_slope - 1.2, x0 + 1.0):
+        for yv in (0.75, -0.75):
+            parts.append(_part("roof_vents", "metal", (0.62, 0.63, 0.64),
+                               _box(xv - 0.25, xv + 0.25, yv - 0.22, yv + 0.22,
+                                    roof_h - 0.02, min(roof_h + 0.12, H))))
     parts.append(_part("bumper_front", "trim", _TRIM,
                        _box(x1 - 0.10, x1 + 0.0, -hw + 0.05, hw - 0.05, clear - 0.05, clear + 0.30)))
     parts.append(_part("bumper_rear", "trim", _TRIM,

@@ -155,3 +155,17 @@ def test_catalog_options_field(tmp_path):
             load(_catalog(tmp_path, options=opts))
     with pytest.raises(AssetError, match="without '\\+'"):
         load(_catalog(tmp_path, name="a+b"))
+
+
+@pytest.mark.parametrize("name", ["city_bus", "coach", "school_bus"])
+def test_buses_carry_roof_units_and_vents_on_the_roof(name):
+    m = CAT.model(name)
+    mesh = build_mesh(m, RED)
+    roof, _ = mesh.part_mesh("roof")
+    for part in ("air_conditioner", "roof_vents"):
+        v, _ = mesh.part_mesh(part)
+        assert len(v), part
+        assert v[:, 2].max() > roof[:, 2].max() and v[:, 2].max() <= m.height_m + 1e-9
+        assert np.all(np.abs(v[:, 0]) < m.length_m / 2) and np.all(np.abs(v[:, 1]) < m.width_m / 2)
+    vx, _ = mesh.part_mesh("roof_vents")
+    assert np.ptp(vx[:, 0]) > 0.5 * m.length_m  # near both ends
