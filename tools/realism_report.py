@@ -3,8 +3,10 @@
     .venv/bin/python tools/realism_report.py REAL_DIR SYNTH_DIR [--json OUT.json]
 
 Per image: gray mean and gray standard deviation (OpenCV's BGR -> gray, i.e. ITU-R 601
-luma), and for every vehicle box fully inside the image its *contrast*: mean gray inside the
-oriented box minus mean gray of a 4 px ring around it, in units of the image's gray sd.
+luma), and for every vehicle box its *contrast*: mean gray of the pixels whose centre lies
+inside the oriented box minus mean gray of a 4 px ring around it (the box dilated by a 9 x 9
+ellipse, minus the box, minus every other box of the image), in units of the image's gray
+sd: the same definition and code as ``aerial-synth stats`` (``vehicle_pixels``).
 Reports the two-sample KS statistic (scipy.stats.ks_2samp) between the real and the synthetic
 per-image means and sds, and the median |contrast| of each side.
 
@@ -33,7 +35,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-RING_PX = 4
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from aerial_synth.evaluate.stats import RING_PX, vehicle_pixels  # noqa: E402
+
 DOTA_VEHICLES = {"small-vehicle", "large-vehicle"}
 YOLO_VEHICLES = {9, 10}
 VEDAI_NOT_VEHICLES = {23, 31}
@@ -129,26 +133,15 @@ def measure(items) -> dict:
         yb = 0.5 * (f[..., 2] + f[..., 1]) - f[..., 0]
         colourful.append(float(np.hypot(rg.std(), yb.std())
                                + 0.3 * np.hypot(rg.mean(), yb.mean())))
-        h, w = gray.shape
-        for b, hard in boxes or []:
-            if (b[:, 0].min() < RING_PX or b[:, 1].min() < RING_PX
-                    or b[:, 0].max() > w - RING_PX or b[:, 1].max() > h - RING_PX):
-                continue
-            x0, y0 = np.floor(b.min(0)).astype(int) - RING_PX - 1
-            x1, y1 = np.ceil(b.max(0)).astype(int) + RING_PX + 2
-            x0, y0 = max(x0, 0), max(y0, 0)
-            crop = gray[y0:y1, x0:x1]
-            inside = np.zeros(crop.shape, np.uint8)
-            poly = np.round((b - [x0, y0]) * 16).astype(np.int32)
-            cv2.fillPoly(inside, [poly], 1, lineType=cv2.LINE_8, shift=4)
-            if inside.sum() < 4:
-                continue
-            k = np.ones((2 * RING_PX + 1, 2 * RING_PX + 1), np.uint8)
-            ring = cv2.dilate(inside, k) & (1 - inside)
-            if ring.sum() < 4 or s <= 0:
-                continue
-            contrast.append((crop[inside > 0].mean() - crop[ring > 0].mean()) / s)
-            hard_flags.append(hard)
+        if boxes and s > 0:
+            # the one definition of `aerial-synth stats` (aerial_synth.evaluate.stats):
+            # pixels whose centre lies in the box; a 4 px ring (elliptic dilation) minus the
+            # box and minus every other box of the image
+            m_in, m_ring, _, _ = vehicle_pixels(gray, [b for b, _ in boxes], RING_PX)
+            for mi, mr, (_, hard) in zip(m_in, m_ring, boxes):
+                if np.isfinite(mi) and np.isfinite(mr):
+                    contrast.append((mi - mr) / s)
+                    hard_flags.append(hard)
     c = np.asarray(contrast)
     clear = c[~np.asarray(hard_flags, bool)] if len(c) else c
     return {
