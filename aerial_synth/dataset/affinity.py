@@ -12,17 +12,20 @@ So worker ``k`` of ``K`` processes sharing a host takes the cores
 :func:`partition_cores`), pins itself to them (:func:`pin_share`, every thread of the
 process, before open3d/TBB or numba start their pools where possible) and sets numba,
 OpenMP and BLAS threads to the size of its share. A single worker keeps every core. Where
-the platform has no ``sched_setaffinity`` or refuses it, nothing is pinned (the thread
-counts are still set) and nothing fails.
+the platform has no ``sched_setaffinity`` or refuses it, or ``AERIAL_SYNTH_NO_PIN=1`` is
+set, nothing is pinned (the thread counts are still set) and nothing fails.
 """
 
 from __future__ import annotations
 
 import os
 
-__all__ = ["allowed_cores", "partition_cores", "pin_share", "pin_cores", "current_share", "limit_threads"]
+__all__ = ["NO_PIN_ENV", "allowed_cores", "partition_cores", "pin_share", "pin_cores", "current_share", "limit_threads"]
 
 _PINNED: tuple | None = None  # (k, K, cores) applied in this process
+#: set to 1 to turn pinning off (e.g. on a host shared with other busy processes, where a
+#: pinned worker cannot move away from a busy core); thread counts are still shared.
+NO_PIN_ENV = "AERIAL_SYNTH_NO_PIN"
 
 
 def allowed_cores() -> list[int]:
@@ -107,6 +110,9 @@ def pin_share(k: int | None, K: int | None, allowed=None) -> list[int] | None:
     again with the same (k, K) does nothing."""
     global _PINNED
     if K is None or int(K) <= 1 or k is None or not 0 <= int(k) < int(K):
+        return None
+    if os.environ.get(NO_PIN_ENV, "").strip() not in ("", "0"):
+        _set_thread_counts(max(1, len(allowed_cores() if allowed is None else list(allowed)) // int(K)))
         return None
     if _PINNED is not None and _PINNED[:2] == (int(k), int(K)):
         return list(_PINNED[2])

@@ -79,8 +79,9 @@ def _cpu_list(text):
     return out
 
 
-def _child(k, K):
-    env = dict(os.environ, PYTHONPATH=str(REPO))
+def _child(k, K, **extra_env):
+    env = {k: v for k, v in os.environ.items() if k != "AERIAL_SYNTH_NO_PIN"}
+    env.update(PYTHONPATH=str(REPO), **extra_env)
     r = subprocess.run([sys.executable, "-c", _CHILD, str(k), str(K)], capture_output=True, text=True,
                        env=env, timeout=120)
     assert r.returncode == 0, r.stderr
@@ -102,6 +103,9 @@ def test_pin_share_pins_every_thread():
     assert not set(got[0]["share"]) & set(got[1]["share"])
     one = _child(0, 1)  # a single worker keeps every core
     assert one["share"] is None and one["self"] == allowed and one["current"] is None
+    off = _child(1, 2, AERIAL_SYNTH_NO_PIN="1")  # pinning turned off: threads still shared
+    assert off["share"] is None and off["self"] == off["new_thread"] == allowed and off["current"] is None
+    assert off["numba"] == max(1, len(allowed) // 2)
 
 
 def test_dask_host_slots():
