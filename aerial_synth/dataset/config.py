@@ -14,12 +14,11 @@ from pathlib import Path
 from .. import validators as v
 from ..annotate.boxes import BoxConfig
 from ..errors import ConfigError, ExportError
+from .seeds import PLACEMENT_STREAM
 
 __all__ = ["IMAGE_EXTS", "PLACEMENT_STREAM", "SPLITS", "ExportConfig", "ExportResult"]
 
 SPLITS = ("train", "val")
-#: third SeedSequence word of a placement group's entropy: [seed, group, PLACEMENT_STREAM]
-PLACEMENT_STREAM = 1
 IMAGE_EXTS = ("png", "jpg")
 #: most images one export may hold (the plan and the manifest grow with it; about 9 days of
 #: rendering on 2 cores at 0.8 s an image): a larger dataset is several exports

@@ -48,11 +48,11 @@ import warnings
 import numpy as np
 
 from ..errors import ExportError, PlacementError
+from .seeds import PLACEMENT_STREAM
 
 __all__ = [
     "RENDER_PAD_M",
     "TILE_STREAM",
-    "TiledImageWorker",
     "camera_reach_m",
     "check_tiled_config",
     "dependency_m",
@@ -254,7 +254,7 @@ class _GroupPlacer:
             return self._cache[key]
         from ..placement.tiled import place_tiled
 
-        ss = np.random.SeedSequence([self.cfg.seed, group, _placement_stream()])
+        ss = np.random.SeedSequence([self.cfg.seed, group, PLACEMENT_STREAM])
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             try:
@@ -333,12 +333,6 @@ class _GroupPlacer:
         return out, sorted(warned)
 
 
-def _placement_stream() -> int:
-    from .config import PLACEMENT_STREAM
-
-    return PLACEMENT_STREAM
-
-
 def group_placement(world, grid, cfg, group: int, catalog=None, placer=None):
     """Group ``group``'s tile, camera area, vehicles and warnings: (tile, within, vehicle
     area, Placement, warnings). ``within``: where the cameras' footprints must lie."""
@@ -360,66 +354,3 @@ def group_placement(world, grid, cfg, group: int, catalog=None, placer=None):
     area = _grow(within, placer.longest + VEHICLE_PAD_M, bounds)
     pl, warned = placer.placement(group, tile, area)
     return tile, within, area, pl, warned
-
-
-# ------------------------------------------------------------------ worker
-
-
-def _worker_base():
-    from .worker import ImageWorker
-
-    return ImageWorker
-
-
-class TiledImageWorker(_worker_base()):
-    """An :class:`~aerial_synth.dataset.worker.ImageWorker` for ``cfg.tile_m``: its ``scene``
-    is the :class:`~aerial_synth.scene.tiles.TiledWorld`; a group places and builds only the
-    tiles it needs (see the module's text)."""
-
-    _placer = None
-    _within = None
-    _window_cache = None  # (render window rect, Scene): the last group's window
-
-    @property
-    def grid(self):
-        g = self.__dict__.get("_grid")
-        if g is None:
-            g = self.__dict__["_grid"] = self.scene.grid(self.cfg.tile_m, self.cfg.margin_m)
-        return g
-
-    @property
-    def scene_xy_bounds(self) -> np.ndarray:
-        """Where the current group's camera footprints must lie."""
-        x0, y0, x1, y1 = self._within
-        return np.array([[x0, y0], [x1, y1]])
-
-    @property
-    def georeference(self) -> dict:
-        return self.scene.georeference()
-
-    def _ensure_group(self, group: int):
-        if self._group == group:
-            return
-        from ..render import add_placement
-        from ..scene.raycast import RayScene
-
-        world, grid = self.scene, self.grid
-        if self._placer is None:
-            self._placer = _GroupPlacer(world, grid, self.cfg, self.catalog)
-        tile, within, area, pl, warned = group_placement(world, grid, self.cfg, group, self.catalog,
-                                                         self._placer)
-        if not pl.vehicles:
-            raise ExportError(f"placement group {group}: scenario {self.cfg.scenario!r} placed no "
-                              f"vehicles near tile {list(tile.key)} of scene {self.cfg.scene!r}")
-        rect = _grow(within, RENDER_PAD_M, grid.bounds)
-        if self._window_cache is not None and self._window_cache[0] == rect:
-            scene = self._window_cache[1]
-        else:
-            self._window_cache = None  # drop the old window before building the next
-            scene = world.scene_for(rect)
-            self._window_cache = (rect, scene)
-        rs = RayScene(scene, nthreads=self.nthreads)  # fresh: independent of history
-        add_placement(rs, pl, self.catalog, simple_boxes=self.cfg.simple_vehicles)
-        self._placement_warnings = warned
-        self._within = within
-        self._group, self._rayscene, self._placement = group, rs, pl

@@ -94,10 +94,8 @@ class ImageWorker:
     """Per-process state: scene, catalog and the current placement group."""
 
     def __new__(cls, cfg=None, *args, **kwargs):
-        """A tiled export (``cfg.tile_m``) gets a :class:`.tiled.TiledImageWorker`."""
+        """A tiled export (``cfg.tile_m``) gets a :class:`TiledImageWorker`."""
         if cls is ImageWorker and getattr(cfg, "tile_m", None) is not None:
-            from .tiled import TiledImageWorker
-
             cls = TiledImageWorker
         return super().__new__(cls)
 
@@ -295,6 +293,61 @@ class ImageWorker:
         if self._writer is not None:
             w, self._writer = self._writer, None
             w.close()
+
+
+class TiledImageWorker(ImageWorker):
+    """An :class:`~aerial_synth.dataset.worker.ImageWorker` for ``cfg.tile_m``: its ``scene``
+    is the :class:`~aerial_synth.scene.tiles.TiledWorld`; a group places and builds only the
+    tiles it needs (see the module's text)."""
+
+    _placer = None
+    _within = None
+    _window_cache = None  # (render window rect, Scene): the last group's window
+
+    @property
+    def grid(self):
+        g = self.__dict__.get("_grid")
+        if g is None:
+            g = self.__dict__["_grid"] = self.scene.grid(self.cfg.tile_m, self.cfg.margin_m)
+        return g
+
+    @property
+    def scene_xy_bounds(self) -> np.ndarray:
+        """Where the current group's camera footprints must lie."""
+        x0, y0, x1, y1 = self._within
+        return np.array([[x0, y0], [x1, y1]])
+
+    @property
+    def georeference(self) -> dict:
+        return self.scene.georeference()
+
+    def _ensure_group(self, group: int):
+        if self._group == group:
+            return
+        from ..render import add_placement
+        from ..scene.raycast import RayScene
+        from .tiled import RENDER_PAD_M, _GroupPlacer, _grow, group_placement
+
+        world, grid = self.scene, self.grid
+        if self._placer is None:
+            self._placer = _GroupPlacer(world, grid, self.cfg, self.catalog)
+        tile, within, area, pl, warned = group_placement(world, grid, self.cfg, group, self.catalog,
+                                                         self._placer)
+        if not pl.vehicles:
+            raise ExportError(f"placement group {group}: scenario {self.cfg.scenario!r} placed no "
+                              f"vehicles near tile {list(tile.key)} of scene {self.cfg.scene!r}")
+        rect = _grow(within, RENDER_PAD_M, grid.bounds)
+        if self._window_cache is not None and self._window_cache[0] == rect:
+            scene = self._window_cache[1]
+        else:
+            self._window_cache = None  # drop the old window before building the next
+            scene = world.scene_for(rect)
+            self._window_cache = (rect, scene)
+        rs = RayScene(scene, nthreads=self.nthreads)  # fresh: independent of history
+        add_placement(rs, pl, self.catalog, simple_boxes=self.cfg.simple_vehicles)
+        self._placement_warnings = warned
+        self._within = within
+        self._group, self._rayscene, self._placement = group, rs, pl
 
 
 # Engine-agnostic entry point -------------------------------------------------------------
