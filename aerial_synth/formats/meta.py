@@ -134,7 +134,7 @@ def from_dict(d: dict, where: str = "<meta>") -> ImageRecord:
             segmentations=segs,
             georeference=d.get("georeference", {}) or {},
         )
-    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError, OverflowError) as exc:
         raise LabelFormatError(f"{where}: bad image metadata ({type(exc).__name__}: {exc})") from None
 
 

@@ -7,7 +7,7 @@ import math
 import pytest
 
 hypothesis = pytest.importorskip("hypothesis")
-from hypothesis import given, settings  # noqa: E402
+from hypothesis import example, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
 from aerial_synth.errors import AerialSynthError  # noqa: E402
@@ -68,6 +68,7 @@ JSONISH = st.recursive(
 
 @settings(max_examples=300, deadline=None)
 @given(JSONISH)
+@example({"id": None, "index": float("inf")})  # int(inf) raised OverflowError (found by hypothesis)
 def test_coco_and_meta_readers_total(d):
     _one_line_error(coco.from_dict, d)
     _one_line_error(meta.from_dict, d)
