@@ -249,6 +249,11 @@ class DaskEngine:
                 f"--dask {arg}: cannot reach a Dask scheduler there within {time.perf_counter() - t0:.0f} s "
                 f"({type(exc).__name__}); start one with 'dask scheduler' or check the address"
             ) from None
+        except Exception as exc:  # something else answers there (a web server, another protocol)
+            raise ExportError(
+                f"--dask {arg}: the service at that address does not speak Dask's protocol "
+                f"({type(exc).__name__}); give the scheduler's address (port 8786 by default)"
+            ) from None
         return cls(client, None, str(arg))
 
     def __enter__(self):

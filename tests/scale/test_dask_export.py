@@ -150,6 +150,44 @@ def test_unreachable_scheduler_one_line_within_10s(cross_scene, tmp_path):
     assert list(tmp_path.iterdir()) == []  # nothing written
 
 
+def test_a_service_that_is_not_dask_is_one_line(cross_scene, tmp_path):
+    """A port that answers with something else (here: an HTTP-like reply) used to crash the
+    client with a numpy MemoryError traceback (it read the reply as a frame length)."""
+    import socket
+
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen(4)
+    port = srv.getsockname()[1]
+    stop = threading.Event()
+
+    def serve():
+        srv.settimeout(0.2)
+        while not stop.is_set():
+            try:
+                conn, _ = srv.accept()
+            except OSError:
+                continue
+            with conn:
+                conn.sendall(b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n" * 4)
+                time.sleep(0.5)
+
+    th = threading.Thread(target=serve, daemon=True)
+    th.start()
+    try:
+        out = tmp_path / "never"
+        r = run_cli("export", "--scene", cross_scene, "--images", 2, "--out", out,
+                    "--dask", f"tcp://127.0.0.1:{port}")
+    finally:
+        stop.set()
+        th.join(5)
+        srv.close()
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and f"--dask tcp://127.0.0.1:{port}" in lines[0], r.stderr
+    assert list(tmp_path.iterdir()) == []  # nothing written
+
+
 @pytest.mark.parametrize("extra, field", [
     (["--dask", "local:2", "--workers", "2"], "--workers"),
     (["--dask", "local:2", "--workers", "1"], "--workers"),
