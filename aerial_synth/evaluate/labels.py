@@ -404,9 +404,10 @@ def find_data_yaml(path: Path) -> Path | None:
     return cands[0] if len(cands) == 1 else None
 
 
-def detect_layout(path) -> str:
-    """``dota``, ``yolo-obb``, ``vedai``, ``collection`` (a folder of such datasets) or
-    ``images`` for a dataset folder (stats input)."""
+def detect_layout(path, collections: bool = True) -> str:
+    """``dota``, ``yolo-obb``, ``vedai``, ``collection`` (a folder whose direct subfolders
+    are such datasets; only when ``collections``) or ``images`` for a dataset folder (stats
+    input)."""
     path = Path(path)
     if (path / "dota").is_dir() or (path / "labelTxt").is_dir() or any(
             (path / s / "labelTxt").is_dir() for s in ("train", "val", "test")):
@@ -417,16 +418,17 @@ def detect_layout(path) -> str:
         return "vedai"
     if path.name == "labelTxt":
         return "dota"
-    if _sub_datasets(path):
+    if collections and _sub_datasets(path):
         return "collection"
     return "images"
 
 
 def _sub_datasets(path: Path) -> list[Path]:
-    """Subfolders that are datasets of a labelled layout (a folder of several datasets,
-    e.g. a VEDAI folder beside a DOTA folder)."""
+    """Direct subfolders that are datasets of a labelled layout (a folder of several
+    datasets, e.g. a VEDAI folder beside a DOTA folder). One level only: no walk of a
+    whole tree, no loop through a symlink to a parent."""
     subs = sorted(p for p in path.iterdir() if p.is_dir() and not p.name.startswith("."))
-    return [p for p in subs if detect_layout(p) not in ("images", "collection")]
+    return [p for p in subs if detect_layout(p, collections=False) != "images"]
 
 
 def _all_images(folder: Path) -> list[Path]:
