@@ -298,3 +298,55 @@ def test_auto_contrast_meets_the_target_after_the_optical_blur(world):
         gray = f.rgb.astype(float) @ [0.299, 0.587, 0.114]
         assert gray.std() == pytest.approx(f.factors["target_gray_sd"], abs=1.2), sig
         assert gray.mean() == pytest.approx(110.0, abs=3.0)
+
+
+def _solve_tone_reference(luma, key_gray, target_sd, shoulder, power_range=(0.3, 1.6)):
+    """The numpy formulation the compiled solver replaced (same bisections)."""
+    import math
+
+    def curve(v, p):
+        v = np.clip(v, 0.0, 1.0)
+        return (v * (1.0 + shoulder) / (1.0 + shoulder * v)) ** p
+
+    y = luma[np.isfinite(luma) & (luma > 1e-6)]
+    ly = np.log(y)
+    lo, hi = float(ly.min()), float(ly.max()) + 1e-6
+    cnt, edges = np.histogram(ly, bins=256, range=(lo, hi))
+    yc = np.exp(0.5 * (edges[1:] + edges[:-1]))
+    wts = cnt / cnt.sum()
+
+    def stats(lg, p):
+        g = 255.0 * curve(math.exp(lg) * yc, p)
+        m = float(wts @ g)
+        return m, math.sqrt(max(float(wts @ (g * g)) - m * m, 0.0))
+
+    def gain_for(p):
+        a, b = -lo - 12.0, -lo + 12.0
+        for _ in range(22):
+            mid = 0.5 * (a + b)
+            a, b = (mid, b) if stats(mid, p)[0] < key_gray else (a, mid)
+        return 0.5 * (a + b)
+
+    plo, phi = power_range
+    if stats(gain_for(phi), phi)[1] <= target_sd:
+        p = phi
+    elif stats(gain_for(plo), plo)[1] >= target_sd:
+        p = plo
+    else:
+        a, b = math.log(plo), math.log(phi)
+        for _ in range(12):
+            mid = 0.5 * (a + b)
+            a, b = (mid, b) if stats(gain_for(math.exp(mid)), math.exp(mid))[1] < target_sd else (a, mid)
+        p = math.exp(0.5 * (a + b))
+    return math.exp(gain_for(p)), p
+
+
+@pytest.mark.parametrize("key, sd, shoulder", [(110.0, 35.0, 0.3), (60.0, 15.0, 0.0),
+                                               (170.0, 48.0, 0.5), (100.0, 200.0, 0.2)])
+def test_compiled_tone_solver_equals_the_numpy_formulation(key, sd, shoulder):
+    rng = np.random.default_rng(7)
+    luma = np.exp(rng.normal(-2.0, 1.0, 60_000)) * rng.uniform(0.5, 1.5, 60_000)
+    g, p = solve_tone(luma, key, sd, shoulder)
+    g0, p0 = _solve_tone_reference(luma, key, sd, shoulder)
+    assert p == pytest.approx(p0, rel=1e-9, abs=1e-12)
+    assert g == pytest.approx(g0, rel=1e-6)
