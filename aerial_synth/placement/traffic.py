@@ -249,6 +249,15 @@ class _Engine:
     def sample_variants(self, n: int):
         return self.catalog.sample(self.rng, n) if n else []
 
+    def draw_and_accept(self, c: _Cand, n: int):
+        """Draw ``n`` vehicle variants for the candidates ``c``, trace their whole footprints
+        and accept what fits: (variants, centre z per candidate, accepted)."""
+        variants = self.sample_variants(n)
+        L = np.array([v.model.length_m for v in variants])
+        W = np.array([v.model.width_m for v in variants])
+        z = self.check_footprints(c, L, W)
+        return variants, z, self.accept_many(c, variants)
+
     def precheck(self, c: _Cand, L: np.ndarray, W: np.ndarray) -> None:
         """Refuse ("blocked") the candidates that already collide with a placed vehicle before
         any trace is spent on them: the index only grows, so :meth:`accept_many` would refuse
@@ -501,11 +510,7 @@ class _Engine:
         c.reason[~found] = "no_edge"
         self.wrong_way(c)  # direction hints: the far side may be a one-way road of its own
         self.segment_ok(c, offs)
-        variants = self.sample_variants(len(picks))
-        L = np.array([v.model.length_m for v in variants])
-        W = np.array([v.model.width_m for v in variants])
-        z = self.check_footprints(c, L, W)
-        acc = self.accept_many(c, variants)
+        variants, z, acc = self.draw_and_accept(c, len(picks))
         started = []
         for i, (ln, _) in enumerate(picks):
             if self.full():
@@ -559,11 +564,7 @@ class _Engine:
         c.reason[bad] = "junction"
         self.wrong_way(c)  # direction hints
         self.segment_ok(c, new_off[idx])
-        variants = self.sample_variants(len(idx))
-        L = np.array([v.model.length_m for v in variants])
-        W = np.array([v.model.width_m for v in variants])
-        z = self.check_footprints(c, L, W)
-        acc = self.accept_many(c, variants)
+        variants, z, acc = self.draw_and_accept(c, len(idx))
         started = []
         for i, k in enumerate(idx):
             if self.full():
@@ -720,11 +721,7 @@ class _Engine:
             head = self.rng.uniform(0.0, TWO_PI, len(seeds))
             c = _Cand(seeds[:, 0].copy(), seeds[:, 1].copy(), head, np.ones(len(seeds), bool),
                       np.full(len(seeds), "", object), np.zeros(len(seeds)))
-            variants = self.sample_variants(len(seeds))
-            L = np.array([v.model.length_m for v in variants])
-            W = np.array([v.model.width_m for v in variants])
-            z = self.check_footprints(c, L, W)
-            acc = self.accept_many(c, variants)
+            variants, z, acc = self.draw_and_accept(c, len(seeds))
             placed_before = len(self.vehicles)
             for i in range(len(seeds)):
                 if self.full():

@@ -54,19 +54,7 @@ def finish_buffers(rays, t, gid, pid, lut, offs, face_label, face_instance, norm
             normal[i, 2] = -normal[i, 2]
 
 
-@njit(inline="always")
-def _bilinear(tile, x, y):  # pragma: no cover - compiled
-    fx0 = np.floor(x)
-    fy0 = np.floor(y)
-    fx = np.float32(x - fx0)
-    fy = np.float32(y - fy0)
-    x0 = np.int64(fx0) & 255
-    y0 = np.int64(fy0) & 255
-    x1 = (x0 + 1) & 255
-    y1 = (y0 + 1) & 255
-    a = tile[y0, x0] * (np.float32(1.0) - fx) + tile[y0, x1] * fx
-    b = tile[y1, x0] * (np.float32(1.0) - fx) + tile[y1, x1] * fx
-    return a * (np.float32(1.0) - fy) + b * fy
+_bilinear = _materials._bil  # wrapped bilinear lookup in a 256 x 256 noise tile (one copy)
 
 
 @njit(inline="always")

@@ -1,6 +1,5 @@
 """The compiled per-pixel kernels against plain numpy references, and thread independence."""
 
-import numba
 import numpy as np
 import pytest
 
@@ -10,18 +9,9 @@ from aerial_synth.render import _kernels as K
 from aerial_synth.render.raycast import _box_exit_t, _box_frames
 from aerial_synth.render.shading import _normal_quantiles
 
-from .worlds import make_placement, make_world
+from .worlds import make_placement, make_world, with_threads
 
 SMALL = CameraConfig(width_px=256, height_px=256, gsd_m=0.12)
-
-
-def _with_threads(n, fn):
-    old = numba.get_num_threads()
-    numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
-    try:
-        return fn()
-    finally:
-        numba.set_num_threads(old)
 
 
 def test_noise_is_standard_normal_and_thread_independent():
@@ -29,7 +19,7 @@ def test_noise_is_standard_normal_and_thread_independent():
 
     def noisy(seed, threads):
         img = base.copy()
-        _with_threads(threads, lambda: K.add_noise(img, np.uint64(seed), np.float32(20.0),
+        with_threads(threads, lambda: K.add_noise(img, np.uint64(seed), np.float32(20.0),
                                                    np.float32(0.0), _normal_quantiles()))
         return img
 
@@ -126,8 +116,8 @@ def test_frame_is_identical_for_any_thread_count():
     rs, pl = make_world(spec, crown_at=(3.0, 3.0))
     cam = Camera.look_at_ground(SMALL, (2.0, 0.0, 0.0), yaw_deg=20.0, tilt_deg=8.0)
     cfg = RenderConfig(jpeg_probability=0.0, wet_probability=1.0, overcast_probability=0.0)
-    a = _with_threads(1, lambda: render_frame(rs, cam, pl, np.random.default_rng(3), cfg))
-    b = _with_threads(2, lambda: render_frame(rs, cam, pl, np.random.default_rng(3), cfg))
+    a = with_threads(1, lambda: render_frame(rs, cam, pl, np.random.default_rng(3), cfg))
+    b = with_threads(2, lambda: render_frame(rs, cam, pl, np.random.default_rng(3), cfg))
     for name in ("instance", "semantic", "depth", "rgb"):
         assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), name
 

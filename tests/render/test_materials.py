@@ -21,6 +21,8 @@ from aerial_synth.scene import build
 from aerial_synth.scene.model import MATERIAL_IDS, MATERIALS, Scene, SceneObject
 from aerial_synth.scene.raycast import RayScene
 
+from .worlds import with_threads
+
 # every factor but the textures fixed, so differences have one cause
 PLAIN = dict(sun_azimuth_deg=(200, 200), sun_elevation_deg=(40, 40), haze=(0, 0),
              overcast_probability=0, wet_probability=0, jpeg_probability=0,
@@ -29,15 +31,6 @@ PLAIN = dict(sun_azimuth_deg=(200, 200), sun_elevation_deg=(40, 40), haze=(0, 0)
              white_balance=(0, 0), tint=(0, 0), saturation=(1, 1), shadows=False,
              ambient_occlusion=False, road_wear=(1, 1))
 EMPTY = Placement(scene="t", scenario="manual", seed=0, vehicles=[])
-
-
-def _with_threads(n, fn):
-    old = numba.get_num_threads()
-    numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
-    try:
-        return fn()
-    finally:
-        numba.set_num_threads(old)
 
 
 def _roof_plane(angle_deg, material, size=30.0, pitch_deg=25.0, z0=3.0):
@@ -96,8 +89,8 @@ def _gray(rgb):
 def test_material_patterns_are_seeded_and_thread_independent(world):
     rs, cam = world
     cfg = RenderConfig(**PLAIN)
-    a = _with_threads(1, lambda: render_frame(rs, cam, EMPTY, np.random.default_rng(2), cfg))
-    b = _with_threads(2, lambda: render_frame(rs, cam, EMPTY, np.random.default_rng(2), cfg))
+    a = with_threads(1, lambda: render_frame(rs, cam, EMPTY, np.random.default_rng(2), cfg))
+    b = with_threads(2, lambda: render_frame(rs, cam, EMPTY, np.random.default_rng(2), cfg))
     assert a.rgb.tobytes() == b.rgb.tobytes()
     c = render_frame(rs, cam, EMPTY, np.random.default_rng(2), cfg)
     assert c.rgb.tobytes() == a.rgb.tobytes()

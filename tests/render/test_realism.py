@@ -5,7 +5,6 @@ Labels must never depend on shading; every factor is seeded and recorded."""
 
 import json
 
-import numba
 import numpy as np
 import pytest
 
@@ -21,7 +20,7 @@ from aerial_synth.render.shading import (
     tone_lut,
 )
 
-from .worlds import make_world
+from .worlds import make_world, with_threads
 
 SMALL = CameraConfig(width_px=256, height_px=256, gsd_m=0.12)
 SPEC = [(1, 0.0, -2.0, 0.3, 4.5, 1.8, 1.5), (2, 7.0, 2.0, 0.0, 9.0, 2.5, 3.5),
@@ -32,15 +31,6 @@ PLAIN = dict(sun_azimuth_deg=(200, 200), sun_elevation_deg=(40, 40), haze=(0, 0)
              noise_sigma=(0, 0), shot_noise=(0, 0), blur_sigma_px=(0, 0), vignetting=(0, 0),
              grayscale_probability=0, exposure_mode="fixed", exposure=(1, 1),
              white_balance=(0, 0), tint=(0, 0), saturation=(1, 1), texture=False)
-
-
-def _with_threads(n, fn):
-    old = numba.get_num_threads()
-    numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
-    try:
-        return fn()
-    finally:
-        numba.set_num_threads(old)
 
 
 @pytest.fixture(scope="module")
@@ -70,8 +60,8 @@ def test_labels_do_not_depend_on_shading(world):
 def test_full_frame_is_identical_for_any_thread_count_and_records_every_factor(world):
     rs, pl, cam = world
     cfg = RenderConfig(jpeg_probability=1.0, haze=(0.2, 0.2), wet_probability=1.0)
-    a = _with_threads(1, lambda: render_frame(rs, cam, pl, np.random.default_rng(9), cfg))
-    b = _with_threads(2, lambda: render_frame(rs, cam, pl, np.random.default_rng(9), cfg))
+    a = with_threads(1, lambda: render_frame(rs, cam, pl, np.random.default_rng(9), cfg))
+    b = with_threads(2, lambda: render_frame(rs, cam, pl, np.random.default_rng(9), cfg))
     assert a.rgb.tobytes() == b.rgb.tobytes()
     assert a.to_meta() == b.to_meta()
     f = a.factors

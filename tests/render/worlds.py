@@ -53,3 +53,13 @@ def make_world(specs, **scene_kw):
     return rs, pl
 
 
+def with_threads(n, fn):
+    """fn() with numba's thread count set to n (at most the configured maximum)."""
+    import numba
+
+    old = numba.get_num_threads()
+    numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
+    try:
+        return fn()
+    finally:
+        numba.set_num_threads(old)

@@ -181,10 +181,19 @@ def _markings(roads: list[_Road], road_area, junctions):
     if not pieces:
         return np.array([], dtype=object)
     polys = np.concatenate(pieces)
+    return _clip_to_road(polys, road_area, junctions)
+
+
+def _clip_to_road(polys, road_area, junctions, junction_extra_m: float = 0.0):
+    """The non-empty polygons of ``polys`` cut to the road surface (inset by half the edge
+    inset) minus the junction disks grown by ``junction_extra_m``; polygons wholly inside
+    are kept as they are."""
+    import shapely
+
     polys = polys[~shapely.is_empty(polys)]
     clip = shapely.buffer(road_area, -EDGE_INSET_M / 2)
     if len(junctions):
-        disks = shapely.buffer(shapely.points(junctions[:, :2]), junctions[:, 2])
+        disks = shapely.buffer(shapely.points(junctions[:, :2]), junctions[:, 2] + junction_extra_m)
         clip = shapely.difference(clip, shapely.union_all(disks))
     shapely.prepare(clip)
     inside = shapely.contains_properly(clip, polys)
@@ -214,18 +223,7 @@ def _tracks(roads: list[_Road], road_area, junctions):
         return np.array([], dtype=object)
     curves = shapely.offset_curve(np.array(ls, dtype=object), np.array(offs), quad_segs=4)
     polys = shapely.buffer(curves, TRACK_W_M / 2, cap_style="flat", quad_segs=2)
-    polys = polys[~shapely.is_empty(polys)]
-    clip = shapely.buffer(road_area, -EDGE_INSET_M / 2)
-    if len(junctions):
-        disks = shapely.buffer(shapely.points(junctions[:, :2]), junctions[:, 2] + TRACK_JUNCTION_M)
-        clip = shapely.difference(clip, shapely.union_all(disks))
-    shapely.prepare(clip)
-    inside = shapely.contains_properly(clip, polys)
-    rest = polys[~inside]
-    if len(rest):
-        rest = shapely.get_parts(shapely.intersection(rest, clip))
-        rest = rest[shapely.get_type_id(rest) == 3]
-    return np.concatenate([polys[inside], rest])
+    return _clip_to_road(polys, road_area, junctions, TRACK_JUNCTION_M)
 
 
 def _junctions(roads: list[_Road]) -> np.ndarray:
