@@ -114,7 +114,7 @@ def export_dataset(
     folder, scene, catalog, scenario, camera) before writing anything; builds a new dataset
     beside ``out_dir`` and moves it into place at the end (see :mod:`.output`).
 
-    workers  : processes (spawn); output is byte-identical for any count
+    workers  : processes (forked from a fork server, spawned where there is none); output is byte-identical for any count
     resume   : finish an interrupted export with the same parameters
     force    : replace an existing dataset (only once the new one is complete), or write
                into a folder that is not a dataset (keeping its files)
@@ -125,6 +125,8 @@ def export_dataset(
     workers = v.integer("--workers", workers, 1, error=ExportError)
     plan = plan_output(cfg, out_dir, resume, force)
     _check_dask(dask, workers)  # a bad or unreachable --dask is reported before the slow checks
+    if dask is None and workers > 1:
+        start_pool_server()  # imports the workers' modules while the scene loads here
     scene, catalog = validate_inputs(cfg)
     geo = _georeference(scene)
 
@@ -208,14 +210,13 @@ def _dask_engine(dask, workers):
 
 
 def _run_pool(cfg: ExportConfig, build: Path, tasks, workers: int, bar, scene=None, catalog=None) -> int:
-    """Run the placement-group tasks on a spawn process pool; returns images finished.
+    """Run the placement-group tasks on a process pool (:func:`pool_context`); returns
+    images finished.
 
     Worker k of the pool pins itself to the k-th share of the cores (see
     :func:`.worker.init_pool_worker`). An untiled export hands its loaded scene and
     catalog to the workers (pickled: milliseconds, against seconds to load the scene
     again in every worker); a tiled one lets each worker build its own tiles."""
-    import multiprocessing as mp
-
     from ..formats.registry import BUILTIN, get
 
     extra = [get(n) for n in cfg.formats if n not in BUILTIN]  # run-time formats travel along
@@ -223,7 +224,7 @@ def _run_pool(cfg: ExportConfig, build: Path, tasks, workers: int, bar, scene=No
 
     size = min(int(workers), len(tasks))
     nthreads = max(1, len(allowed_cores()) // size)
-    ctx = mp.get_context("spawn")
+    ctx = pool_context()
     slots = ctx.Value("i", 0)  # worker k of the pool takes the k-th share of the cores
     done = 0
     with ctx.Pool(size, initializer=init_pool_worker,
@@ -233,6 +234,41 @@ def _run_pool(cfg: ExportConfig, build: Path, tasks, workers: int, bar, scene=No
             done += len(res)
             bar.update(len(res))
     return done
+
+
+#: What a pool worker imports; the fork server imports it once, before it forks workers.
+_WORKER_MODULES = ("aerial_synth.dataset.worker", "aerial_synth.render.frame",
+                   "aerial_synth.render.shading", "aerial_synth.placement.traffic",
+                   "aerial_synth.annotate", "aerial_synth.formats.registry", "open3d",
+                   "scipy.stats", "cv2")
+
+
+def pool_context():
+    """The start method of the export's worker processes: a fork server where the platform
+    has one (Linux, macOS), else spawn.
+
+    A spawned worker starts a fresh interpreter and imports open3d, numba, scipy and the
+    renderer itself (~2 s of CPU each). The fork server does those imports once, in a
+    process that has started no threads (so forking it is safe, unlike forking the
+    exporter once open3d or numba run), and every worker is a fork of it: nothing to
+    import. Workers still get everything else through pickled arguments, as with spawn."""
+    import multiprocessing as mp
+
+    if "forkserver" not in mp.get_all_start_methods():
+        return mp.get_context("spawn")
+    ctx = mp.get_context("forkserver")
+    ctx.set_forkserver_preload(list(_WORKER_MODULES))
+    return ctx
+
+
+def start_pool_server() -> None:
+    """Start the fork server now (it imports :data:`_WORKER_MODULES` in the background,
+    on another core, while this process loads the scene); a no-op with spawn."""
+    ctx = pool_context()
+    if ctx.get_start_method() == "forkserver":
+        from multiprocessing import forkserver
+
+        forkserver.ensure_running()
 
 
 def _shareable(cfg: ExportConfig, scene, catalog) -> tuple:

@@ -42,13 +42,20 @@ __all__ = [
 
 # ------------------------------------------------------------- parent watch
 
-_PARENT_PID: int | None = None
+_PARENT_PID: int | None = None  # this process's parent when the watch started
+_EXPORTER_PID: int | None = None  # the exporting process (the parent, or its fork server's parent)
 
 
 def _watch_parent(parent_pid: int) -> None:
-    """Die with the parent: PR_SET_PDEATHSIG on Linux, and :func:`_check_parent` elsewhere."""
-    global _PARENT_PID
-    _PARENT_PID = int(parent_pid)
+    """Die with the exporter ``parent_pid``: PR_SET_PDEATHSIG on Linux, and
+    :func:`_check_parent` everywhere. A worker forked by the pool's fork server has that
+    server as its parent; the server exits when the exporter does, so the death signal
+    still follows the exporter, and :func:`_check_parent` also asks after the exporter."""
+    global _PARENT_PID, _EXPORTER_PID
+    _EXPORTER_PID = int(parent_pid)
+    _PARENT_PID = os.getppid()
+    if _PARENT_PID != _EXPORTER_PID and not _alive(_EXPORTER_PID):
+        os._exit(0)
     if hasattr(os, "sched_getaffinity"):  # Linux
         try:
             import ctypes
@@ -62,9 +69,22 @@ def _watch_parent(parent_pid: int) -> None:
     _check_parent()  # the parent may have died before prctl took effect
 
 
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # exists, but not ours to signal
+        return True
+    return True
+
+
 def _check_parent() -> None:
-    """Exit at once, quietly and without writing, when this worker's parent is gone."""
-    if _PARENT_PID is not None and os.getppid() != _PARENT_PID:
+    """Exit at once, quietly and without writing, when this worker's parent is gone (or,
+    for a worker of the fork server, the exporter)."""
+    if _PARENT_PID is None:
+        return
+    if os.getppid() != _PARENT_PID or (_EXPORTER_PID != _PARENT_PID and not _alive(_EXPORTER_PID)):
         os._exit(0)
 
 

@@ -20,6 +20,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..scene.model import DEFAULT_COLOR_FOR_MATERIAL
+from ._hull import box as _box
+from ._hull import convex_hull as _hull
 
 __all__ = ["LARGE_BUILDERS", "SEMI_TRAILER_LENGTH_M", "SEMI_HITCH_FROM_FRONT_M", "SCHOOL_BUS_RGB"]
 
@@ -37,17 +39,6 @@ _TRIM = DEFAULT_COLOR_FOR_MATERIAL["trim"]
 _FRONT = DEFAULT_COLOR_FOR_MATERIAL["light_front"]
 _REAR = DEFAULT_COLOR_FOR_MATERIAL["light_rear"]
 _ROOF_UNIT = (0.80, 0.80, 0.78)
-
-
-def _hull(points):
-    import trimesh
-
-    h = trimesh.convex.convex_hull(np.asarray(points, dtype=np.float64))
-    return np.asarray(h.vertices, np.float64), np.asarray(h.faces, np.int64)
-
-
-def _box(x0, x1, y0, y1, z0, z1):
-    return _hull([(x, y, z) for x in (x0, x1) for y in (y0, y1) for z in (z0, z1)])
 
 
 def _sym(points_xhz):

@@ -19,6 +19,8 @@ import numpy as np
 
 from ..errors import AssetError
 from ..scene.model import DEFAULT_COLOR_FOR_MATERIAL, MATERIAL_IDS
+from ._hull import box as _box
+from ._hull import convex_hull as _hull
 from .catalog import OPTION_RISE_M
 from .large import LARGE_BUILDERS
 from .model import VehicleColor, VehicleModel
@@ -117,6 +119,13 @@ def build_mesh(model: VehicleModel, color: VehicleColor) -> VehicleMesh:
 
 @lru_cache(maxsize=512)
 def _build_mesh_cached(model: VehicleModel, color: VehicleColor) -> VehicleMesh:
+    return _assemble(_model_parts(model), color, model.name)
+
+
+@lru_cache(maxsize=256)
+def _model_parts(model: VehicleModel) -> tuple["_Part", ...]:
+    """The parts of one model, whatever its colour (paint parts have ``rgb=None``): the
+    geometry is built once per model and each colour only fills the albedo column."""
     if model.is_procedural:
         # the base body is built and fitted to the base size; options go on top in metres
         h0 = model.height_m - sum(OPTION_RISE_M[o] for o in model.options)
@@ -140,7 +149,10 @@ def _build_mesh_cached(model: VehicleModel, color: VehicleColor) -> VehicleMesh:
                     f=p.faces,
                 )
             )
-    return _assemble(parts, color, model.name)
+    for p in parts:  # shared between colours: read-only
+        p.v.setflags(write=False)
+        p.f.setflags(write=False)
+    return tuple(parts)
 
 
 # --------------------------------------------------------------------------- parts
@@ -153,7 +165,7 @@ class _Part:
     f: np.ndarray
 
 
-def _assemble(parts: list[_Part], color: VehicleColor, model_name: str) -> VehicleMesh:
+def _assemble(parts, color: VehicleColor, model_name: str) -> VehicleMesh:
     names: list[str] = []
     vs, fs, mats, albs, pids = [], [], [], [], []
     off = 0
@@ -193,19 +205,6 @@ def _fit_to_size(parts: list[_Part], length: float, width: float, height: float)
         v = (p.v - centre) * scale + shift
         out.append(_Part(p.name, p.material, p.rgb, v, p.f))
     return out
-
-
-def _hull(points) -> tuple[np.ndarray, np.ndarray]:
-    """Closed convex hull of points: (vertices (n, 3) float64, faces (m, 3) int64), outward."""
-    import trimesh
-
-    h = trimesh.convex.convex_hull(np.asarray(points, dtype=np.float64))
-    return np.asarray(h.vertices, np.float64), np.asarray(h.faces, np.int64)
-
-
-def _box(x0, x1, y0, y1, z0, z1) -> tuple[np.ndarray, np.ndarray]:
-    pts = [(x, y, z) for x in (x0, x1) for y in (y0, y1) for z in (z0, z1)]
-    return _hull(pts)
 
 
 def _sym(points_xhz) -> list[tuple[float, float, float]]:
