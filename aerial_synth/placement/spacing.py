@@ -19,11 +19,13 @@ truncation removes < 1e-9 of the mass, so mean and sd are the table's. When a us
 do cut the law, location and scale are re-solved numerically so the *truncated* law keeps
 the requested mean and sd (where that is possible; otherwise a ConfigError says so).
 
-scipy's skew-normal gives the density, the untruncated moments (``skewnorm.stats``) from
-which location and scale follow in closed form, and the reference quantiles
-(``skewnorm.ppf``). Sampling is by inverse CDF on a fine tabulated grid (the CDF integrated
-from ``skewnorm.pdf``), vectorised: ``skewnorm.cdf`` with a large shape costs ~0.5 ms a
-point, far too slow to tabulate, and the table agrees with ``skewnorm.ppf`` to < 1 mm
+The density, the untruncated moments (from which location and scale follow in closed
+form) and the tail quantiles are scipy.stats.skewnorm's formulas written on scipy.special
+(see below: importing scipy.stats would cost every placing process ~1.7 s); ``skewnorm``
+itself stays the reference (:meth:`SpacingSampler.law`, ``ppf``) and the tests compare
+against it. Sampling is by inverse CDF on a fine tabulated grid (the CDF integrated from
+the pdf), vectorised: ``skewnorm.cdf`` with a large shape costs ~0.5 ms a point, far too
+slow to tabulate, and the table agrees with ``skewnorm.ppf`` to < 1 mm
 (tests/placement/test_spacing.py).
 """
 
@@ -41,12 +43,62 @@ __all__ = ["SpacingSampler", "skewnorm_loc_scale"]
 _GRID = 8192
 
 
+# The skew-normal in closed form on scipy.special (imported in ~0.1 s, where scipy.stats
+# costs ~1.7 s of every process that places vehicles): the same formulas scipy.stats.skewnorm
+# evaluates. Standardised z = (x - loc) / scale, shape a, delta = a / sqrt(1 + a^2):
+#   pdf = 2 phi(z) Phi(a z) / scale            (scipy's skewnorm._pdf)
+#   cdf = Phi(z) - 2 T(z, a)                    (T: Owen's T function)
+#   mean = delta sqrt(2 / pi), var = 1 - mean^2  (scipy's skewnorm._stats)
+# tests/placement/test_spacing.py checks all three against scipy.stats.skewnorm.
+
+
+def _sn_moments(a: float) -> tuple[float, float]:
+    """Mean and variance of the standard skew-normal with shape ``a``."""
+    d = a / np.sqrt(1.0 + a * a)
+    m = d * np.sqrt(2.0 / np.pi)
+    return float(m), float(1.0 - m * m)
+
+
+def _sn_pdf(x, a, loc, scale):
+    from scipy.special import ndtr
+
+    z = (np.asarray(x, float) - loc) / scale
+    return 2.0 / scale * np.exp(-0.5 * z * z) / np.sqrt(2.0 * np.pi) * ndtr(a * z)
+
+
+def _sn_cdf(x, a, loc, scale):
+    """CDF; accurate in the lower tail for a <= 0 and the upper one via :func:`_sn_sf`."""
+    from scipy.special import ndtr, owens_t
+
+    z = (np.asarray(x, float) - loc) / scale
+    return np.clip(ndtr(z) - 2.0 * owens_t(z, a), 0.0, 1.0)
+
+
+def _sn_sf(x, a, loc, scale):
+    """Survival function, by reflection (X ~ SN(a) <=> -X ~ SN(-a)): no cancellation near 1."""
+    return _sn_cdf(-(np.asarray(x, float) - loc) / scale, -a, 0.0, 1.0)
+
+
+def _sn_tail_quantile(p: float, a: float, loc: float, scale: float, upper: bool) -> float:
+    """x with P(X < x) = p (lower) or P(X > x) = p (upper), by bisection on the cdf/sf."""
+    tail = _sn_sf if upper else _sn_cdf
+    lo, hi = -60.0, 60.0  # standardised: far beyond any tail probability >= 1e-300
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        below = float(tail(loc + scale * mid, a, loc, scale)) < p
+        if below != upper:  # lower tail: the quantile is above mid
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo < 1e-12:
+            break
+    return loc + scale * 0.5 * (lo + hi)
+
+
 def skewnorm_loc_scale(mean: float, sd: float, a: float) -> tuple[float, float]:
     """Location and scale of the skew-normal with shape ``a`` whose mean and sd are given
-    (scipy's standardised moments, solved in closed form)."""
-    from scipy.stats import skewnorm
-
-    m1, v1 = (float(v) for v in skewnorm.stats(a, moments="mv"))
+    (the standardised moments, solved in closed form)."""
+    m1, v1 = _sn_moments(float(a))
     scale = sd / np.sqrt(v1)
     return mean - scale * m1, scale
 
@@ -54,10 +106,9 @@ def skewnorm_loc_scale(mean: float, sd: float, a: float) -> tuple[float, float]:
 def _support(loc, scale, a, lo, hi) -> tuple[float, float]:
     """[lo, hi] narrowed to where the law has mass (quantiles 1e-13 and 1 - 1e-13), so a
     narrow law inside wide bounds still gets a fine grid."""
-    from scipy.stats import skewnorm
-
     with np.errstate(all="ignore"):
-        qa, qb = skewnorm.ppf([1e-13, 1.0 - 1e-13], a, loc=loc, scale=scale)
+        qa = _sn_tail_quantile(1e-13, float(a), loc, scale, upper=False)
+        qb = _sn_tail_quantile(1e-13, float(a), loc, scale, upper=True)
     if not (np.isfinite(qa) and np.isfinite(qb)):
         return lo, hi
     a_, b_ = max(lo, float(qa)), min(hi, float(qb))
@@ -66,11 +117,9 @@ def _support(loc, scale, a, lo, hi) -> tuple[float, float]:
 
 def _truncated_moments(loc, scale, a, lo, hi):
     """Mean, sd and mass of the skew-normal truncated to [lo, hi] (quadrature of its pdf)."""
-    from scipy.stats import skewnorm
-
     x = np.linspace(*_support(loc, scale, a, lo, hi), _GRID)
     with np.errstate(all="ignore"):
-        p = skewnorm.pdf(x, a, loc=loc, scale=scale)
+        p = _sn_pdf(x, a, loc, scale)
     trap = np.trapezoid if hasattr(np, "trapezoid") else np.trapz
     w = float(trap(p, x))
     if not np.isfinite(w) or w <= 0:
@@ -135,12 +184,9 @@ class SpacingSampler:
     def _solve_params(self) -> tuple[float, float]:
         a, lo, hi = float(self.skewness), self.lower_m, self.max_m
         loc, scale = skewnorm_loc_scale(self.mean_m, self.sd_m, a)
-        from scipy.stats import skewnorm
-
         with np.errstate(all="ignore"):
             # mass outside [lo, hi]; the cdf is cheap at two points
-            out = float(skewnorm.sf(hi, a, loc=loc, scale=scale)) + float(
-                skewnorm.cdf(lo, a, loc=loc, scale=scale))
+            out = float(_sn_sf(hi, a, loc, scale)) + float(_sn_cdf(lo, a, loc, scale))
         if np.isfinite(out) and out < 1e-9:
             return loc, scale
         # The bounds cut the law: solve loc/scale so the truncated law keeps mean and sd.
@@ -160,13 +206,11 @@ class SpacingSampler:
         return float(sol.x[0]), float(np.exp(sol.x[1]))
 
     def _build_table(self):
-        from scipy.stats import skewnorm
-
         loc, scale = self._solve_params()
         lo, hi = _support(loc, scale, float(self.skewness), self.lower_m, self.max_m)
         x = np.linspace(lo, hi, _GRID * 4)
         with np.errstate(all="ignore"):
-            p = skewnorm.pdf(x, float(self.skewness), loc=loc, scale=scale)
+            p = _sn_pdf(x, float(self.skewness), loc, scale)
             cdf = np.concatenate([[0.0], np.cumsum(0.5 * (p[1:] + p[:-1]) * np.diff(x))])
             if not (np.all(np.isfinite(cdf)) and cdf[-1] > 0):
                 raise self._no_fit()
