@@ -233,14 +233,17 @@ def _run_pool(cfg: ExportConfig, build: Path, tasks, workers: int, bar, scene=No
         for res in pool.imap_unordered(run_group, tasks):
             done += len(res)
             bar.update(len(res))
+        pool.close()  # workers exit normally (their exit handlers run: numba's named
+        pool.join()  # lock is released) instead of being terminated by ``with``
     return done
 
 
 #: What a pool worker imports; the fork server imports it once, before it forks workers.
-_WORKER_MODULES = ("aerial_synth.dataset.worker", "aerial_synth.render.frame",
+_WORKER_MODULES = ("aerial_synth.dataset._server_guard",  # first: see that module
+                   "aerial_synth.numba_setup", "aerial_synth.dataset.worker", "aerial_synth.render.frame",
                    "aerial_synth.render.shading", "aerial_synth.placement.traffic",
                    "aerial_synth.annotate", "aerial_synth.formats.registry", "open3d",
-                   "scipy.stats", "cv2")
+                   "scipy.special", "cv2")
 
 
 def pool_context():

@@ -541,3 +541,20 @@ def test_second_export_into_the_same_folder_refused(tiny_scene, tmp_path):
     res = export_dataset(_cfg(tiny_scene, images=1, formats="dota"), out, progress=False)
     assert res.summary["images"] == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ds"]
+
+
+def test_pool_workers_fork_from_a_preloading_server():
+    """Linux: the pool's workers are forks of a fork server that imported their modules;
+    the guard that ties the server to the exporter acts only inside that server."""
+    import multiprocessing as mp
+
+    from aerial_synth.dataset import _server_guard
+    from aerial_synth.dataset.export import _WORKER_MODULES, pool_context
+
+    ctx = pool_context()
+    if "forkserver" in mp.get_all_start_methods():
+        assert ctx.get_start_method() == "forkserver"
+        assert _WORKER_MODULES[0] == "aerial_synth.dataset._server_guard"
+    else:
+        assert ctx.get_start_method() == "spawn"
+    assert _server_guard.GUARDED is False  # imported here, in no fork server: no prctl

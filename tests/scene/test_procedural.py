@@ -39,12 +39,13 @@ def test_bundled_list():
 
 #: Scene.vertex_hash() of the bundled scenes. Refactoring must not change them (they held
 #: through the split of procedural.py into the scene/procedural/ package); a deliberate
-#: change of the geometry updates them here. Last change: clumped crowns of four species,
-#: roof coverings and roof details, tyre tracks along the lanes (issue 15).
+#: change of the geometry updates them here. Last change: the crown clumps' icosahedron
+#: faces come from qhull (same 20 triangles, another order) and poles are written-out
+#: capped octagonal prisms instead of trimesh's (no trimesh import to build a scene).
 BUNDLED_HASHES = {
-    "city_park": "ba1c40b8d7cad8776cab469c83785aaf6df7aefebb7c04e7b0249729cfbd2e6b",
-    "suburb": "f888e0b6017cbb9a4dd0fe8f179a418d6d6e8720fd9e361bf53bac1e9f5a7bbb",
-    "highway": "bd974b741ef10bb7aea9b31561a3a3e2c7e288184a52db887d6d4ef154c3aab5",
+    "city_park": "6661ee8914d91b2890f9480ac8fb8dbe5b5312b6f1b198d081f906c2ac825be8",
+    "suburb": "8a71abd1076763b0095d9e86fdc11acc286d0a269c75882c372c1d159c4de9a2",
+    "highway": "ab4fe542265abe0e622d538cec39129af2c8a9e9ee0e9f47e07870818a9debc6",
 }
 
 
