@@ -223,8 +223,16 @@ class DaskEngine:
                 # MALLOC_TRIM_THRESHOLD_ (Dask's default) turns off glibc's adaptive mmap
                 # threshold: every large frame buffer then costs fresh page faults (~40 % per
                 # image measured); unset it for our workers.
+                # Worker processes fork from the export's fork server where there is one
+                # (export.pool_context: open3d, numba, the renderer and Dask already
+                # imported); they then take the server's environment, which has no
+                # MALLOC_TRIM_THRESHOLD_, and set their thread counts when pinned.
+                import multiprocessing as mp
+
+                method = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
                 with dask.config.set({"distributed.nanny.pre-spawn-environ.OMP_NUM_THREADS": str(nthreads),
-                                      "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
+                                      "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
+                                      "distributed.worker.multiprocessing-method": method}):
                     cluster = LocalCluster(n_workers=k, threads_per_worker=1, processes=True,
                                            host="127.0.0.1", dashboard_address=None,
                                            silence_logs=logging.ERROR)

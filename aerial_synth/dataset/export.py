@@ -127,6 +127,8 @@ def export_dataset(
     _check_dask(dask, workers)  # a bad or unreachable --dask is reported before the slow checks
     if dask is None and workers > 1:
         start_pool_server()  # imports the workers' modules while the scene loads here
+    elif dask is not None and str(dask).strip().startswith("local:"):
+        start_pool_server(dask=True)  # the LocalCluster's workers fork from it too
     scene, catalog = validate_inputs(cfg)
     geo = _georeference(scene)
 
@@ -246,7 +248,7 @@ _WORKER_MODULES = ("aerial_synth.dataset._server_guard",  # first: see that modu
                    "scipy.special", "cv2")
 
 
-def pool_context():
+def pool_context(dask: bool = False):
     """The start method of the export's worker processes: a fork server where the platform
     has one (Linux, macOS), else spawn.
 
@@ -254,20 +256,23 @@ def pool_context():
     renderer itself (~2 s of CPU each). The fork server does those imports once, in a
     process that has started no threads (so forking it is safe, unlike forking the
     exporter once open3d or numba run), and every worker is a fork of it: nothing to
-    import. Workers still get everything else through pickled arguments, as with spawn."""
+    import. Workers still get everything else through pickled arguments, as with spawn.
+    ``dask``: also preload Dask distributed (a ``--dask local:K`` cluster's workers are
+    forked from the same server, see :mod:`.engine_dask`)."""
     import multiprocessing as mp
 
     if "forkserver" not in mp.get_all_start_methods():
         return mp.get_context("spawn")
     ctx = mp.get_context("forkserver")
-    ctx.set_forkserver_preload(list(_WORKER_MODULES))
+    ctx.set_forkserver_preload(list(_WORKER_MODULES) + (["distributed"] if dask else []))
     return ctx
 
 
-def start_pool_server() -> None:
+def start_pool_server(dask: bool = False) -> None:
     """Start the fork server now (it imports :data:`_WORKER_MODULES` in the background,
-    on another core, while this process loads the scene); a no-op with spawn."""
-    ctx = pool_context()
+    on another core, while this process loads the scene); a no-op with spawn. A server
+    already running is kept (its imports are the first caller's)."""
+    ctx = pool_context(dask)
     if ctx.get_start_method() == "forkserver":
         from multiprocessing import forkserver
 
