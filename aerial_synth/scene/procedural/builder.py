@@ -269,11 +269,20 @@ class Builder:
         mcfg = self.spec.get("markings", {}) or {}
         tcfg = {**TRACK_DEFAULTS, **(self.spec.get("tracks", {}) or {})}
         lane_w = float(mcfg.get("lane_width_m", 3.5))
+        # The junction clearance only looks at the other surfaces within reach of a road: the
+        # others are clipped to its neighbourhood (round-capped, ``clear + 1`` m wider than
+        # the road) before the buffer; a clip edge then stays > clear + 1 m from the road's
+        # own surface, so the clearance on it is exactly that of the whole union (and the
+        # cost no longer grows with the square of the number of roads).
+        surfaces = list(self._road_polys) + list(self.pads)
+        tree = shapely.STRtree(surfaces)
+        reach = 1.0 + max(float(mcfg.get("junction_clear_m", 1.5)), float(tcfg["junction_clear_m"]))
         for i, r in enumerate(self.roads):
             if not (mcfg.get("enabled", True) or tcfg["enabled"]):
                 break
-            others = [p for j, p in enumerate(self._road_polys) if j != i] + list(self.pads)
-            others_area = shapely.union_all(others) if others else None
+            near = r.line.buffer(r.width_m / 2 + reach)
+            others = [surfaces[j] for j in sorted(tree.query(near, predicate="intersects")) if j != i]
+            others_area = shapely.union_all(others).intersection(near) if others else None
             if tcfg["enabled"]:
                 # worn wheel paths: road label (drivable), 'track' material, 5 mm up
                 t = polygonal(road_tracks(r, others_area, tcfg, lane_w).intersection(road_area))

@@ -84,9 +84,21 @@ def offset_line(line, d: float):
 
 
 def polygonal(g):
-    """The polygon parts of a shapely geometry (drops stray lines/points of a clip)."""
+    """The polygon parts of a shapely geometry (drops stray lines/points of a clip).
+
+    ``g`` is the result of one overlay (intersection, difference), so its polygons neither
+    overlap nor share an edge: they are gathered into a MultiPolygon, not unioned again
+    (a union of the parts cost seconds on a 2 km city's markings)."""
     import shapely
 
-    parts = [p for p in shapely.get_parts(g) if p.geom_type in ("Polygon", "MultiPolygon")]
-    return shapely.union_all(parts) if parts else shapely.Polygon()
+    polys = []
+    for p in shapely.get_parts(g):
+        if p.geom_type == "Polygon":
+            polys.append(p)
+        elif p.geom_type in ("MultiPolygon", "GeometryCollection"):
+            polys.extend(q for q in shapely.get_parts(polygonal(p)))
+    polys = [p for p in polys if not p.is_empty]
+    if not polys:
+        return shapely.Polygon()
+    return polys[0] if len(polys) == 1 else shapely.MultiPolygon(polys)
 
