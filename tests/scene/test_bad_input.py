@@ -72,7 +72,11 @@ SPEC_CASES = [
     (CITY_PARK_MIN, ("roads", 0, "points"), [[0, 0]],
      "roads[0].points: expected a list of >= 2 [x, y] points (metres), got [[0, 0]]"),
     (CITY_PARK_MIN, ("roads", 0, "points"), [[0, 0], [0, 0]],
-     "roads[0].points: expected points that are not all the same"),
+     "roads[0].points: expected a centre line at least 0.5 m long, got 0 m"),
+    (CITY_PARK_MIN, ("roads", 0, "points"), [[0, 0], [0, 2.2e-309]],  # found by the fuzz test
+     "roads[0].points: expected a centre line at least 0.5 m long, got 2.2e-309 m"),
+    (CITY_PARK_MIN, ("roads", 0, "points"), [[0, 31], [0, 40]],  # beside the 60 m scene
+     "roads[0] ('a'): expected a road that crosses the scene (x in [-30, 30] m, y in [-30, 30] m"),
     (CITY_PARK_MIN, ("roads", 0, "points"), [[0, 0], [1, "x"]],
      "roads[0].points[1]: expected [a, b]: 2 finite numbers"),
     (CITY_PARK_MIN, ("roads", 0, "start_on"), "nowhere",

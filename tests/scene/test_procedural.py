@@ -41,12 +41,12 @@ def test_bundled_list():
 #: through the split of procedural.py into the scene/procedural/ package); a deliberate
 #: change of the geometry updates them here. Last change: the crown clumps' icosahedron
 #: faces are written out (same 20 triangles, another order), poles are written-out capped
-#: octagonal prisms instead of trimesh's, and markings/tracks are gathered instead of
-#: unioned again (every object's area unchanged to 0.01 m^2): a faster scene build.
+#: octagonal prisms instead of trimesh's, and markings/tracks are one buffer of their
+#: centre lines, gathered instead of unioned again (every object's area unchanged to 0.01 m^2): a faster scene build.
 BUNDLED_HASHES = {
-    "city_park": "24076ec2876438123c9c6f7111a2253d6c073802e2dff97821b49ea6195aae6c",
-    "suburb": "c7cb3a6fed91271d6643c37ccbc4d8b872431cdeeaa8cb638ac090e97ffaf4d3",
-    "highway": "508c0ca459f1105e2c15f32e0da5c551cf55e7cd0d92fe82654dd0311f9d43ec",
+    "city_park": "7c7447bee393030ab700c8eb53766fc49f19faab621517953ceb44011e1cdae6",
+    "suburb": "9ea0c708f820a4b285186a91a8a69bd9691225eb7f6c398fed4134f0694535cd",
+    "highway": "ef474b9617bf2392b6f377149bf2d1c19d73021ceb449f3e813e83ae0709407c",
 }
 
 

@@ -8,7 +8,7 @@ import numpy as np
 
 from ...errors import SceneError
 from .builder import Builder
-from .roads import Road, chaikin, wiggle
+from .roads import Road, chaikin, road_polygon, wiggle
 
 
 def spec_roads(b: Builder, items, default_width):
@@ -46,6 +46,13 @@ def spec_roads(b: Builder, items, default_width):
                 centre=str(it.get("centre", "dashed")),
             )
         )
+        if road_polygon(b.roads[-1]).intersection(b.box).area < 1.0:
+            x1, y1 = b.box.bounds[2:]
+            raise SceneError(
+                f"roads[{k}] ({name!r}): expected a road that crosses the scene (x in "
+                f"[{-x1:g}, {x1:g}] m, y in [{-y1:g}, {y1:g}] m by its size_m), got one with no "
+                f"surface inside it"
+            )
 
 
 def lake(b: Builder, spec: Mapping):

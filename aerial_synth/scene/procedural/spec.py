@@ -16,6 +16,7 @@ unknown keys.
 
 from __future__ import annotations
 
+import math
 from typing import Any, Callable, Mapping
 
 from ... import validators as V
@@ -111,13 +112,19 @@ def span(lo: float = 0.0, hi: float = 1e4) -> Check:
     return check
 
 
+#: Shortest road centre line accepted (metres): a shorter one has no surface to draw.
+MIN_ROAD_LENGTH_M = 0.5
+
+
 def points(f: str, v: Any) -> list:
-    """A road's centre line: >= 2 [x, y] points, not all the same."""
+    """A road's centre line: >= 2 [x, y] points, at least ``MIN_ROAD_LENGTH_M`` long."""
     if not isinstance(v, list) or len(v) < 2 or len(v) > 10_000:
         raise SceneError(f"{f}: expected a list of >= 2 [x, y] points (metres), got {V.show(v)}")
     out = [pair(-1e5, 1e5)(f"{f}[{i}]", p) for i, p in enumerate(v)]
-    if all(p == out[0] for p in out):
-        raise SceneError(f"{f}: expected points that are not all the same, got {V.show(v)}")
+    length = sum(math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in zip(out, out[1:]))
+    if not length >= MIN_ROAD_LENGTH_M:
+        raise SceneError(f"{f}: expected a centre line at least {MIN_ROAD_LENGTH_M:g} m long, "
+                         f"got {length:.3g} m from {V.show(v)}")
     return out
 
 
