@@ -98,7 +98,14 @@ DEFAULT_COLOR_FOR_MATERIAL: dict[str, tuple[float, float, float]] = {
     "marking": (0.85, 0.85, 0.82),
     "concrete": (0.62, 0.61, 0.58),
     "paving": (0.58, 0.55, 0.52),
-    "grass": (0.27, 0.40, 0.17),
+    # a green lawn (luma 0.167; the frame's ground_albedo gain x 0.45-0.85 gives 0.075-0.14):
+    # green vegetation reflects ~0.04 (blue), ~0.08-0.12 (green) and ~0.04-0.06 (red) of
+    # visible light (USGS spectral library, lawn grass; broadband albedo ~0.25 only with
+    # the near infrared), so a lawn's visible luma is ~0.08-0.12. Was (0.27, 0.40, 0.17),
+    # luma 0.33, which made green lawns 0.15-0.28, as bright as dry grass. Dry lawns come
+    # from vegetation_dryness, which mixes towards the straw albedo render.shading._DRY_RGB
+    # (luma 0.36, x the same gain: 0.16-0.31 at dryness 1).
+    "grass": (0.135, 0.20, 0.085),
     "soil": (0.42, 0.34, 0.24),
     "water": (0.10, 0.20, 0.25),
     "roof": (0.55, 0.30, 0.24),

@@ -60,7 +60,13 @@ def test_pyrender_silhouettes_match_raycast_on_a_bundled_scene_frame():
     add_placement(rs, pl)
     cam = sample_pose_targeted(CameraConfig(width_px=512, height_px=512), pl,
                                np.random.default_rng(0), within_xy=scene.bounds()[:, :2])
-    sun = dict(sun_elevation_deg=(60, 60), sun_azimuth_deg=(150, 150))
+    # sun fixed (a low sun makes the shadows, which the preview lacks, dominate); what else
+    # the preview lacks off in the ray-cast frame: procedural texture (dry patches brighten
+    # green lawns) and the per-frame material gains (the preview shows the base albedos; a
+    # drawn dryness can make one backend's lawns brighter than its roads, the other's darker)
+    sun = dict(sun_elevation_deg=(60, 60), sun_azimuth_deg=(150, 150), texture=False,
+               vegetation_dryness=(0, 0), ground_albedo=(1, 1), asphalt_albedo=(1, 1),
+               concrete_albedo=(1, 1))
     f = render_frame(rs, cam, pl, np.random.default_rng(0),
                      RenderConfig(backend="pyrender", **sun))
     gl = render_instance_ids(rs, cam)
@@ -74,8 +80,7 @@ def test_pyrender_silhouettes_match_raycast_on_a_bundled_scene_frame():
     g = render_frame(rs, cam, pl, np.random.default_rng(0), RenderConfig(**sun))
     assert np.array_equal(f.instance, g.instance) and np.array_equal(f.depth, g.depth)
     assert f.to_meta()["vehicles"] == g.to_meta()["vehicles"]
-    # and its RGB shows the same picture: the two backends' grey levels correlate (sun fixed:
-    # a low sun makes the shadows, which the preview lacks, dominate)
+    # and its RGB shows the same picture: the two backends' grey levels correlate
     assert f.rgb.shape == (512, 512, 3) and f.rgb.dtype == np.uint8
     a, b = f.rgb.mean(axis=2).ravel(), g.rgb.mean(axis=2).ravel()
-    assert np.corrcoef(a, b)[0, 1] > 0.6
+    assert np.corrcoef(a, b)[0, 1] > 0.8  # 0.91 when written
