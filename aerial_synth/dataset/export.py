@@ -229,9 +229,16 @@ def _run_pool(cfg: ExportConfig, build: Path, tasks, workers: int, bar, scene=No
     ctx = pool_context()
     slots = ctx.Value("i", 0)  # worker k of the pool takes the k-th share of the cores
     done = 0
-    with ctx.Pool(size, initializer=init_pool_worker,
-                  initargs=(cfg, str(build), nthreads, os.getpid(), extra, slots, size,
-                            *_shareable(cfg, scene, catalog))) as pool:
+    try:
+        pool = ctx.Pool(size, initializer=init_pool_worker,
+                        initargs=(cfg, str(build), nthreads, os.getpid(), extra, slots, size,
+                                  *_shareable(cfg, scene, catalog)))
+    except (BrokenPipeError, EOFError, RuntimeError) as exc:  # a child died while starting
+        raise ExportError(
+            f"--workers {workers}: the worker processes did not start ({type(exc).__name__}); a "
+            "script that exports must guard its entry point with if __name__ == '__main__'"
+        ) from None
+    with pool:
         for res in pool.imap_unordered(run_group, tasks):
             done += len(res)
             bar.update(len(res))
