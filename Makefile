@@ -67,7 +67,7 @@ test-all: install-test
 
 # Benchmark suite (tools/bench_suite.py runs tools/bench_*.py and more): writes bench.json.
 bench: install-test
-	$(BIN)/python tools/bench_suite.py --out bench.json
+	$(BIN)/python tools/bench_suite.py --out bench.json --export-presets full,fast
 
 clean:
 	rm -rf $(VENV) out .pytest_cache
