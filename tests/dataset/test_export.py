@@ -558,3 +558,20 @@ def test_pool_workers_fork_from_a_preloading_server():
     else:
         assert ctx.get_start_method() == "spawn"
     assert _server_guard.GUARDED is False  # imported here, in no fork server: no prctl
+
+
+def test_png_encoding_is_lossless_and_fast_settings():
+    """Exported PNGs use the fast settings (zlib 1, Huffman only, Paeth where OpenCV has
+    the option) and decode to the very pixels rendered."""
+    import cv2
+
+    from aerial_synth.dataset.worker import encode_image, png_params
+
+    rng = np.random.default_rng(3)
+    rgb = rng.integers(0, 256, (64, 80, 3), dtype=np.uint8)
+    rgb[:, :40] = rgb[:, :40] // 16 * 16  # some smooth, some noisy
+    back = cv2.imdecode(np.frombuffer(encode_image(rgb, "png"), np.uint8), cv2.IMREAD_COLOR)
+    assert np.array_equal(back[:, :, ::-1], rgb)
+    p = dict(zip(png_params()[::2], png_params()[1::2]))
+    assert p[cv2.IMWRITE_PNG_COMPRESSION] == 1
+    assert p[cv2.IMWRITE_PNG_STRATEGY] == cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY
