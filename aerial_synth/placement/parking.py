@@ -681,6 +681,11 @@ def fill_bays(sites: list, cfg: ParkingConfig, catalog, rng: np.random.Generator
         pick = rng.choice(len(models), size=len(sel), p=p / p.sum())
         model_idx[sel] = [pos[models[j].name] for j in pick]
     ci = rng.choice(len(catalog.colors), size=N, p=catalog.color_probabilities)
+    # trim options (roof racks, sunroofs, ...) as in traffic, from a stream of their own:
+    # ``rng`` advances exactly as without them
+    from ..vehicles.catalog import stream_key
+
+    dressed = catalog.draw_options(model_idx, stream_key(rng))
     L = np.array([all_models[j].length_m if j >= 0 else 0.0 for j in model_idx])
     W = np.array([all_models[j].width_m if j >= 0 else 0.0 for j in model_idx])
     # manoeuvre and jitter
@@ -768,7 +773,7 @@ def fill_bays(sites: list, cfg: ParkingConfig, catalog, rng: np.random.Generator
     filled = [0] * len(sites)
     nid = first_id
     for i in np.flatnonzero(valid):
-        m = all_models[model_idx[i]]
+        m = dressed[i]  # the model with its option, if it drew one (same length and width)
         site = sites[si[i]]
         filled[si[i]] += 1
         vehicles.append(PlacedVehicle(

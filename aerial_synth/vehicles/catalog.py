@@ -77,7 +77,7 @@ def with_option(model: VehicleModel, option: str) -> VehicleModel:
                                height_m=model.height_m + OPTION_RISE_M[option], options=(option,))
 
 
-def _stream_key(rng: np.random.Generator) -> int:
+def stream_key(rng: np.random.Generator) -> int:
     """An integer that depends only on the generator's state (which it leaves untouched)."""
     import hashlib
 
@@ -229,12 +229,23 @@ class Catalog:
         n = int(n)
         if n < 0:
             raise ValueError(f"n must be >= 0, got {n}")
-        key = _stream_key(rng) if n else 0
+        key = stream_key(rng) if n else 0
         mi = rng.choice(len(self.models), size=n, p=self.model_probabilities)
         ci = rng.choice(len(self.colors), size=n, p=self.color_probabilities)
-        u = np.random.default_rng(np.random.SeedSequence([key, 17])).random(n) if n else np.zeros(0)
-        picked = [self.models[i] for i in mi]
-        for i in np.unique(mi):  # option k of a model: the first whose cumulative rate > u
+        picked = self.draw_options(mi, key)
+        return [VehicleVariant(m, self.colors[j]) for m, j in zip(picked, ci)]
+
+    def draw_options(self, model_idx, key: int) -> list[VehicleModel]:
+        """The models ``self.models[i]`` for ``i`` in ``model_idx``, each with the trim
+        option it draws (:meth:`options_of`), or None where ``i < 0``. The draws come from
+        ``SeedSequence([key, 17])``, one uniform number per vehicle in order: option k of a
+        model is the first whose cumulative rate exceeds it. ``key`` is typically
+        ``stream_key(rng)`` at a fixed point, so the caller's generator never advances."""
+        mi = np.asarray(model_idx, int).reshape(-1)
+        n = len(mi)
+        u = np.random.default_rng(np.random.SeedSequence([int(key), 17])).random(n) if n else np.zeros(0)
+        picked = [self.models[i] if i >= 0 else None for i in mi]
+        for i in np.unique(mi[mi >= 0]):
             rates = self.options_of(self.models[i])
             if not rates:
                 continue
@@ -243,7 +254,7 @@ class Catalog:
             names = list(rates)
             for s, kk in zip(sel[k < len(names)], k[k < len(names)]):
                 picked[s] = self.model(f"{self.models[i].name}+{names[kk]}")
-        return [VehicleVariant(m, self.colors[j]) for m, j in zip(picked, ci)]
+        return picked
 
     def with_models(self, models) -> "Catalog":
         """A copy restricted to the given models (names or VehicleModel objects)."""

@@ -93,6 +93,27 @@ def test_suburb_parking(suburb_rs):
                                                                       for v in p.vehicles]
 
 
+def test_parked_vehicles_draw_trim_options(suburb_rs):
+    """Parked cars get the catalog's trim options (roof racks, sunroofs, ...) as traffic
+    does: base size kept, option models resolvable, deterministic, and at the catalog rates."""
+    from aerial_synth.vehicles import load_catalog
+
+    cat = load_catalog()
+    a = place(suburb_rs, "parking", seed=11)
+    b = place(suburb_rs, "parking", seed=11)
+    assert a.to_json() == b.to_json()
+    dressed = [v for v in a.vehicles if "+" in v.model]
+    assert dressed, "no parked vehicle drew an option"
+    for v in dressed:
+        m, base = cat.model(v.model), cat.model(v.model.split("+")[0])
+        assert (v.length_m, v.width_m) == (base.length_m, base.width_m)
+        assert v.height_m == pytest.approx(m.height_m) and m.height_m >= base.height_m
+    # the share of dressed cars is the catalog's rate for the models drawn (binomial, 4 sd)
+    rates = [sum(cat.options_of(cat.model(v.model.split("+")[0])).values()) for v in a.vehicles]
+    mean, sd = sum(rates), math.sqrt(sum(r * (1 - r) for r in rates))
+    assert abs(len(dressed) - mean) <= 4 * sd + 1
+
+
 def test_depot_takes_buses_and_trailers():
     rs = RayScene(load_scene("depot"))
     p = place(rs, "parking", seed=2, overrides={"parking": {"occupancy_mean": 0.9}})
