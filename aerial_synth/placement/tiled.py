@@ -96,8 +96,13 @@ def place_tiled(
         keys = {(int(i), int(j)) for i, j in only}
         tiles = [t for t in tiles if t.key in keys]
     world_area = float(np.prod(grid.bounds[1] - grid.bounds[0]))
-    index = FootprintIndex(cfg.gap_m, cfg.min_center_distance_m)
+    from .traffic import lane_rule
+
+    rule = lane_rule(cfg)  # the merge keeps the lane rule placement kept inside each tile
+    index = FootprintIndex(cfg.gap_m, cfg.min_center_distance_m, lane_spacing=rule)
     reach = longest + max(cfg.gap_m, 0.0) + float(cfg.min_center_distance_m or 0.0)
+    if rule is not None:
+        reach = max(reach, longest + float(rule[0]))
     kept: list = []
     line_base = 0
     per_tile = []
@@ -138,11 +143,12 @@ def place_tiled(
             x, y = v.x_m, v.y_m
             near = n_tiles > 1 and min(x - x0, x1 - x, y - y0, y1 - y) < reach
             if near:
-                poly = index.polygon(x, y, v.heading_rad, v.length_m, v.width_m)
-                if index.collides(poly, (x, y)):
+                geoms, xy, r = index.polygons(x, y, v.heading_rad, v.length_m, v.width_m)
+                h = np.array([np.nan if v.state == "parked" else v.heading_rad])  # parked: no lane
+                if index.collides_many(geoms, xy, r, heading=h)[0]:
                     dropped += 1
                     continue
-                index.add(poly, (x, y))
+                index.add_many(geoms, xy, r, h)
             kept.append(dataclasses.replace(
                 v, id=len(kept) + 1, line_id=v.line_id + line_base if v.line_id >= 0 else -1,
             ))

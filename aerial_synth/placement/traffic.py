@@ -39,6 +39,17 @@ LANE_RULE_FRACTION = 0.9
 COARSE = 5
 
 
+def lane_rule(cfg: ScenarioConfig):
+    """The lane rule of a traffic scenario's footprint index (:class:`FootprintIndex`
+    ``lane_spacing``): vehicles heading the same way in one lane keep
+    ``LANE_RULE_FRACTION`` x the spacing floor centre to centre; None for scenarios
+    without lines or a floor. Placement and the tiled merge use the same rule."""
+    if cfg.kind == "lines" and cfg.spacing is not None and cfg.spacing.lower_m > 0:
+        return (LANE_RULE_FRACTION * cfg.spacing.lower_m, 0.5 * cfg.lane_width_m,
+                np.radians(cfg.probe.max_turn_deg))
+    return None
+
+
 class PlacementWarning(UserWarning):
     """Fewer vehicles than asked for fit on the roads."""
 
@@ -85,11 +96,7 @@ class _Engine:
         self.prober = Prober(rayscene, cfg.probe)
         # Lines keep their spacing floor to vehicles in the same lane, whichever line those
         # belong to (a seed between two vehicles of a line must not squeeze a third in).
-        lane_rule = None
-        if cfg.kind == "lines" and cfg.spacing is not None and cfg.spacing.lower_m > 0:
-            lane_rule = (LANE_RULE_FRACTION * cfg.spacing.lower_m, 0.5 * cfg.lane_width_m,
-                         np.radians(cfg.probe.max_turn_deg))
-        self.index = FootprintIndex(cfg.gap_m, cfg.min_center_distance_m, lane_spacing=lane_rule)
+        self.index = FootprintIndex(cfg.gap_m, cfg.min_center_distance_m, lane_spacing=lane_rule(cfg))
         self.vehicles: list[PlacedVehicle] = []
         self.lines: list[_Line] = []
         self.side = -1.0 if cfg.traffic == "right" else 1.0  # edge side: right = heading - 90 deg

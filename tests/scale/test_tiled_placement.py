@@ -87,6 +87,29 @@ def test_no_overlap_across_borders(tiled):
     assert near.sum() >= 5
 
 
+def test_lane_rule_holds_across_borders(world):
+    """The merge keeps the lane rule placement keeps inside a tile: two vehicles heading the
+    same way in one lane stay LANE_RULE_FRACTION x the jam spacing floor apart, whichever
+    tiles placed them (full roads on 16 tiles: before the merge knew the rule, 15 pairs
+    of this placement broke it)."""
+    from aerial_synth.placement import load_scenario
+    from aerial_synth.placement.traffic import lane_rule
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        pl = place_tiled(world, world.grid(125.0, 50.0), "jam", seed=7, n_vehicles=2000)
+    assert pl.stats["tiles"]["grid"] == [4, 4] and len(pl.vehicles) > 700
+    lo, half, turn = lane_rule(load_scenario("jam"))
+    xy = np.array([[v.x_m, v.y_m] for v in pl.vehicles])
+    h = np.array([v.heading_rad for v in pl.vehicles])
+    d = xy[:, None] - xy[None]
+    dist = np.hypot(d[..., 0], d[..., 1])
+    same = np.abs(np.angle(np.exp(1j * (h[:, None] - h[None])))) < turn
+    across = np.abs(-np.sin(h[None]) * d[..., 0] + np.cos(h[None]) * d[..., 1])
+    bad = same & (dist < lo) & (across < half) & ~np.eye(len(h), dtype=bool)
+    assert not bad.any(), f"{bad.sum() // 2} same-lane pairs closer than {lo:.2f} m"
+
+
 def test_deterministic(world, tiled):
     g, pl = tiled
     with warnings.catch_warnings():
