@@ -101,21 +101,28 @@ def _frame(poly):
     return c.mean(axis=0), u, v, a, b, rect
 
 
+# a box's 12 faces over its 8 corners (bottom ring 0-3 counter-clockwise from above, top
+# ring 4-7): bottom (down), top (up), then the four walls (out)
+_BOX_F = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7]]
+                  + [f for k in range(4) for f in ([k, (k + 1) % 4, 4 + (k + 1) % 4],
+                                                   [k, 4 + (k + 1) % 4, 4 + k])], np.int64)
+_BOX_F.setflags(write=False)
+
+
 def _box(centre, u, v, su, sv, z0, z1):
     """Closed box, sides su along u and sv along v, z from z0 to z1 (outward faces)."""
     cu, cv = su / 2, sv / 2
-    corners = np.array([centre - u * cu - v * cv, centre + u * cu - v * cv,
-                        centre + u * cu + v * cv, centre - u * cu + v * cv])
+    a = np.array([centre - u * cu - v * cv, centre + u * cu - v * cv,
+                  centre + u * cu + v * cv, centre - u * cu + v * cv])
     # make the ring counter-clockwise seen from above
-    a = corners
     if ((a[1, 0] - a[0, 0]) * (a[2, 1] - a[0, 1]) - (a[1, 1] - a[0, 1]) * (a[2, 0] - a[0, 0])) < 0:
         a = a[::-1]
-    verts = np.concatenate([np.column_stack([a, np.full(4, z0)]), np.column_stack([a, np.full(4, z1)])])
-    f = [[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7]]
-    for k in range(4):
-        m = (k + 1) % 4
-        f += [[k, m, 4 + m], [k, 4 + m, 4 + k]]
-    return verts, np.asarray(f, np.int64), a
+    verts = np.empty((8, 3))
+    verts[:4, :2] = a
+    verts[4:, :2] = a
+    verts[:4, 2] = z0
+    verts[4:, 2] = z1
+    return verts, _BOX_F.copy(), a
 
 
 def _ring_box(centre, u, v, a, b, th, z0, z1):
