@@ -245,6 +245,14 @@ def sample_factors(cfg: RenderConfig, rng: np.random.Generator) -> dict:
 _ASPHALT = [MATERIAL_IDS["asphalt"], MATERIAL_IDS["track"]]  # tracks age with the road
 _WEAR_IDS = np.array([MATERIAL_IDS[k] for k in ("asphalt", "marking", "grass")], np.int64)
 _DRY_RGB = np.array([0.40, 0.36, 0.24], np.float32)  # dry grass / straw albedo
+# foliage's share of the frame's vegetation_dryness mix towards straw (_DRY_RGB, luma 0.36):
+# a late-summer or autumn canopy turns olive-brown but stays dark (senescent leaves reflect
+# ~0.1-0.2 of red light, as in the USGS spectral library's dry-leaf spectra, and a
+# crown's inner shade halves that, scene/procedural/trees.py),
+# so k = 0.06 raises a broadleaf crown's luma by ~20 % at dryness 0.8 (gain = 1 + k x dry x
+# (straw / base - 1) on the dark canopy base, ~7 x below straw in red). Was 0.4, which on
+# the dark canopy base would make dry crowns ~2.3 x brighter (paler than the lawns).
+_FOLIAGE_DRY_GAIN = 0.06
 _CONCRETE = [MATERIAL_IDS[k] for k in ("concrete", "paving")]
 _GROUND = [MATERIAL_IDS[k] for k in ("grass", "soil")]
 _WATER = MATERIAL_IDS["water"]
@@ -259,7 +267,7 @@ def material_gains(factors: dict) -> np.ndarray:
     g[_CONCRETE] *= np.float32(factors.get("concrete_albedo", 1.0))
     g[_GROUND] *= np.float32(factors.get("ground_albedo", 1.0))
     dry = float(factors.get("vegetation_dryness", 0.0))
-    for name, k in (("grass", 1.0), ("foliage", 0.4)):  # towards dry straw / autumn leaves
+    for name, k in (("grass", 1.0), ("foliage", _FOLIAGE_DRY_GAIN)):  # towards dry straw
         base = np.asarray(DEFAULT_COLOR_FOR_MATERIAL[name], np.float32)
         g[MATERIAL_IDS[name]] *= 1.0 + k * dry * (_DRY_RGB / base - 1.0)
     # open water reflects 2-8 % of visible light from below its surface; the base albedo
@@ -328,16 +336,23 @@ def _table(default: float, **values: float) -> np.ndarray:
     return t
 
 
-# texture amplitudes (relative albedo change per unit of noise, noise std ~ 1)
+# texture amplitudes (relative albedo change per unit of noise, noise std ~ 1). Foliage
+# 0.5 / 0.2 (was 0.35 / 0.15): the dark gaps between leaf clusters of real crowns (gray
+# sd / mean 0.27-0.50 in hand-cut tree areas of the DOTA samples P1470 and P1053, ours
+# 0.28 -> 0.30 on 20 jam frames); ~10 % of foliage texels reach the gain's floor of 0.3
 _FINE = _table(0.05, asphalt=0.10, marking=0.09, concrete=0.08, paving=0.08, grass=0.2,
-               soil=0.18, water=0.04, roof=0.07, wall=0.06, foliage=0.35, bark=0.12,
+               soil=0.18, water=0.04, roof=0.07, wall=0.06, foliage=0.5, bark=0.12,
                paint=0.008, glass=0.0, tyre=0.05, trim=0.02, cargo=0.02, metal=0.03,
                roof_gravel=0.08, roof_tiles=0.04, roof_metal=0.015, track=0.05)
-_COARSE = _table(0.04, asphalt=0.08, grass=0.16, soil=0.12, foliage=0.15, roof=0.08,
+_COARSE = _table(0.04, asphalt=0.08, grass=0.16, soil=0.12, foliage=0.2, roof=0.08,
                  water=0.1, paint=0.0, glass=0.0, tyre=0.0, trim=0.0, cargo=0.02,
                  roof_gravel=0.1, roof_tiles=0.06, roof_metal=0.03, track=0.06)
-# hue shift with coarse noise: grass/foliage drift towards dry yellow-brown
-_DRY = _table(0.0, grass=0.35, foliage=0.2, soil=0.1)
+# hue shift with coarse noise: grass/foliage drift towards dry yellow-brown. The kernel
+# mixes towards the absolute straw albedo (_DRY_RGB, luma 0.36) by up to 1.5 x this value
+# where a 6 m noise field is high; on the dark canopy (luma ~0.04-0.085, scene/procedural/
+# trees.py) foliage=0.2 made whitish-yellow patches 2-3 x the crown's luma, so 0.04: at most
+# ~25 % lighter and yellower (a stressed or turning tree), ~4 % on average
+_DRY = _table(0.0, grass=0.35, foliage=0.04, soil=0.1)
 # specular strength / shininess / sky reflection at normal incidence (F0)
 _SPEC = _table(0.0, paint=0.35, glass=0.9, water=0.8, metal=0.3, roof=0.03, cargo=0.1,
                light_front=0.5, light_rear=0.4, trim=0.05, marking=0.02, roof_metal=0.3,

@@ -110,7 +110,10 @@ DEFAULT_COLOR_FOR_MATERIAL: dict[str, tuple[float, float, float]] = {
     "water": (0.10, 0.20, 0.25),
     "roof": (0.55, 0.30, 0.24),
     "wall": (0.75, 0.72, 0.66),
-    "foliage": (0.16, 0.32, 0.12),
+    # a broadleaf canopy's visible reflectance (luma 0.076; sources and the species
+    # colours in scene/procedural/trees.py SPECIES_COLORS). Was (0.16, 0.32, 0.12), luma
+    # 0.25: crowns as bright as the roads
+    "foliage": (0.052, 0.095, 0.038),
     "bark": (0.30, 0.22, 0.15),
     "metal": (0.45, 0.46, 0.48),
     "paint": (0.7, 0.7, 0.7),

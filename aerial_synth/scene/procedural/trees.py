@@ -45,13 +45,26 @@ N_TEMPLATES = 24
 #: Crown radius factor per species (the spec's crown radius is the broadleaf one).
 _RADIUS_FACTOR = {"broadleaf": 1.0, "spreading": 1.15, "columnar": 0.55, "conifer": 0.6}
 
-#: Foliage albedo per species (several per species: a tree draws one). Conifers darker and
-#: bluer, as needles are in real imagery; columnar (poplars) a touch lighter.
+#: Foliage albedo per species (several per species: a tree draws one): the visible
+#: reflectance of a canopy, not of a single sunlit leaf. A sunlit leaf reflects ~0.04-0.05
+#: (blue), ~0.08-0.12 (green peak) and ~0.04-0.06 (red) (USGS spectral library, e.g. its
+#: aspen and oak leaf spectra), but a crown seen from above also holds the shade between
+#: its leaves and leaf clusters, which the clump geometry here does not model; canopy
+#: albedos measured from towers put a broadleaf (aspen) stand at 0.75 x and conifer stands
+#: at 0.42 x a grass site's summer albedo (0.15 and 0.083 vs 0.20, Betts & Ball 1997,
+#: "Albedo over the boreal forest", JGR 102(D24)), and satellite visible-band albedos of
+#: forests are ~0.03-0.05 (conifers at the low end). So, with the green lawn's visible luma
+#: of ~0.11 (scene/model.py grass): broadleaf luma ~0.065-0.085, conifers ~0.04-0.05
+#: (0.58 x broadleaf, as 0.083 / 0.15), columnar (poplars) a touch lighter; R:G:B ~
+#: 0.55 : 1 : 0.4 as in the leaf spectra, the last broadleaf colour olive. Was 3-4 x
+#: brighter (broadleaf luma ~0.25, (0.16, 0.32, 0.12)): pale "cauliflower" crowns as
+#: bright as the roads.
 SPECIES_COLORS: dict[str, tuple[tuple[float, float, float], ...]] = {
-    "broadleaf": ((0.16, 0.32, 0.12), (0.20, 0.36, 0.14), (0.13, 0.27, 0.11), (0.24, 0.34, 0.16)),
-    "spreading": ((0.18, 0.33, 0.13), (0.22, 0.35, 0.15), (0.15, 0.29, 0.12)),
-    "columnar": ((0.22, 0.38, 0.15), (0.19, 0.35, 0.14)),
-    "conifer": ((0.08, 0.18, 0.09), (0.10, 0.21, 0.11), (0.07, 0.15, 0.09)),
+    "broadleaf": ((0.052, 0.095, 0.038), (0.060, 0.105, 0.042), (0.045, 0.085, 0.034),
+                  (0.068, 0.100, 0.045)),
+    "spreading": ((0.055, 0.095, 0.040), (0.064, 0.102, 0.044), (0.048, 0.088, 0.036)),
+    "columnar": ((0.062, 0.110, 0.044), (0.055, 0.100, 0.040)),
+    "conifer": ((0.030, 0.055, 0.030), (0.036, 0.062, 0.034), (0.026, 0.048, 0.028)),
 }
 
 #: Default species mix per generator (a spec's ``tree_species`` replaces it).
