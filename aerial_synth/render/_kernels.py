@@ -86,7 +86,7 @@ def _leaf_bump(t1, ty, tx, lx, ly):  # pragma: no cover - compiled
 @njit(parallel=True, **_OPTS)
 def surface(
     h, w, rays, t, face, normal, semantic, depth, face_material, tiles, textured, light,
-    foliage_id, step, ndl_out, own_out,
+    foliage_id, step, nearest, ndl_out, own_out, src_out,
 ):  # pragma: no cover - compiled
     """Sun cosine and shadow-ray selection, per pixel i.
 
@@ -94,13 +94,20 @@ def surface(
     pixel casts its own shadow ray. With ``step`` > 1 a pixel casts its own ray when it is
     its step x step block's first pixel (always, even facing away from the sun, since its
     block copies it) or differs from it (label, or depth by > 0.2 m); the others take the
-    block sample's result (see :func:`spread_shadow`).
+    block sample's result (see :func:`spread_shadow`). With ``nearest``, a pixel facing the
+    sun that differs from its block's first pixel casts only when none of the other three
+    samples at its cell's corners lies on its surface either (:func:`_shadow_source`), and
+    ``src_out[i]`` (uint8, n) records the corner it copies (0 - 3; written with ``nearest``
+    only, for pixels facing the sun without their own ray).
     """
     lx, ly, lz = light[0], light[1], light[2]
     t1 = tiles[1]
     for r in prange(h):
         rb = (r // step) * step
+        cb = 0  # first column of pixel (r, c)'s block: c - c % step, kept without divisions
         for c in range(w):
+            if c - cb == step:
+                cb = c
             i = r * w + c
             f = face[i]
             if f < 0:
@@ -116,14 +123,38 @@ def surface(
             ndl_out[i] = ndl
             if step == 1:
                 own = ndl > 0
-            elif r == rb and c % step == 0:
+            elif r == rb and c == cb:
                 own = True
             else:
-                j = rb * w + (c // step) * step
+                j = rb * w + cb
                 own = ndl > 0 and (
                     semantic[i] != semantic[j] or abs(depth[i] - depth[j]) > np.float32(0.2)
                 )
+                if nearest and ndl > 0:
+                    q = 0
+                    if own:
+                        q = _shadow_source(i, rb, cb, step, h, w, face, semantic, depth)
+                        own = q < 0
+                    src_out[i] = q
             own_out[i] = own
+
+
+@njit(inline="always")
+def _shadow_source(i, r0, c0, step, h, w, face, semantic, depth):  # pragma: no cover
+    """The block sample whose shadow ray pixel i (in the step x step cell whose first pixel
+    is (r0, c0)) copies: the first of the cell's corner samples q = 0: (r0, c0),
+    1: (r0, c0 + step), 2: (r0 + step, c0), 3: (r0 + step, c0 + step) on the same surface
+    (a hit with the same label, depth within 0.2 m); -1 when none is."""
+    for q in range(4):
+        rr = r0 + (step if q >= 2 else 0)
+        cc = c0 + (step if q % 2 == 1 else 0)
+        if rr >= h or cc >= w:
+            continue
+        j = rr * w + cc
+        if face[j] >= 0 and semantic[j] == semantic[i] and (
+                abs(depth[i] - depth[j]) <= np.float32(0.2)):
+            return q
+    return -1
 
 
 @njit(**_OPTS)
@@ -174,10 +205,34 @@ def spread_shadow(h, w, step, own, ndl, idx, vis, lit):  # pragma: no cover - co
     if step > 1:
         for r in prange(h):
             rb = (r // step) * step
+            cb = 0  # c - c % step
             for c in range(w):
+                if c - cb == step:
+                    cb = c
                 i = r * w + c
                 if not own[i] and ndl[i] > 0:
-                    lit[i] = lit[rb * w + (c // step) * step]
+                    lit[i] = lit[rb * w + cb]
+
+
+@njit(parallel=True, **_OPTS)
+def spread_shadow_nearest(h, w, step, own, ndl, src, idx, vis, lit):  # pragma: no cover
+    """:func:`spread_shadow` for :func:`surface` with ``nearest``: a pixel without its own
+    ray that faces the sun copies the corner sample ``src`` (from :func:`surface`) of its
+    cell (its block's first pixel when on the same surface, else the next corner that is)."""
+    k = idx.shape[0]
+    for j in prange(k):
+        lit[idx[j]] = vis[j]
+    for r in prange(h):
+        rb = (r // step) * step
+        cb = 0  # c - c % step
+        for c in range(w):
+            if c - cb == step:
+                cb = c
+            i = r * w + c
+            if not own[i] and ndl[i] > 0:
+                q = src[i]
+                lit[i] = lit[(rb + (step if q >= 2 else 0)) * w + cb + (step if q % 2 == 1
+                                                                          else 0)]
 
 
 @njit(parallel=True, **_OPTS)

@@ -62,7 +62,7 @@ def _pair(name: str, value, lo: float, hi: float) -> tuple[float, float]:
 PRESETS: dict[str, dict] = {
     "full": {},
     "fast": {"ambient_occlusion": False, "soft_shadows": False, "shadow_step": 4,
-             "texture": False, "wet_reflections": False},
+             "shadow_edges": "nearest", "texture": False, "wet_reflections": False},
 }
 
 _PAIRS = {  # name: (lowest, highest) allowed
@@ -76,6 +76,10 @@ _PAIRS = {  # name: (lowest, highest) allowed
     "concrete_albedo": (0.05, 4), "ground_albedo": (0.05, 4), "sky_light": (0.1, 5),
     "vegetation_dryness": (0, 1), "road_wear": (0, 1),
 }
+#: ``shadow_edges`` modes (``shadow_step`` > 1): "cast": a pixel that differs from its
+#: block's sample (label, depth) casts its own shadow ray; "nearest": it copies the first
+#: sample at its cell's corners on its own surface and casts only when there is none
+SHADOW_EDGES = ("cast", "nearest")
 #: ``randomise`` modes: "none" (realistic), "textures" (domain randomisation after Tobin et
 #: al. 2017: every material's colour, the light's colour and the sky's drawn at random)
 RANDOMISE = ("none", "textures")
@@ -133,6 +137,7 @@ class RenderConfig:
     soft_shadows: bool = True
     wet_reflections: bool = True
     shadow_step: int = 3
+    shadow_edges: str = "cast"
     ambient_occlusion: bool = True
     ao_step: int = 5
     ao_rays: int = 4
@@ -153,6 +158,7 @@ class RenderConfig:
         one_of("render config backend", self.backend, ("raycast", "pyrender"))
         one_of("render config exposure_mode", self.exposure_mode, ("auto", "fixed"))
         one_of("render config randomise", self.randomise, RANDOMISE)
+        one_of("render config shadow_edges", self.shadow_edges, SHADOW_EDGES)
         s(self, "shadow_step", integer("render config shadow_step", self.shadow_step, 1, 16))
         s(self, "ao_step", integer("render config ao_step", self.ao_step, 1, 32))
         s(self, "ao_rays", integer("render config ao_rays", self.ao_rays, 1, 64))
@@ -222,6 +228,8 @@ def sample_factors(cfg: RenderConfig, rng: np.random.Generator) -> dict:
     f["chromatic_blur"] = float(u(*cfg.chromatic_blur))
     f["shot_noise"] = float(u(*cfg.shot_noise))
     f["shadow_step"] = cfg.shadow_step
+    if cfg.shadow_edges != "cast":  # recorded when not the default (as before otherwise)
+        f["shadow_edges"] = cfg.shadow_edges
     f["wet_reflections"] = bool(cfg.wet_reflections)
     f["ambient_occlusion"] = (
         {"step_px": cfg.ao_step, "rays": cfg.ao_rays, "radius_m": cfg.ao_radius_m}
@@ -601,10 +609,12 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
         face_mat, face_alb = np.zeros(1, np.uint8), np.zeros((1, 3), np.float32)
     ndl = np.empty(n, np.float32)
     own = np.empty(n, np.bool_)
+    nearest = factors.get("shadow_edges", "cast") == "nearest" and step > 1
+    src = np.empty(n if nearest else 1, np.uint8)  # nearest: the corner sample each copies
     mark("setup")
     K.surface(h, w, buffers.rays, buffers.t, buffers.face, buffers.normal,
               buffers.semantic.reshape(-1), buffers.depth.reshape(-1), face_mat, tiles, textured,
-              L, _FOLIAGE, step, ndl, own)
+              L, _FOLIAGE, step, nearest, ndl, own, src)
     mark("surface")
 
     has_lit = bool(factors.get("shadows", True))
@@ -622,7 +632,10 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
             if len(leafy):
                 vis[leafy] = _crown_gaps(srays[leafy], tiles)
         mark("shadow_rays")
-        K.spread_shadow(h, w, step, own, ndl, idx, vis, lit)
+        if nearest:
+            K.spread_shadow_nearest(h, w, step, own, ndl, src, idx, vis, lit)
+        else:
+            K.spread_shadow(h, w, step, own, ndl, idx, vis, lit)
         sig = (0.5 + 6.0 * oc) if oc > 0.02 else (0.6 if disk.any() else 0.0)
         if sig > 0:  # sun-disk samples: a smooth penumbra; overcast: a wide, soft edge
             lit = cv2.GaussianBlur(lit.reshape(h, w), (0, 0), sig).reshape(-1)
@@ -722,9 +735,9 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
     ca = float(factors.get("chromatic_blur", 0.0))
     if sig > 0.05:
         if ca > 0.01:  # lateral colour: red and blue a little softer than green
-            chans = [cv2.GaussianBlur(np.ascontiguousarray(rgb[..., k]), (0, 0), sig * f)
-                     for k, f in enumerate((1.0 + ca, 1.0, 1.0 + 1.5 * ca))]
-            rgb = np.ascontiguousarray(np.stack(chans, axis=2))
+            chans = [cv2.GaussianBlur(ch, (0, 0), sig * f)
+                     for ch, f in zip(cv2.split(rgb), (1.0 + ca, 1.0, 1.0 + 1.5 * ca))]
+            rgb = cv2.merge(chans)  # split / merge: the same bytes as numpy slices and stack
         else:
             rgb = cv2.GaussianBlur(rgb, (0, 0), sig)
     ns = factors["noise_sigma"]

@@ -145,6 +145,11 @@ def test_block_shadow_sampling_matches_one_ray_per_pixel():
     assert shadowed.mean() > 0.05  # the scene really has shadows
     differ = np.abs(one - two).max(axis=2) > 20
     assert differ.mean() < 0.01
+    # the fast preset's edges: object-edge pixels copy a same-surface corner sample
+    for step, limit in ((2, 0.015), (4, 0.03)):
+        near = shade(rs, cam, buf, {**factors, "shadow_edges": "nearest"},
+                     np.random.default_rng(0), shadow_step=step).astype(int)
+        assert (np.abs(one - near).max(axis=2) > 20).mean() < limit
     # where the block sampling differs, it is at a shadow edge inside one surface
     edge = np.zeros_like(shadowed)
     edge[1:-1, 1:-1] = (shadowed[1:-1, 1:-1] != shadowed[:-2, 1:-1]) | (
@@ -168,3 +173,70 @@ def test_all_pixel_rays_equal_per_pixel_rays_bit_for_bit():
     a = cam.pixel_rays()
     b = cam.pixel_rays(rows, cols)
     assert a.shape == (301 * 177, 6) and a.tobytes() == b.tobytes()
+
+
+def _nearest_reference(h, w, step, face, ndl, semantic, depth, lit_rays):
+    """Straightforward formulation of ``shadow_edges="nearest"``: which pixels cast (own)
+    and the sun visibility every pixel ends with, given each pixel's own ray result
+    ``lit_rays`` (n,) (as if every pixel had cast one)."""
+    own = np.zeros(h * w, bool)
+    lit = np.ones(h * w, np.float32)
+    for r in range(h):
+        for c in range(w):
+            i = r * w + c
+            if face[i] < 0:
+                continue
+            r0, c0 = r - r % step, c - c % step
+            if (r, c) == (r0, c0):
+                own[i] = True
+                lit[i] = lit_rays[i]
+                continue
+            if ndl[i] <= 0:
+                continue
+            for rr, cc in ((r0, c0), (r0, c0 + step), (r0 + step, c0), (r0 + step, c0 + step)):
+                j = rr * w + cc
+                if rr < h and cc < w and face[j] >= 0 and semantic[j] == semantic[i] and abs(
+                        depth[i] - depth[j]) <= np.float32(0.2):
+                    lit[i] = lit_rays[j]
+                    break
+            else:
+                own[i] = True
+                lit[i] = lit_rays[i]
+    return own, lit
+
+
+@pytest.mark.parametrize("step", [2, 4])
+def test_nearest_shadow_edges_match_a_plain_reference(step):
+    from aerial_synth.render import shading
+    from aerial_synth.render.raycast import cast_buffers
+
+    spec = [(1, 22.0, 0.0, 0.3, 4.5, 1.8, 1.5), (2, 30.0, -2.0, 0.0, 9.0, 2.5, 3.5)]
+    rs, pl = make_world(spec, crown_at=(26.0, 3.0))
+    cfg = CameraConfig(width_px=97, height_px=83, gsd_m=0.25)
+    cam = Camera.look_at_ground(cfg, (26.0, 3.0, 0.0), yaw_deg=20.0, tilt_deg=8.0)
+    buf = cast_buffers(rs, cam)
+    h, w, n = buf.height_px, buf.width_px, buf.height_px * buf.width_px
+    L = shading.sun_direction(200.0, 30.0).astype(np.float32)
+    sem, dep = buf.semantic.reshape(-1), buf.depth.reshape(-1)
+    ndl, own, src = np.empty(n, np.float32), np.empty(n, bool), np.empty(n, np.uint8)
+    K.surface(h, w, buf.rays, buf.t, buf.face, buf.normal, sem, dep, rs.face_material,
+              shading._noise_tiles(0), False, L, shading._FOLIAGE, step, True, ndl, own, src)
+    # every pixel's own shadow ray, then what the kernels keep of them
+    _, srays = K.gather_shadow_rays(buf.face >= 0, buf.rays, buf.t, buf.normal, L,
+                                    np.float32(shading._PEEL), np.zeros((2, 3), np.float32),
+                                    np.uint64(0))
+    lit_rays = np.ones(n, np.float32)
+    lit_rays[buf.face >= 0] = np.where(rs.test_occlusions(srays), 0.0, 1.0)
+    ref_own, ref_lit = _nearest_reference(h, w, step, buf.face, ndl, sem, dep, lit_rays)
+    np.testing.assert_array_equal(own, ref_own)
+    idx = np.flatnonzero(own)
+    lit = np.ones(n, np.float32)
+    K.spread_shadow_nearest(h, w, step, own, ndl, src, idx, lit_rays[idx], lit)
+    np.testing.assert_array_equal(lit, ref_lit)
+    # fewer rays than the "cast" edges, which mark a superset of them
+    cast_own = np.empty(n, bool)
+    K.surface(h, w, buf.rays, buf.t, buf.face, buf.normal, sem, dep, rs.face_material,
+              shading._noise_tiles(0), False, L, shading._FOLIAGE, step, False, ndl, cast_own,
+              src[:1])
+    assert (own <= cast_own).all() and own.sum() < cast_own.sum()
+    assert (lit_rays == 0).any() and (lit_rays == 1).any()
