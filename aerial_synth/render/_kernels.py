@@ -157,39 +157,53 @@ def _shadow_source(i, r0, c0, step, h, w, face, semantic, depth):  # pragma: no 
     return -1
 
 
-@njit(**_OPTS)
+_GATHER_CHUNK = 8192  # pixels per chunk of the parallel gathers
+
+
+@njit(parallel=True, **_OPTS)
 def gather_shadow_rays(own, rays, t, normal, light, peel, disk, seed):  # pragma: no cover
-    """(k,) pixel indices with ``own`` and their (k, 6) shadow rays towards ``light``,
-    starting ``peel`` metres off the surface along its normal. ``disk`` (2, 3): two vectors
-    spanning the sun's disk (perpendicular to ``light``, length tan(angular radius)); each
-    ray aims at a point of the disk drawn uniformly from a hash of (seed, pixel index), so
-    shadow edges get a penumbra as wide as the occluder's distance x the disk's angle."""
+    """(k,) pixel indices with ``own`` (ascending) and their (k, 6) shadow rays towards
+    ``light``, starting ``peel`` metres off the surface along its normal. ``disk`` (2, 3):
+    two vectors spanning the sun's disk (perpendicular to ``light``, length tan(angular
+    radius)); each ray aims at a point of the disk drawn uniformly from a hash of (seed,
+    pixel index), so shadow edges get a penumbra as wide as the occluder's distance x the
+    disk's angle. Chunks of pixels in parallel, each written at its prefix-sum offset
+    (the same arrays as a serial pass)."""
     n = own.shape[0]
-    k = 0
-    for i in range(n):
-        if own[i]:
-            k += 1
+    nch = (n + _GATHER_CHUNK - 1) // _GATHER_CHUNK
+    start = np.zeros(nch + 1, np.int64)
+    for b in prange(nch):
+        k = 0
+        for i in range(b * _GATHER_CHUNK, min(n, (b + 1) * _GATHER_CHUNK)):
+            if own[i]:
+                k += 1
+        start[b + 1] = k
+    for b in range(nch):
+        start[b + 1] += start[b]
+    k = start[nch]
     idx = np.empty(k, np.int64)
     out = np.empty((k, 6), np.float32)
     golden = np.uint64(0x9E3779B97F4A7C15)
     soft = disk[0, 0] != 0 or disk[0, 1] != 0 or disk[0, 2] != 0
-    j = 0
-    for i in range(n):
-        if own[i]:
+    for b in prange(nch):
+        j = start[b]
+        for i in range(b * _GATHER_CHUNK, min(n, (b + 1) * _GATHER_CHUNK)):
+            if not own[i]:
+                continue
             idx[j] = i
             ti = t[i]
             a = np.float32(0.0)
-            b = np.float32(0.0)
+            bb = np.float32(0.0)
             if soft:
                 z = _mix64(seed + np.uint64(i + 1) * golden)
                 u1 = np.float32((z >> np.uint64(40)) * (1.0 / 16777216.0))
                 u2 = np.float32(((z >> np.uint64(16)) & np.uint64(0xFFFFFF)) * (1.0 / 16777216.0))
                 rr = np.sqrt(u1)
                 a = rr * np.cos(np.float32(2.0 * np.pi) * u2)
-                b = rr * np.sin(np.float32(2.0 * np.pi) * u2)
+                bb = rr * np.sin(np.float32(2.0 * np.pi) * u2)
             for q in range(3):
                 out[j, q] = rays[i, q] + ti * rays[i, 3 + q] + peel * normal[i, q]
-                out[j, 3 + q] = light[q] + a * disk[0, q] + b * disk[1, q]
+                out[j, 3 + q] = light[q] + a * disk[0, q] + bb * disk[1, q]
             j += 1
     return idx, out
 

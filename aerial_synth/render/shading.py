@@ -315,11 +315,12 @@ def solve_tone(luma: np.ndarray, key_gray: float, target_sd: float, shoulder: fl
         return 1.0, 1.0 / 2.2
     ly = np.log(y)
     lo, hi = float(ly.min()), float(ly.max()) + 1e-6
-    cnt, edges = np.histogram(ly, bins=256, range=(lo, hi))
+    from ._tone import histogram_uniform, solve_on_histogram  # compiled, same results
+
+    edges = np.linspace(lo, hi, 257)  # np.histogram(ly, bins=256, range=(lo, hi))
+    cnt = histogram_uniform(np.ascontiguousarray(ly, np.float64), edges)
     yc = np.exp(0.5 * (edges[1:] + edges[:-1]))
     wts = cnt / cnt.sum()
-
-    from ._tone import solve_on_histogram  # compiled: the same bisections, ~20x faster
 
     plo, phi = power_range
     lg, p = solve_on_histogram(lo, np.ascontiguousarray(yc, np.float64),

@@ -240,3 +240,79 @@ def test_nearest_shadow_edges_match_a_plain_reference(step):
               src[:1])
     assert (own <= cast_own).all() and own.sum() < cast_own.sum()
     assert (lit_rays == 0).any() and (lit_rays == 1).any()
+
+
+@pytest.mark.parametrize("soft", [False, True])
+def test_parallel_shadow_gather_equals_a_serial_pass(soft):
+    rng = np.random.default_rng(5)
+    n = 40_000
+    own = rng.random(n) < 0.3
+    own[:100] = False
+    rays = rng.normal(size=(n, 6)).astype(np.float32)
+    t = rng.uniform(1, 100, n).astype(np.float32)
+    normal = rng.normal(size=(n, 3)).astype(np.float32)
+    light = np.array([0.3, -0.4, 0.866], np.float32)
+    disk = (np.array([[0.01, 0.0, -0.003], [0.0, 0.01, 0.004]], np.float32) if soft
+            else np.zeros((2, 3), np.float32))
+    args = (own, rays, t, normal, light, np.float32(0.02), disk, np.uint64(99))
+    idx, out = with_threads(2, lambda: K.gather_shadow_rays(*args))
+    np.testing.assert_array_equal(idx, np.flatnonzero(own))
+    p = rays[idx, :3] + t[idx, None] * rays[idx, 3:] + np.float32(0.02) * normal[idx]
+    np.testing.assert_array_equal(out[:, :3], p)
+    if not soft:
+        np.testing.assert_array_equal(out[:, 3:], np.broadcast_to(light, (len(idx), 3)))
+    else:  # the serial formulation (the kernel's Python body, one chunk after another)
+        with np.errstate(over="ignore"):  # the hash wraps around in uint64
+            i2, o2 = K.gather_shadow_rays.py_func(own[:3000], *args[1:])
+        np.testing.assert_array_equal(i2, idx[idx < 3000])
+        np.testing.assert_allclose(o2, out[: len(i2)], rtol=1e-6, atol=1e-7)
+        off = np.linalg.norm(out[:, 3:] - light, axis=1)
+        assert off.max() <= 0.012 and off.std() > 0.001  # within the disk (|a, b| <= 1)
+
+
+def test_tone_histogram_equals_numpy():
+    # the auto exposure's compiled histogram against np.histogram, values on bin edges too
+    from aerial_synth.render._tone import histogram_uniform
+
+    rng = np.random.default_rng(1)
+    for trial in range(100):
+        a = rng.normal(rng.uniform(-5, 5), rng.uniform(0.01, 3), rng.integers(1, 3000))
+        lo, hi = float(a.min()), float(a.max()) + (1e-6 if trial % 2 else 0.0)
+        e = np.linspace(lo, hi, 257)
+        a = np.concatenate([a, e[rng.integers(0, 257, 50)],
+                            [lo, hi, np.nextafter(hi, 1e9), np.nextafter(lo, -1e9)]])
+        ref, ref_edges = np.histogram(a, bins=256, range=(lo, hi))
+        assert np.array_equal(ref_edges, e)
+        assert np.array_equal(histogram_uniform(a, e), ref)
+
+
+@pytest.mark.parametrize("preset", ["full", "fast"])
+def test_visibility_beside_shading_gives_the_same_frame(monkeypatch, preset):
+    # render_frame runs visibility in a second thread while shading: the same frame as one
+    # stage after the other, and an error in visibility reaches the caller
+    from aerial_synth.render import frame as F
+
+    spec = [(1, 0.0, 0.0, 0.3, 4.5, 1.8, 1.5), (2, 6.0, -2.0, 0.0, 9.0, 2.5, 3.5)]
+    rs, pl = make_world(spec, crown_at=(3.0, 3.0))
+    cam = Camera.look_at_ground(SMALL, (2.0, 0.0, 0.0), yaw_deg=20.0, tilt_deg=8.0)
+    cfg = RenderConfig.preset(preset, jpeg_probability=0.0)
+    out = {}
+    for overlap in (True, False):
+        monkeypatch.setattr(F, "OVERLAP_VISIBILITY", overlap)
+        out[overlap] = render_frame(rs, cam, pl, np.random.default_rng(4), cfg)
+    a, b = out[True], out[False]
+    assert F._thread_safe_kernels()
+    for name in ("instance", "semantic", "depth", "rgb"):
+        assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), name
+    assert a.visibility == b.visibility and len(a.visibility) == 2
+    assert a.amodal.ids.tobytes() == b.amodal.ids.tobytes()
+    assert a.amodal.rows.tobytes() == b.amodal.rows.tobytes()
+    assert a.to_meta() == b.to_meta()
+
+    def broken(*args, **kw):
+        raise RuntimeError("visibility failed")
+
+    monkeypatch.setattr(F, "OVERLAP_VISIBILITY", True)
+    monkeypatch.setattr(F, "compute_visibility", broken)
+    with pytest.raises(RuntimeError, match="visibility failed"):
+        render_frame(rs, cam, pl, np.random.default_rng(4), cfg)
