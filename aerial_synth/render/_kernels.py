@@ -250,8 +250,16 @@ def spread_shadow_nearest(h, w, step, own, ndl, src, idx, vis, lit):  # pragma: 
 
 
 @njit(parallel=True, **_OPTS)
+def scatter_values(idx, vals, out):  # pragma: no cover - compiled
+    """``out[idx[j]] = vals[j]`` for every j (distinct indices)."""
+    for j in prange(idx.shape[0]):
+        out[idx[j]] = vals[j]
+
+
+@njit(parallel=True, **_OPTS)
 def compose(
-    h, w, rays, t, face, normal, depth, ndl, lit, has_lit, ao, has_ao, face_material,
+    h, w, rays, t, face, normal, depth, ndl, lit, has_lit, own, src, lit_step, nearest, ao,
+    has_ao, face_material,
     face_albedo, mat_gain, tiles, textured, fine_t, coarse_t, dry_t, wetk_t, spec_t, shine_t,
     f0_t, wet,
     light, sun_rgb, sky_rgb, miss_rgb, veil_rgb, e_sun, e_sky, spec_dim, haze, inv_alt,
@@ -266,6 +274,13 @@ def compose(
     linear radiance (tone mapping is :func:`tone`). ``refl`` (n, 3): radiance seen along
     a traced mirror ray (wet roads; < 0 = use the sky), used when ``has_refl``.
 
+    Sun visibility (``has_lit``): with ``lit_step`` 0, ``lit`` (n,) is every pixel's;
+    with ``lit_step`` k > 0, ``lit`` holds the shadow rays' results only at the pixels
+    marked in ``own`` (ones elsewhere), and each other pixel facing the sun reads the block
+    sample :func:`spread_shadow` (or, with ``nearest``, :func:`spread_shadow_nearest` and
+    its corners ``src``) would have copied to it: the same values without that pass over
+    the image, for frames where nothing blurs ``lit``.
+
     Haze: transmission (1 - haze) ** (path / altitude) along the pixel's ray (longer, more
     hazy paths towards the edges of a tilted view) and a veil ``veil_rgb`` brighter
     towards the sun (a simple forward-scattering phase term)."""
@@ -279,7 +294,12 @@ def compose(
     log_clear = np.float32(np.log(max(one - haze, np.float32(1e-3))))
     for r in prange(h):
         vy = (np.float32(r) + np.float32(0.5) - np.float32(h) / 2) / (np.float32(h) / 2)
+        # lit_step > 0: first row (flat offset) and column of pixel (r, c)'s block
+        lrow = (r // lit_step) * lit_step * w if lit_step > 0 else 0
+        lcol = 0
         for c in range(w):
+            if c - lcol == lit_step:
+                lcol = c
             i = r * w + c
             trans = one
             hz = zero
@@ -358,7 +378,14 @@ def compose(
                     f0 += np.float32(0.04) * wk + np.float32(0.3) * pud
                     if wk > 0:
                         shine = np.float32(60.0)
-                li = lit[i] if has_lit else one
+                li = one
+                if has_lit:
+                    if lit_step == 0 or own[i]:
+                        li = lit[i]
+                    elif ndl[i] > 0:
+                        q = src[i] if nearest else 0
+                        li = lit[lrow + (lit_step * w if q >= 2 else 0) + lcol
+                                 + (lit_step if q % 2 == 1 else 0)]
                 occ = ao[i] if has_ao else one
                 nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
                 s_sun = e_sun * ndl[i] * li * trans

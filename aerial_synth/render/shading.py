@@ -376,6 +376,9 @@ def _kinds() -> np.ndarray:
 
 
 _KIND = _kinds()
+#: unblurred shadows: compose reads the block samples itself instead of a spread pass (the
+#: same image; tests/render/test_kernels.py compares both)
+_SPREAD_IN_COMPOSE = True
 _TANGENTS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
@@ -620,6 +623,7 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
 
     has_lit = bool(factors.get("shadows", True))
     lit = np.ones(n if has_lit else 1, np.float32)
+    lit_step = 0  # 0: lit holds every pixel's value; k: only the own pixels' (K.compose)
     if has_lit:
         disk = _disk_vectors(L.astype(np.float64), float(factors.get("sun_radius_deg", 0.0)))
         idx, srays = K.gather_shadow_rays(own, buffers.rays, buffers.t, buffers.normal, L,
@@ -633,11 +637,14 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
             if len(leafy):
                 vis[leafy] = _crown_gaps(srays[leafy], tiles)
         mark("shadow_rays")
-        if nearest:
+        sig = (0.5 + 6.0 * oc) if oc > 0.02 else (0.6 if disk.any() else 0.0)
+        if sig <= 0 and _SPREAD_IN_COMPOSE:  # nothing blurs lit: compose reads the samples
+            K.scatter_values(idx, vis, lit)
+            lit_step = step
+        elif nearest:
             K.spread_shadow_nearest(h, w, step, own, ndl, src, idx, vis, lit)
         else:
             K.spread_shadow(h, w, step, own, ndl, idx, vis, lit)
-        sig = (0.5 + 6.0 * oc) if oc > 0.02 else (0.6 if disk.any() else 0.0)
         if sig > 0:  # sun-disk samples: a smooth penumbra; overcast: a wide, soft edge
             lit = cv2.GaussianBlur(lit.reshape(h, w), (0, 0), sig).reshape(-1)
         mark("shadow_spread")
@@ -693,7 +700,8 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
         mark("wet_reflections")
     lin = np.empty((h, w, 3), np.float32)
     K.compose(h, w, buffers.rays, buffers.t, buffers.face, buffers.normal,
-              buffers.depth.reshape(-1), ndl, lit, has_lit, ao, has_ao, face_mat, face_alb,
+              buffers.depth.reshape(-1), ndl, lit, has_lit, own, src, lit_step, nearest, ao,
+              has_ao, face_mat, face_alb,
               gains_m, tiles, textured, _FINE, _COARSE, _DRY, _WETK, _SPEC,
               _SHINE, _F0, wet, L, sun_col, sky_col, (sky_col * np.float32(0.25)).astype(np.float32), veil, e_sun, e_sky,
               np.float32(1.0 - 0.9 * oc), np.float32(factors["haze"]), np.float32(1.0 / alt),

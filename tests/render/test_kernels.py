@@ -316,3 +316,26 @@ def test_visibility_beside_shading_gives_the_same_frame(monkeypatch, preset):
     monkeypatch.setattr(F, "compute_visibility", broken)
     with pytest.raises(RuntimeError, match="visibility failed"):
         render_frame(rs, cam, pl, np.random.default_rng(4), cfg)
+
+
+@pytest.mark.parametrize("step", [1, 3, 4])
+def test_shadow_spread_inside_compose_equals_the_spread_pass(monkeypatch, step):
+    # unblurred shadows (point sun, no overcast): compose reads the block samples itself;
+    # the image must be the one of spread_shadow's pass over the image, byte for byte
+    from aerial_synth.render import shading
+    from aerial_synth.render.raycast import cast_buffers
+
+    spec = [(1, 22.0, 0.0, 0.3, 4.5, 1.8, 1.5), (2, 30.0, -2.0, 0.0, 9.0, 2.5, 3.5)]
+    rs, pl = make_world(spec, crown_at=(26.0, 3.0))
+    cam = Camera.look_at_ground(SMALL, (26.0, 6.0, 0.0), yaw_deg=30.0, tilt_deg=6.0)
+    buf = cast_buffers(rs, cam)
+    for preset, edges in (("fast", "nearest"), ("fast", "cast"), ("full", "cast")):
+        cfg = RenderConfig.preset(preset, soft_shadows=False, overcast_probability=0,
+                                  jpeg_probability=0, shadow_step=step,
+                                  shadow_edges=edges)
+        factors = shading.sample_factors(cfg, np.random.default_rng(3))
+        out = {}
+        for fused in (True, False):
+            monkeypatch.setattr(shading, "_SPREAD_IN_COMPOSE", fused)
+            out[fused] = shading.shade(rs, cam, buf, dict(factors))
+        assert out[True].tobytes() == out[False].tobytes()
