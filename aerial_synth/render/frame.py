@@ -95,16 +95,26 @@ def render_frame(
         rgb = render_rgb(rayscene, camera, factors)
     else:
         # visibility (labels) and shading (RGB) read the same buffers and nothing of each
-        # other: visibility runs in a second thread while the shader works, so its serial
-        # parts fill the cores the shader leaves idle (the same results either way)
-        side = _Side(compute_visibility, rayscene, camera, buf.instance, vehicles,
-                     depth=buf.depth) if OVERLAP_VISIBILITY and _thread_safe_kernels() else None
-        if side is None:
+        # other: visibility runs in a second thread beside the shader's stages after its
+        # ray casts (compose, tone, sensor), so its serial parts fill the cores those leave
+        # idle (the same results either way)
+        overlap = OVERLAP_VISIBILITY and _thread_safe_kernels()
+        sides: list = []
+
+        def start_visibility():
+            sides.append(_Side(compute_visibility, rayscene, camera, buf.instance, vehicles,
+                               depth=buf.depth))
+
+        if not overlap:
             vis, amodal = compute_visibility(rayscene, camera, buf.instance, vehicles,
                                              depth=buf.depth)
             t_vis = time.perf_counter() - t1
-        rgb = shade(rayscene, camera, buf, factors, rng, timings=shade_t)
-        if side is not None:
+        rgb = shade(rayscene, camera, buf, factors, rng, timings=shade_t,
+                    before_compose=start_visibility if overlap else None)
+        if overlap:
+            if not sides:  # pragma: no cover - shade always calls it
+                start_visibility()
+            side = sides[0]
             (vis, amodal), t_vis = side.result()
     t3 = time.perf_counter()
     return Frame(

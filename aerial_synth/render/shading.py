@@ -57,8 +57,10 @@ def _pair(name: str, value, lo: float, hi: float) -> tuple[float, float]:
 #: Named presets (keyword overrides of the defaults): ``full`` is every realism factor on
 #: (the default); ``fast`` drops ambient occlusion, the sun-disk sampling, procedural
 #: texture and material detail (so also the light through crown gaps) and the mirror rays
-#: of wet roads, and casts one shadow ray per 4 x 4 block (see docs/rendering.md, "Speed",
-#: for the measured costs: fast stays within 1.5 x the bare primary cast).
+#: of wet roads, and casts one shadow ray per 4 x 4 block, object-edge pixels taking a
+#: neighbouring block sample on their own surface (``shadow_edges="nearest"``; see
+#: docs/rendering.md, "Speed", for the measured costs: fast stays within 1.5 x the bare
+#: primary cast).
 PRESETS: dict[str, dict] = {
     "full": {},
     "fast": {"ambient_occlusion": False, "soft_shadows": False, "shadow_step": 4,
@@ -566,7 +568,8 @@ def _haze_colour(tint: float, e_sky: float) -> np.ndarray:
 
 
 def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | None = None,
-          timings: dict | None = None, shadow_step: int | None = None) -> np.ndarray:
+          timings: dict | None = None, shadow_step: int | None = None,
+          before_compose=None) -> np.ndarray:
     """Shaded RGB (H, W, 3) uint8 for the primary hits in ``buffers`` under ``factors``
     (from :func:`sample_factors`; the per-pixel randomness comes from
     ``factors["pixel_seed"]``, so ``rng`` is not used and kept for compatibility).
@@ -581,6 +584,9 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
                   one per k x k block plus every pixel that differs from its block's first
                   pixel (another label, or a depth jump over 0.2 m), so object edges stay
                   exact and only shadow edges inside one surface are coarser.
+    before_compose : optional callable, called once when the ray-casting stages are done
+                  (before compose); :func:`.frame.render_frame` starts visibility there,
+                  so it runs beside the less parallel stages that follow.
     """
     import time
 
@@ -698,6 +704,8 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
             if has_refl else np.zeros((1, 3), np.float32))
     if has_refl:
         mark("wet_reflections")
+    if before_compose is not None:
+        before_compose()
     lin = np.empty((h, w, 3), np.float32)
     K.compose(h, w, buffers.rays, buffers.t, buffers.face, buffers.normal,
               buffers.depth.reshape(-1), ndl, lit, has_lit, own, src, lit_step, nearest, ao,
