@@ -86,7 +86,7 @@ def _leaf_bump(t1, ty, tx, lx, ly):  # pragma: no cover - compiled
 @njit(parallel=True, **_OPTS)
 def surface(
     h, w, rays, t, face, normal, semantic, depth, face_material, tiles, textured, light,
-    foliage_id, step, ndl_out, own_out,
+    foliage_id, step, nearest, ndl_out, own_out, src_out,
 ):  # pragma: no cover - compiled
     """Sun cosine and shadow-ray selection, per pixel i.
 
@@ -94,13 +94,20 @@ def surface(
     pixel casts its own shadow ray. With ``step`` > 1 a pixel casts its own ray when it is
     its step x step block's first pixel (always, even facing away from the sun, since its
     block copies it) or differs from it (label, or depth by > 0.2 m); the others take the
-    block sample's result (see :func:`spread_shadow`).
+    block sample's result (see :func:`spread_shadow`). With ``nearest``, a pixel facing the
+    sun that differs from its block's first pixel casts only when none of the other three
+    samples at its cell's corners lies on its surface either (:func:`_shadow_source`), and
+    ``src_out[i]`` (uint8, n) records the corner it copies (0 - 3; written with ``nearest``
+    only, for pixels facing the sun without their own ray).
     """
     lx, ly, lz = light[0], light[1], light[2]
     t1 = tiles[1]
     for r in prange(h):
         rb = (r // step) * step
+        cb = 0  # first column of pixel (r, c)'s block: c - c % step, kept without divisions
         for c in range(w):
+            if c - cb == step:
+                cb = c
             i = r * w + c
             f = face[i]
             if f < 0:
@@ -116,49 +123,87 @@ def surface(
             ndl_out[i] = ndl
             if step == 1:
                 own = ndl > 0
-            elif r == rb and c % step == 0:
+            elif r == rb and c == cb:
                 own = True
             else:
-                j = rb * w + (c // step) * step
+                j = rb * w + cb
                 own = ndl > 0 and (
                     semantic[i] != semantic[j] or abs(depth[i] - depth[j]) > np.float32(0.2)
                 )
+                if nearest and ndl > 0:
+                    q = 0
+                    if own:
+                        q = _shadow_source(i, rb, cb, step, h, w, face, semantic, depth)
+                        own = q < 0
+                    src_out[i] = q
             own_out[i] = own
 
 
-@njit(**_OPTS)
+@njit(inline="always")
+def _shadow_source(i, r0, c0, step, h, w, face, semantic, depth):  # pragma: no cover
+    """The block sample whose shadow ray pixel i (in the step x step cell whose first pixel
+    is (r0, c0)) copies: the first of the cell's corner samples q = 0: (r0, c0),
+    1: (r0, c0 + step), 2: (r0 + step, c0), 3: (r0 + step, c0 + step) on the same surface
+    (a hit with the same label, depth within 0.2 m); -1 when none is."""
+    for q in range(4):
+        rr = r0 + (step if q >= 2 else 0)
+        cc = c0 + (step if q % 2 == 1 else 0)
+        if rr >= h or cc >= w:
+            continue
+        j = rr * w + cc
+        if face[j] >= 0 and semantic[j] == semantic[i] and (
+                abs(depth[i] - depth[j]) <= np.float32(0.2)):
+            return q
+    return -1
+
+
+_GATHER_CHUNK = 8192  # pixels per chunk of the parallel gathers
+
+
+@njit(parallel=True, **_OPTS)
 def gather_shadow_rays(own, rays, t, normal, light, peel, disk, seed):  # pragma: no cover
-    """(k,) pixel indices with ``own`` and their (k, 6) shadow rays towards ``light``,
-    starting ``peel`` metres off the surface along its normal. ``disk`` (2, 3): two vectors
-    spanning the sun's disk (perpendicular to ``light``, length tan(angular radius)); each
-    ray aims at a point of the disk drawn uniformly from a hash of (seed, pixel index), so
-    shadow edges get a penumbra as wide as the occluder's distance x the disk's angle."""
+    """(k,) pixel indices with ``own`` (ascending) and their (k, 6) shadow rays towards
+    ``light``, starting ``peel`` metres off the surface along its normal. ``disk`` (2, 3):
+    two vectors spanning the sun's disk (perpendicular to ``light``, length tan(angular
+    radius)); each ray aims at a point of the disk drawn uniformly from a hash of (seed,
+    pixel index), so shadow edges get a penumbra as wide as the occluder's distance x the
+    disk's angle. Chunks of pixels in parallel, each written at its prefix-sum offset
+    (the same arrays as a serial pass)."""
     n = own.shape[0]
-    k = 0
-    for i in range(n):
-        if own[i]:
-            k += 1
+    nch = (n + _GATHER_CHUNK - 1) // _GATHER_CHUNK
+    start = np.zeros(nch + 1, np.int64)
+    for b in prange(nch):
+        k = 0
+        for i in range(b * _GATHER_CHUNK, min(n, (b + 1) * _GATHER_CHUNK)):
+            if own[i]:
+                k += 1
+        start[b + 1] = k
+    for b in range(nch):
+        start[b + 1] += start[b]
+    k = start[nch]
     idx = np.empty(k, np.int64)
     out = np.empty((k, 6), np.float32)
     golden = np.uint64(0x9E3779B97F4A7C15)
     soft = disk[0, 0] != 0 or disk[0, 1] != 0 or disk[0, 2] != 0
-    j = 0
-    for i in range(n):
-        if own[i]:
+    for b in prange(nch):
+        j = start[b]
+        for i in range(b * _GATHER_CHUNK, min(n, (b + 1) * _GATHER_CHUNK)):
+            if not own[i]:
+                continue
             idx[j] = i
             ti = t[i]
             a = np.float32(0.0)
-            b = np.float32(0.0)
+            bb = np.float32(0.0)
             if soft:
                 z = _mix64(seed + np.uint64(i + 1) * golden)
                 u1 = np.float32((z >> np.uint64(40)) * (1.0 / 16777216.0))
                 u2 = np.float32(((z >> np.uint64(16)) & np.uint64(0xFFFFFF)) * (1.0 / 16777216.0))
                 rr = np.sqrt(u1)
                 a = rr * np.cos(np.float32(2.0 * np.pi) * u2)
-                b = rr * np.sin(np.float32(2.0 * np.pi) * u2)
+                bb = rr * np.sin(np.float32(2.0 * np.pi) * u2)
             for q in range(3):
                 out[j, q] = rays[i, q] + ti * rays[i, 3 + q] + peel * normal[i, q]
-                out[j, 3 + q] = light[q] + a * disk[0, q] + b * disk[1, q]
+                out[j, 3 + q] = light[q] + a * disk[0, q] + bb * disk[1, q]
             j += 1
     return idx, out
 
@@ -174,15 +219,47 @@ def spread_shadow(h, w, step, own, ndl, idx, vis, lit):  # pragma: no cover - co
     if step > 1:
         for r in prange(h):
             rb = (r // step) * step
+            cb = 0  # c - c % step
             for c in range(w):
+                if c - cb == step:
+                    cb = c
                 i = r * w + c
                 if not own[i] and ndl[i] > 0:
-                    lit[i] = lit[rb * w + (c // step) * step]
+                    lit[i] = lit[rb * w + cb]
+
+
+@njit(parallel=True, **_OPTS)
+def spread_shadow_nearest(h, w, step, own, ndl, src, idx, vis, lit):  # pragma: no cover
+    """:func:`spread_shadow` for :func:`surface` with ``nearest``: a pixel without its own
+    ray that faces the sun copies the corner sample ``src`` (from :func:`surface`) of its
+    cell (its block's first pixel when on the same surface, else the next corner that is)."""
+    k = idx.shape[0]
+    for j in prange(k):
+        lit[idx[j]] = vis[j]
+    for r in prange(h):
+        rb = (r // step) * step
+        cb = 0  # c - c % step
+        for c in range(w):
+            if c - cb == step:
+                cb = c
+            i = r * w + c
+            if not own[i] and ndl[i] > 0:
+                q = src[i]
+                lit[i] = lit[(rb + (step if q >= 2 else 0)) * w + cb + (step if q % 2 == 1
+                                                                          else 0)]
+
+
+@njit(parallel=True, **_OPTS)
+def scatter_values(idx, vals, out):  # pragma: no cover - compiled
+    """``out[idx[j]] = vals[j]`` for every j (distinct indices)."""
+    for j in prange(idx.shape[0]):
+        out[idx[j]] = vals[j]
 
 
 @njit(parallel=True, **_OPTS)
 def compose(
-    h, w, rays, t, face, normal, depth, ndl, lit, has_lit, ao, has_ao, face_material,
+    h, w, rays, t, face, normal, depth, ndl, lit, has_lit, own, src, lit_step, nearest, ao,
+    has_ao, face_material,
     face_albedo, mat_gain, tiles, textured, fine_t, coarse_t, dry_t, wetk_t, spec_t, shine_t,
     f0_t, wet,
     light, sun_rgb, sky_rgb, miss_rgb, veil_rgb, e_sun, e_sky, spec_dim, haze, inv_alt,
@@ -197,6 +274,13 @@ def compose(
     linear radiance (tone mapping is :func:`tone`). ``refl`` (n, 3): radiance seen along
     a traced mirror ray (wet roads; < 0 = use the sky), used when ``has_refl``.
 
+    Sun visibility (``has_lit``): with ``lit_step`` 0, ``lit`` (n,) is every pixel's;
+    with ``lit_step`` k > 0, ``lit`` holds the shadow rays' results only at the pixels
+    marked in ``own`` (ones elsewhere), and each other pixel facing the sun reads the block
+    sample :func:`spread_shadow` (or, with ``nearest``, :func:`spread_shadow_nearest` and
+    its corners ``src``) would have copied to it: the same values without that pass over
+    the image, for frames where nothing blurs ``lit``.
+
     Haze: transmission (1 - haze) ** (path / altitude) along the pixel's ray (longer, more
     hazy paths towards the edges of a tilted view) and a veil ``veil_rgb`` brighter
     towards the sun (a simple forward-scattering phase term)."""
@@ -210,7 +294,12 @@ def compose(
     log_clear = np.float32(np.log(max(one - haze, np.float32(1e-3))))
     for r in prange(h):
         vy = (np.float32(r) + np.float32(0.5) - np.float32(h) / 2) / (np.float32(h) / 2)
+        # lit_step > 0: first row (flat offset) and column of pixel (r, c)'s block
+        lrow = (r // lit_step) * lit_step * w if lit_step > 0 else 0
+        lcol = 0
         for c in range(w):
+            if c - lcol == lit_step:
+                lcol = c
             i = r * w + c
             trans = one
             hz = zero
@@ -289,7 +378,14 @@ def compose(
                     f0 += np.float32(0.04) * wk + np.float32(0.3) * pud
                     if wk > 0:
                         shine = np.float32(60.0)
-                li = lit[i] if has_lit else one
+                li = one
+                if has_lit:
+                    if lit_step == 0 or own[i]:
+                        li = lit[i]
+                    elif ndl[i] > 0:
+                        q = src[i] if nearest else 0
+                        li = lit[lrow + (lit_step * w if q >= 2 else 0) + lcol
+                                 + (lit_step if q % 2 == 1 else 0)]
                 occ = ao[i] if has_ao else one
                 nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
                 s_sun = e_sun * ndl[i] * li * trans

@@ -6,11 +6,12 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from ..numba_setup import KERNEL_OPTIONS as _OPTS
 
-__all__ = ["solve_on_histogram"]
+__all__ = ["solve_on_histogram", "histogram_uniform"]
 
 
 @njit(**_OPTS)
@@ -65,3 +66,28 @@ def solve_on_histogram(lo, yc, wts, key_gray, target_sd, shoulder, plo, phi):  #
                 b = mid
         p = math.exp(0.5 * (a + b))
     return _gain_for(p, lo, yc, wts, shoulder, key_gray), p
+
+
+@njit(**_OPTS)
+def histogram_uniform(a, edges):  # pragma: no cover - compiled
+    """Counts (m,) int64 of ``a`` (float64) in the m equal bins ``edges`` (m + 1,) =
+    ``np.linspace(lo, hi, m + 1)``: the same counts as ``np.histogram(a, m, (lo, hi))``,
+    with numpy's index arithmetic (scaled offset, then the +-1 corrections at the edges;
+    the last bin holds ``hi``; values outside [lo, hi] are left out), in one pass."""
+    m = edges.shape[0] - 1
+    lo = edges[0]
+    hi = edges[m]
+    denom = hi - lo
+    cnt = np.zeros(m, np.int64)
+    for x in a:
+        if not (x >= lo and x <= hi):
+            continue
+        k = np.int64(((x - lo) / denom) * m)
+        if k == m:
+            k -= 1
+        if x < edges[k]:
+            k -= 1
+        if x >= edges[k + 1] and k != m - 1:
+            k += 1
+        cnt[k] += 1
+    return cnt

@@ -24,7 +24,9 @@ class Frame:
     visibility : {id: VehicleVisibility} for every vehicle with amodal pixels in the image
     factors  : influence factors drawn for this frame (sun, haze, overcast, wet, sensor)
     camera   : the :class:`aerial_synth.camera.Camera`
-    timings_s: seconds per stage (not part of the metadata: not deterministic)
+    timings_s: seconds per stage (not part of the metadata: not deterministic); visibility
+               runs alongside the shading stages ("rgb"), so the stages can sum to more
+               than "total"
     """
 
     instance: np.ndarray
@@ -82,16 +84,38 @@ def render_frame(
     buf = cast_buffers(rayscene, camera)
     t1 = time.perf_counter()
     vehicles = placement.vehicles if placement is not None else []
-    vis, amodal = compute_visibility(rayscene, camera, buf.instance, vehicles,
-                                     depth=buf.depth)
-    t2 = time.perf_counter()
     shade_t: dict = {}
+    side = None
     if cfg.backend == "pyrender":
         from .pyrender_backend import render_rgb
 
+        vis, amodal = compute_visibility(rayscene, camera, buf.instance, vehicles,
+                                         depth=buf.depth)
+        t_vis = time.perf_counter() - t1
         rgb = render_rgb(rayscene, camera, factors)
     else:
-        rgb = shade(rayscene, camera, buf, factors, rng, timings=shade_t)
+        # visibility (labels) and shading (RGB) read the same buffers and nothing of each
+        # other: visibility runs in a second thread beside the shader's stages after its
+        # ray casts (compose, tone, sensor), so its serial parts fill the cores those leave
+        # idle (the same results either way)
+        overlap = OVERLAP_VISIBILITY and _thread_safe_kernels()
+        sides: list = []
+
+        def start_visibility():
+            sides.append(_Side(compute_visibility, rayscene, camera, buf.instance, vehicles,
+                               depth=buf.depth))
+
+        if not overlap:
+            vis, amodal = compute_visibility(rayscene, camera, buf.instance, vehicles,
+                                             depth=buf.depth)
+            t_vis = time.perf_counter() - t1
+        rgb = shade(rayscene, camera, buf, factors, rng, timings=shade_t,
+                    before_compose=start_visibility if overlap else None)
+        if overlap:
+            if not sides:  # pragma: no cover - shade always calls it
+                start_visibility()
+            side = sides[0]
+            (vis, amodal), t_vis = side.result()
     t3 = time.perf_counter()
     return Frame(
         instance=buf.instance,
@@ -102,6 +126,51 @@ def render_frame(
         factors=factors,
         camera=camera,
         amodal=amodal,
-        timings_s={"buffers": t1 - t0, "visibility": t2 - t1, "rgb": t3 - t2, "total": t3 - t0,
+        timings_s={"buffers": t1 - t0, "visibility": t_vis, "rgb": t3 - t1 - (
+            0.0 if side is not None else t_vis), "total": t3 - t0,
                    **{f"rgb_{k}": v for k, v in shade_t.items()}},
     )
+
+
+#: run visibility in a second thread while shading (False: one after the other)
+OVERLAP_VISIBILITY = True
+
+
+def _thread_safe_kernels() -> bool:
+    """Whether numba's threading layer lets two threads run parallel kernels at once (the
+    OpenMP and TBB layers do; the fallback work queue does not)."""
+    try:
+        import numba
+
+        return numba.threading_layer() in ("omp", "tbb")
+    except (ImportError, ValueError):  # no parallel kernel has run yet
+        return False
+
+
+class _Side:
+    """``fn(*args, **kw)`` in a thread of its own, started at once; :meth:`result` joins it
+    and returns (its value, its seconds) or raises its exception. A thread per frame (not a
+    pool) so that forked export workers never inherit a pool without its thread."""
+
+    def __init__(self, fn, *args, **kw):
+        import threading
+
+        self._out: dict = {}
+
+        def run():
+            t = time.perf_counter()
+            try:
+                self._out["value"] = fn(*args, **kw)
+            except BaseException as e:  # noqa: BLE001 - re-raised in the caller's thread
+                self._out["error"] = e
+            self._out["seconds"] = time.perf_counter() - t
+
+        self._thread = threading.Thread(target=run, name="aerial-synth-visibility",
+                                        daemon=True)
+        self._thread.start()
+
+    def result(self):
+        self._thread.join()
+        if "error" in self._out:
+            raise self._out["error"]
+        return self._out["value"], self._out["seconds"]

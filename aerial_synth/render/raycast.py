@@ -156,10 +156,12 @@ def cast_buffers(rayscene, camera) -> Buffers:
     """Cast one ray per pixel centre; return instance / semantic / depth and hit data.
 
     Embree's answer is read without copies and turned into faces, labels, depth and
-    camera-facing normals in one compiled pass (:func:`._kernels.finish_buffers`); the
-    result is the same as mapping :meth:`RayScene.cast_rays` hits."""
-    from ._kernels import finish_buffers
-    from .smooth import smooth_shading_normals
+    camera-facing normals, with the smooth shading normals of crown clumps
+    (:mod:`.smooth`), in one compiled pass (:func:`.smooth.finish_smooth_buffers`, the
+    same per-pixel operations as :func:`._kernels.finish_buffers` followed by
+    :func:`.smooth.smooth_shading_normals`); the result is the same as mapping
+    :meth:`RayScene.cast_rays` hits."""
+    from .smooth import corner_normals, finish_smooth_buffers
 
     h, w = camera.height_px, camera.width_px
     n = h * w
@@ -174,11 +176,12 @@ def cast_buffers(rayscene, camera) -> Buffers:
     depth = np.empty(n, np.float32)
     semantic = np.empty(n, np.uint8)
     instance = np.empty(n, np.uint32)
-    finish_buffers(rays, t, ans["geometry_ids"], ans["primitive_ids"], lut, offs,
-                   rayscene.face_label, rayscene.face_instance, normal, face, depth, semantic,
-                   instance)
     # shading only: crown clumps get interpolated vertex normals (faces, labels untouched)
-    smooth_shading_normals(rayscene, face, ans["primitive_uvs"], rays, normal)
+    row, corners = corner_normals(rayscene)
+    finish_smooth_buffers(rays, t, ans["geometry_ids"], ans["primitive_ids"],
+                          np.ascontiguousarray(ans["primitive_uvs"], dtype=np.float32), lut,
+                          offs, rayscene.face_label, rayscene.face_instance, row, corners,
+                          normal, face, depth, semantic, instance)
     return Buffers(h, w, instance.reshape(h, w), semantic.reshape(h, w), depth.reshape(h, w),
                    face, t, normal, rays)
 

@@ -57,12 +57,14 @@ def _pair(name: str, value, lo: float, hi: float) -> tuple[float, float]:
 #: Named presets (keyword overrides of the defaults): ``full`` is every realism factor on
 #: (the default); ``fast`` drops ambient occlusion, the sun-disk sampling, procedural
 #: texture and material detail (so also the light through crown gaps) and the mirror rays
-#: of wet roads, and casts one shadow ray per 4 x 4 block (see docs/rendering.md, "Speed",
-#: for the measured costs: fast stays within 1.5 x the bare primary cast).
+#: of wet roads, and casts one shadow ray per 4 x 4 block, object-edge pixels taking a
+#: neighbouring block sample on their own surface (``shadow_edges="nearest"``; see
+#: docs/rendering.md, "Speed", for the measured costs: fast stays within 1.5 x the bare
+#: primary cast).
 PRESETS: dict[str, dict] = {
     "full": {},
     "fast": {"ambient_occlusion": False, "soft_shadows": False, "shadow_step": 4,
-             "texture": False, "wet_reflections": False},
+             "shadow_edges": "nearest", "texture": False, "wet_reflections": False},
 }
 
 _PAIRS = {  # name: (lowest, highest) allowed
@@ -76,6 +78,10 @@ _PAIRS = {  # name: (lowest, highest) allowed
     "concrete_albedo": (0.05, 4), "ground_albedo": (0.05, 4), "sky_light": (0.1, 5),
     "vegetation_dryness": (0, 1), "road_wear": (0, 1),
 }
+#: ``shadow_edges`` modes (``shadow_step`` > 1): "cast": a pixel that differs from its
+#: block's sample (label, depth) casts its own shadow ray; "nearest": it copies the first
+#: sample at its cell's corners on its own surface and casts only when there is none
+SHADOW_EDGES = ("cast", "nearest")
 #: ``randomise`` modes: "none" (realistic), "textures" (domain randomisation after Tobin et
 #: al. 2017: every material's colour, the light's colour and the sky's drawn at random)
 RANDOMISE = ("none", "textures")
@@ -133,6 +139,7 @@ class RenderConfig:
     soft_shadows: bool = True
     wet_reflections: bool = True
     shadow_step: int = 3
+    shadow_edges: str = "cast"
     ambient_occlusion: bool = True
     ao_step: int = 5
     ao_rays: int = 4
@@ -153,6 +160,7 @@ class RenderConfig:
         one_of("render config backend", self.backend, ("raycast", "pyrender"))
         one_of("render config exposure_mode", self.exposure_mode, ("auto", "fixed"))
         one_of("render config randomise", self.randomise, RANDOMISE)
+        one_of("render config shadow_edges", self.shadow_edges, SHADOW_EDGES)
         s(self, "shadow_step", integer("render config shadow_step", self.shadow_step, 1, 16))
         s(self, "ao_step", integer("render config ao_step", self.ao_step, 1, 32))
         s(self, "ao_rays", integer("render config ao_rays", self.ao_rays, 1, 64))
@@ -222,6 +230,8 @@ def sample_factors(cfg: RenderConfig, rng: np.random.Generator) -> dict:
     f["chromatic_blur"] = float(u(*cfg.chromatic_blur))
     f["shot_noise"] = float(u(*cfg.shot_noise))
     f["shadow_step"] = cfg.shadow_step
+    if cfg.shadow_edges != "cast":  # recorded when not the default (as before otherwise)
+        f["shadow_edges"] = cfg.shadow_edges
     f["wet_reflections"] = bool(cfg.wet_reflections)
     f["ambient_occlusion"] = (
         {"step_px": cfg.ao_step, "rays": cfg.ao_rays, "radius_m": cfg.ao_radius_m}
@@ -315,11 +325,12 @@ def solve_tone(luma: np.ndarray, key_gray: float, target_sd: float, shoulder: fl
         return 1.0, 1.0 / 2.2
     ly = np.log(y)
     lo, hi = float(ly.min()), float(ly.max()) + 1e-6
-    cnt, edges = np.histogram(ly, bins=256, range=(lo, hi))
+    from ._tone import histogram_uniform, solve_on_histogram  # compiled, same results
+
+    edges = np.linspace(lo, hi, 257)  # np.histogram(ly, bins=256, range=(lo, hi))
+    cnt = histogram_uniform(np.ascontiguousarray(ly, np.float64), edges)
     yc = np.exp(0.5 * (edges[1:] + edges[:-1]))
     wts = cnt / cnt.sum()
-
-    from ._tone import solve_on_histogram  # compiled: the same bisections, ~20x faster
 
     plo, phi = power_range
     lg, p = solve_on_histogram(lo, np.ascontiguousarray(yc, np.float64),
@@ -382,6 +393,9 @@ def _kinds() -> np.ndarray:
 
 
 _KIND = _kinds()
+#: unblurred shadows: compose reads the block samples itself instead of a spread pass (the
+#: same image; tests/render/test_kernels.py compares both)
+_SPREAD_IN_COMPOSE = True
 _TANGENTS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
@@ -569,7 +583,8 @@ def _haze_colour(tint: float, e_sky: float) -> np.ndarray:
 
 
 def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | None = None,
-          timings: dict | None = None, shadow_step: int | None = None) -> np.ndarray:
+          timings: dict | None = None, shadow_step: int | None = None,
+          before_compose=None) -> np.ndarray:
     """Shaded RGB (H, W, 3) uint8 for the primary hits in ``buffers`` under ``factors``
     (from :func:`sample_factors`; the per-pixel randomness comes from
     ``factors["pixel_seed"]``, so ``rng`` is not used and kept for compatibility).
@@ -584,6 +599,9 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
                   one per k x k block plus every pixel that differs from its block's first
                   pixel (another label, or a depth jump over 0.2 m), so object edges stay
                   exact and only shadow edges inside one surface are coarser.
+    before_compose : optional callable, called once when the ray-casting stages are done
+                  (before compose); :func:`.frame.render_frame` starts visibility there,
+                  so it runs beside the less parallel stages that follow.
     """
     import time
 
@@ -616,14 +634,17 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
         face_mat, face_alb = np.zeros(1, np.uint8), np.zeros((1, 3), np.float32)
     ndl = np.empty(n, np.float32)
     own = np.empty(n, np.bool_)
+    nearest = factors.get("shadow_edges", "cast") == "nearest" and step > 1
+    src = np.empty(n if nearest else 1, np.uint8)  # nearest: the corner sample each copies
     mark("setup")
     K.surface(h, w, buffers.rays, buffers.t, buffers.face, buffers.normal,
               buffers.semantic.reshape(-1), buffers.depth.reshape(-1), face_mat, tiles, textured,
-              L, _FOLIAGE, step, ndl, own)
+              L, _FOLIAGE, step, nearest, ndl, own, src)
     mark("surface")
 
     has_lit = bool(factors.get("shadows", True))
     lit = np.ones(n if has_lit else 1, np.float32)
+    lit_step = 0  # 0: lit holds every pixel's value; k: only the own pixels' (K.compose)
     if has_lit:
         disk = _disk_vectors(L.astype(np.float64), float(factors.get("sun_radius_deg", 0.0)))
         idx, srays = K.gather_shadow_rays(own, buffers.rays, buffers.t, buffers.normal, L,
@@ -637,8 +658,14 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
             if len(leafy):
                 vis[leafy] = _crown_gaps(srays[leafy], tiles)
         mark("shadow_rays")
-        K.spread_shadow(h, w, step, own, ndl, idx, vis, lit)
         sig = (0.5 + 6.0 * oc) if oc > 0.02 else (0.6 if disk.any() else 0.0)
+        if sig <= 0 and _SPREAD_IN_COMPOSE:  # nothing blurs lit: compose reads the samples
+            K.scatter_values(idx, vis, lit)
+            lit_step = step
+        elif nearest:
+            K.spread_shadow_nearest(h, w, step, own, ndl, src, idx, vis, lit)
+        else:
+            K.spread_shadow(h, w, step, own, ndl, idx, vis, lit)
         if sig > 0:  # sun-disk samples: a smooth penumbra; overcast: a wide, soft edge
             lit = cv2.GaussianBlur(lit.reshape(h, w), (0, 0), sig).reshape(-1)
         mark("shadow_spread")
@@ -692,9 +719,12 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
             if has_refl else np.zeros((1, 3), np.float32))
     if has_refl:
         mark("wet_reflections")
+    if before_compose is not None:
+        before_compose()
     lin = np.empty((h, w, 3), np.float32)
     K.compose(h, w, buffers.rays, buffers.t, buffers.face, buffers.normal,
-              buffers.depth.reshape(-1), ndl, lit, has_lit, ao, has_ao, face_mat, face_alb,
+              buffers.depth.reshape(-1), ndl, lit, has_lit, own, src, lit_step, nearest, ao,
+              has_ao, face_mat, face_alb,
               gains_m, tiles, textured, _FINE, _COARSE, _DRY, _WETK, _SPEC,
               _SHINE, _F0, wet, L, sun_col, sky_col, (sky_col * np.float32(0.25)).astype(np.float32), veil, e_sun, e_sky,
               np.float32(1.0 - 0.9 * oc), np.float32(factors["haze"]), np.float32(1.0 / alt),
@@ -737,9 +767,9 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
     ca = float(factors.get("chromatic_blur", 0.0))
     if sig > 0.05:
         if ca > 0.01:  # lateral colour: red and blue a little softer than green
-            chans = [cv2.GaussianBlur(np.ascontiguousarray(rgb[..., k]), (0, 0), sig * f)
-                     for k, f in enumerate((1.0 + ca, 1.0, 1.0 + 1.5 * ca))]
-            rgb = np.ascontiguousarray(np.stack(chans, axis=2))
+            chans = [cv2.GaussianBlur(ch, (0, 0), sig * f)
+                     for ch, f in zip(cv2.split(rgb), (1.0 + ca, 1.0, 1.0 + 1.5 * ca))]
+            rgb = cv2.merge(chans)  # split / merge: the same bytes as numpy slices and stack
         else:
             rgb = cv2.GaussianBlur(rgb, (0, 0), sig)
     ns = factors["noise_sigma"]

@@ -19,7 +19,8 @@ from numba import njit, prange
 from ..numba_setup import KERNEL_OPTIONS as _OPTS
 from ..scene.model import MATERIAL_IDS
 
-__all__ = ["SMOOTH_MATERIALS", "corner_normals", "smooth_shading_normals"]
+__all__ = ["SMOOTH_MATERIALS", "corner_normals", "smooth_shading_normals",
+           "finish_smooth_buffers"]
 
 #: materials whose shading normals are interpolated across faces
 SMOOTH_MATERIALS: tuple[str, ...] = ("foliage",)
@@ -59,37 +60,77 @@ def corner_normals(rayscene) -> tuple[np.ndarray, np.ndarray]:
     return rayscene._smooth_normals_cache
 
 
+@njit(inline="always")
+def _smooth_one(i, f, uv, rays, row, corners, normal):  # pragma: no cover - compiled
+    """Pixel i (hit face f >= 0): its normal -> the interpolated vertex normal, if f is a
+    smooth-material static face (see :func:`smooth_shading_normals`)."""
+    if f >= row.shape[0]:
+        return
+    k = row[f]
+    if k < 0:
+        return
+    u = uv[i, 0]
+    v = uv[i, 1]
+    w0 = np.float32(1.0) - u - v
+    sx = w0 * corners[k, 0, 0] + u * corners[k, 1, 0] + v * corners[k, 2, 0]
+    sy = w0 * corners[k, 0, 1] + u * corners[k, 1, 1] + v * corners[k, 2, 1]
+    sz = w0 * corners[k, 0, 2] + u * corners[k, 1, 2] + v * corners[k, 2, 2]
+    ln = np.sqrt(sx * sx + sy * sy + sz * sz)
+    if ln <= np.float32(1e-12):
+        return
+    sx /= ln
+    sy /= ln
+    sz /= ln
+    gx, gy, gz = normal[i, 0], normal[i, 1], normal[i, 2]  # camera-facing geometric
+    if sx * gx + sy * gy + sz * gz < 0:  # same side as the geometric normal
+        sx, sy, sz = -sx, -sy, -sz
+    if sx * rays[i, 3] + sy * rays[i, 4] + sz * rays[i, 5] >= 0:
+        return  # a grazing hit whose smooth normal faces away: keep the facet's
+    normal[i, 0] = sx
+    normal[i, 1] = sy
+    normal[i, 2] = sz
+
+
+@njit(parallel=True, **_OPTS)
+def finish_smooth_buffers(rays, t, gid, pid, uv, lut, offs, face_label, face_instance, row,
+                          corners, normal, face, depth, semantic,
+                          instance):  # pragma: no cover - compiled
+    """:func:`._kernels.finish_buffers` and then :func:`smooth_shading_normals` in one pass
+    over the n primary hits (the same operations per pixel, so the same result): face,
+    semantic, instance, depth, the normal turned to the camera, then for hits on smooth
+    faces (``row``, ``corners`` from :func:`corner_normals`; ``row`` may be empty) the
+    interpolated vertex normal at the hit's barycentric ``uv`` (n, 2)."""
+    n = t.shape[0]
+    ng = offs.shape[0] - 1
+    for i in prange(n):
+        g = np.int64(gid[i])
+        f = np.int64(-1)
+        if g < ng:
+            f = lut[offs[g] + np.int64(pid[i])]
+        face[i] = f
+        if f >= 0:
+            semantic[i] = np.uint8(face_label[f])
+            instance[i] = np.uint32(face_instance[f])
+        else:
+            semantic[i] = 0
+            instance[i] = 0
+        ti = t[i]
+        depth[i] = ti if np.isfinite(ti) else np.float32(0.0)
+        d = normal[i, 0] * rays[i, 3] + normal[i, 1] * rays[i, 4] + normal[i, 2] * rays[i, 5]
+        if d > 0:
+            normal[i, 0] = -normal[i, 0]
+            normal[i, 1] = -normal[i, 1]
+            normal[i, 2] = -normal[i, 2]
+        if f >= 0:
+            _smooth_one(i, f, uv, rays, row, corners, normal)
+
+
 @njit(parallel=True, **_OPTS)
 def _apply(face, uv, rays, row, corners, normal):  # pragma: no cover - compiled
-    n = face.shape[0]
-    nrow = row.shape[0]
-    for i in prange(n):
+    for i in prange(face.shape[0]):
         f = face[i]
-        if f < 0 or f >= nrow:
-            continue
-        k = row[f]
-        if k < 0:
-            continue
-        u = uv[i, 0]
-        v = uv[i, 1]
-        w0 = np.float32(1.0) - u - v
-        sx = w0 * corners[k, 0, 0] + u * corners[k, 1, 0] + v * corners[k, 2, 0]
-        sy = w0 * corners[k, 0, 1] + u * corners[k, 1, 1] + v * corners[k, 2, 1]
-        sz = w0 * corners[k, 0, 2] + u * corners[k, 1, 2] + v * corners[k, 2, 2]
-        ln = np.sqrt(sx * sx + sy * sy + sz * sz)
-        if ln <= np.float32(1e-12):
-            continue
-        sx /= ln
-        sy /= ln
-        sz /= ln
-        gx, gy, gz = normal[i, 0], normal[i, 1], normal[i, 2]  # camera-facing geometric
-        if sx * gx + sy * gy + sz * gz < 0:  # same side as the geometric normal
-            sx, sy, sz = -sx, -sy, -sz
-        if sx * rays[i, 3] + sy * rays[i, 4] + sz * rays[i, 5] >= 0:
-            continue  # a grazing hit whose smooth normal faces away: keep the facet's
-        normal[i, 0] = sx
-        normal[i, 1] = sy
-        normal[i, 2] = sz
+        if f >= 0:
+            _smooth_one(i, f, uv, rays, row, corners, normal)
 
 
 def smooth_shading_normals(rayscene, face: np.ndarray, uv: np.ndarray, rays: np.ndarray,

@@ -145,6 +145,11 @@ def test_block_shadow_sampling_matches_one_ray_per_pixel():
     assert shadowed.mean() > 0.05  # the scene really has shadows
     differ = np.abs(one - two).max(axis=2) > 20
     assert differ.mean() < 0.01
+    # the fast preset's edges: object-edge pixels copy a same-surface corner sample
+    for step, limit in ((2, 0.015), (4, 0.03)):
+        near = shade(rs, cam, buf, {**factors, "shadow_edges": "nearest"},
+                     np.random.default_rng(0), shadow_step=step).astype(int)
+        assert (np.abs(one - near).max(axis=2) > 20).mean() < limit
     # where the block sampling differs, it is at a shadow edge inside one surface
     edge = np.zeros_like(shadowed)
     edge[1:-1, 1:-1] = (shadowed[1:-1, 1:-1] != shadowed[:-2, 1:-1]) | (
@@ -168,3 +173,169 @@ def test_all_pixel_rays_equal_per_pixel_rays_bit_for_bit():
     a = cam.pixel_rays()
     b = cam.pixel_rays(rows, cols)
     assert a.shape == (301 * 177, 6) and a.tobytes() == b.tobytes()
+
+
+def _nearest_reference(h, w, step, face, ndl, semantic, depth, lit_rays):
+    """Straightforward formulation of ``shadow_edges="nearest"``: which pixels cast (own)
+    and the sun visibility every pixel ends with, given each pixel's own ray result
+    ``lit_rays`` (n,) (as if every pixel had cast one)."""
+    own = np.zeros(h * w, bool)
+    lit = np.ones(h * w, np.float32)
+    for r in range(h):
+        for c in range(w):
+            i = r * w + c
+            if face[i] < 0:
+                continue
+            r0, c0 = r - r % step, c - c % step
+            if (r, c) == (r0, c0):
+                own[i] = True
+                lit[i] = lit_rays[i]
+                continue
+            if ndl[i] <= 0:
+                continue
+            for rr, cc in ((r0, c0), (r0, c0 + step), (r0 + step, c0), (r0 + step, c0 + step)):
+                j = rr * w + cc
+                if rr < h and cc < w and face[j] >= 0 and semantic[j] == semantic[i] and abs(
+                        depth[i] - depth[j]) <= np.float32(0.2):
+                    lit[i] = lit_rays[j]
+                    break
+            else:
+                own[i] = True
+                lit[i] = lit_rays[i]
+    return own, lit
+
+
+@pytest.mark.parametrize("step", [2, 4])
+def test_nearest_shadow_edges_match_a_plain_reference(step):
+    from aerial_synth.render import shading
+    from aerial_synth.render.raycast import cast_buffers
+
+    spec = [(1, 22.0, 0.0, 0.3, 4.5, 1.8, 1.5), (2, 30.0, -2.0, 0.0, 9.0, 2.5, 3.5)]
+    rs, pl = make_world(spec, crown_at=(26.0, 3.0))
+    cfg = CameraConfig(width_px=97, height_px=83, gsd_m=0.25)
+    cam = Camera.look_at_ground(cfg, (26.0, 3.0, 0.0), yaw_deg=20.0, tilt_deg=8.0)
+    buf = cast_buffers(rs, cam)
+    h, w, n = buf.height_px, buf.width_px, buf.height_px * buf.width_px
+    L = shading.sun_direction(200.0, 30.0).astype(np.float32)
+    sem, dep = buf.semantic.reshape(-1), buf.depth.reshape(-1)
+    ndl, own, src = np.empty(n, np.float32), np.empty(n, bool), np.empty(n, np.uint8)
+    K.surface(h, w, buf.rays, buf.t, buf.face, buf.normal, sem, dep, rs.face_material,
+              shading._noise_tiles(0), False, L, shading._FOLIAGE, step, True, ndl, own, src)
+    # every pixel's own shadow ray, then what the kernels keep of them
+    _, srays = K.gather_shadow_rays(buf.face >= 0, buf.rays, buf.t, buf.normal, L,
+                                    np.float32(shading._PEEL), np.zeros((2, 3), np.float32),
+                                    np.uint64(0))
+    lit_rays = np.ones(n, np.float32)
+    lit_rays[buf.face >= 0] = np.where(rs.test_occlusions(srays), 0.0, 1.0)
+    ref_own, ref_lit = _nearest_reference(h, w, step, buf.face, ndl, sem, dep, lit_rays)
+    np.testing.assert_array_equal(own, ref_own)
+    idx = np.flatnonzero(own)
+    lit = np.ones(n, np.float32)
+    K.spread_shadow_nearest(h, w, step, own, ndl, src, idx, lit_rays[idx], lit)
+    np.testing.assert_array_equal(lit, ref_lit)
+    # fewer rays than the "cast" edges, which mark a superset of them
+    cast_own = np.empty(n, bool)
+    K.surface(h, w, buf.rays, buf.t, buf.face, buf.normal, sem, dep, rs.face_material,
+              shading._noise_tiles(0), False, L, shading._FOLIAGE, step, False, ndl, cast_own,
+              src[:1])
+    assert (own <= cast_own).all() and own.sum() < cast_own.sum()
+    assert (lit_rays == 0).any() and (lit_rays == 1).any()
+
+
+@pytest.mark.parametrize("soft", [False, True])
+def test_parallel_shadow_gather_equals_a_serial_pass(soft):
+    rng = np.random.default_rng(5)
+    n = 40_000
+    own = rng.random(n) < 0.3
+    own[:100] = False
+    rays = rng.normal(size=(n, 6)).astype(np.float32)
+    t = rng.uniform(1, 100, n).astype(np.float32)
+    normal = rng.normal(size=(n, 3)).astype(np.float32)
+    light = np.array([0.3, -0.4, 0.866], np.float32)
+    disk = (np.array([[0.01, 0.0, -0.003], [0.0, 0.01, 0.004]], np.float32) if soft
+            else np.zeros((2, 3), np.float32))
+    args = (own, rays, t, normal, light, np.float32(0.02), disk, np.uint64(99))
+    idx, out = with_threads(2, lambda: K.gather_shadow_rays(*args))
+    np.testing.assert_array_equal(idx, np.flatnonzero(own))
+    p = rays[idx, :3] + t[idx, None] * rays[idx, 3:] + np.float32(0.02) * normal[idx]
+    np.testing.assert_array_equal(out[:, :3], p)
+    if not soft:
+        np.testing.assert_array_equal(out[:, 3:], np.broadcast_to(light, (len(idx), 3)))
+    else:  # the serial formulation (the kernel's Python body, one chunk after another)
+        with np.errstate(over="ignore"):  # the hash wraps around in uint64
+            i2, o2 = K.gather_shadow_rays.py_func(own[:3000], *args[1:])
+        np.testing.assert_array_equal(i2, idx[idx < 3000])
+        np.testing.assert_allclose(o2, out[: len(i2)], rtol=1e-6, atol=1e-7)
+        off = np.linalg.norm(out[:, 3:] - light, axis=1)
+        assert off.max() <= 0.012 and off.std() > 0.001  # within the disk (|a, b| <= 1)
+
+
+def test_tone_histogram_equals_numpy():
+    # the auto exposure's compiled histogram against np.histogram, values on bin edges too
+    from aerial_synth.render._tone import histogram_uniform
+
+    rng = np.random.default_rng(1)
+    for trial in range(100):
+        a = rng.normal(rng.uniform(-5, 5), rng.uniform(0.01, 3), rng.integers(1, 3000))
+        lo, hi = float(a.min()), float(a.max()) + (1e-6 if trial % 2 else 0.0)
+        e = np.linspace(lo, hi, 257)
+        a = np.concatenate([a, e[rng.integers(0, 257, 50)],
+                            [lo, hi, np.nextafter(hi, 1e9), np.nextafter(lo, -1e9)]])
+        ref, ref_edges = np.histogram(a, bins=256, range=(lo, hi))
+        assert np.array_equal(ref_edges, e)
+        assert np.array_equal(histogram_uniform(a, e), ref)
+
+
+@pytest.mark.parametrize("preset", ["full", "fast"])
+def test_visibility_beside_shading_gives_the_same_frame(monkeypatch, preset):
+    # render_frame runs visibility in a second thread while shading: the same frame as one
+    # stage after the other, and an error in visibility reaches the caller
+    from aerial_synth.render import frame as F
+
+    spec = [(1, 0.0, 0.0, 0.3, 4.5, 1.8, 1.5), (2, 6.0, -2.0, 0.0, 9.0, 2.5, 3.5)]
+    rs, pl = make_world(spec, crown_at=(3.0, 3.0))
+    cam = Camera.look_at_ground(SMALL, (2.0, 0.0, 0.0), yaw_deg=20.0, tilt_deg=8.0)
+    cfg = RenderConfig.preset(preset, jpeg_probability=0.0)
+    out = {}
+    for overlap in (True, False):
+        monkeypatch.setattr(F, "OVERLAP_VISIBILITY", overlap)
+        out[overlap] = render_frame(rs, cam, pl, np.random.default_rng(4), cfg)
+    a, b = out[True], out[False]
+    assert F._thread_safe_kernels()
+    for name in ("instance", "semantic", "depth", "rgb"):
+        assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), name
+    assert a.visibility == b.visibility and len(a.visibility) == 2
+    assert a.amodal.ids.tobytes() == b.amodal.ids.tobytes()
+    assert a.amodal.rows.tobytes() == b.amodal.rows.tobytes()
+    assert a.to_meta() == b.to_meta()
+
+    def broken(*args, **kw):
+        raise RuntimeError("visibility failed")
+
+    monkeypatch.setattr(F, "OVERLAP_VISIBILITY", True)
+    monkeypatch.setattr(F, "compute_visibility", broken)
+    with pytest.raises(RuntimeError, match="visibility failed"):
+        render_frame(rs, cam, pl, np.random.default_rng(4), cfg)
+
+
+@pytest.mark.parametrize("step", [1, 3, 4])
+def test_shadow_spread_inside_compose_equals_the_spread_pass(monkeypatch, step):
+    # unblurred shadows (point sun, no overcast): compose reads the block samples itself;
+    # the image must be the one of spread_shadow's pass over the image, byte for byte
+    from aerial_synth.render import shading
+    from aerial_synth.render.raycast import cast_buffers
+
+    spec = [(1, 22.0, 0.0, 0.3, 4.5, 1.8, 1.5), (2, 30.0, -2.0, 0.0, 9.0, 2.5, 3.5)]
+    rs, pl = make_world(spec, crown_at=(26.0, 3.0))
+    cam = Camera.look_at_ground(SMALL, (26.0, 6.0, 0.0), yaw_deg=30.0, tilt_deg=6.0)
+    buf = cast_buffers(rs, cam)
+    for preset, edges in (("fast", "nearest"), ("fast", "cast"), ("full", "cast")):
+        cfg = RenderConfig.preset(preset, soft_shadows=False, overcast_probability=0,
+                                  jpeg_probability=0, shadow_step=step,
+                                  shadow_edges=edges)
+        factors = shading.sample_factors(cfg, np.random.default_rng(3))
+        out = {}
+        for fused in (True, False):
+            monkeypatch.setattr(shading, "_SPREAD_IN_COMPOSE", fused)
+            out[fused] = shading.shade(rs, cam, buf, dict(factors))
+        assert out[True].tobytes() == out[False].tobytes()

@@ -191,6 +191,7 @@ def test_presets_and_bad_config():
     assert set(PRESETS) == {"full", "fast"}
     fast = RenderConfig.preset("fast")
     assert not fast.ambient_occlusion and not fast.soft_shadows and fast.shadow_step == 4
+    assert fast.shadow_edges == "nearest" and RenderConfig().shadow_edges == "cast"
     assert RenderConfig.preset("full") == RenderConfig()
     assert RenderConfig.preset("fast", shadows=False).shadows is False
     for kw, needle in [({"key_gray": (200, 100)}, "key_gray"),
@@ -198,6 +199,7 @@ def test_presets_and_bad_config():
                        ({"saturation": "a lot"}, "saturation"),
                        ({"grayscale_probability": 1.5}, "grayscale_probability"),
                        ({"randomise": "colours"}, "randomise"),
+                       ({"shadow_edges": "guess"}, "shadow_edges"),
                        ({"exposure_mode": "manual"}, "exposure_mode"),
                        ({"ao_rays": 0}, "ao_rays"),
                        ({"ambient_occlusion": "yes"}, "ambient_occlusion")]:

@@ -74,3 +74,35 @@ def test_corner_table_is_cached_and_covers_only_foliage():
     assert (row[:n_roof] == -1).all() and (row[n_roof:] >= 0).all()
     assert corners.shape == (20, 3, 3)
     np.testing.assert_allclose(np.linalg.norm(corners, axis=2), 1.0, atol=1e-6)
+
+
+def test_fused_finish_pass_equals_finish_then_smooth():
+    # cast_buffers' one pass (render/smooth.finish_smooth_buffers) against the two passes it
+    # replaces: _kernels.finish_buffers, then smooth_shading_normals; also with no smooth
+    # faces at all (an empty corner table)
+    from aerial_synth.render._kernels import finish_buffers
+    from aerial_synth.render.smooth import finish_smooth_buffers
+
+    rs = RayScene(_scene())
+    rays = _rays(np.linspace(-4, 12, 97), np.linspace(-4, 4, 53))
+    rays[::7, 5] = 1.0  # some rays away from everything: misses
+    ans = rs._cast_raw(rays)
+    lut, offs = ans["lut"]
+    uv = np.array(ans["primitive_uvs"], np.float32)
+    n = len(rays)
+    for row, corners in (corner_normals(rs), (np.zeros(0, np.int32),
+                                              np.zeros((0, 3, 3), np.float32))):
+        a = [np.empty(n, np.int64), np.empty(n, np.float32), np.empty(n, np.uint8),
+             np.empty(n, np.uint32)]
+        b = [x.copy() for x in a]
+        na = np.array(ans["primitive_normals"], np.float32)
+        nb = na.copy()
+        finish_buffers(rays, ans["t_hit"], ans["geometry_ids"], ans["primitive_ids"], lut, offs,
+                       rs.face_label, rs.face_instance, na, *a)
+        if len(corners):
+            smooth_shading_normals(rs, a[0], uv, rays, na)
+        finish_smooth_buffers(rays, ans["t_hit"], ans["geometry_ids"], ans["primitive_ids"], uv,
+                              lut, offs, rs.face_label, rs.face_instance, row, corners, nb, *b)
+        assert (a[0] < 0).any() and (a[0] >= 0).any()
+        for x, y in zip(a + [na], b + [nb]):
+            assert x.tobytes() == y.tobytes()
