@@ -114,7 +114,8 @@ def export_dataset(
     folder, scene, catalog, scenario, camera) before writing anything; builds a new dataset
     beside ``out_dir`` and moves it into place at the end (see :mod:`.output`).
 
-    workers  : processes (forked from a fork server, spawned where there is none); output is byte-identical for any count
+    workers  : processes (forked from a fork server, spawned where there is none); output
+               is byte-identical for any count
     resume   : finish an interrupted export with the same parameters
     force    : replace an existing dataset (only once the new one is complete), or write
                into a folder that is not a dataset (keeping its files)
@@ -249,8 +250,8 @@ def _run_pool(cfg: ExportConfig, build: Path, tasks, workers: int, bar, scene=No
 
 #: What a pool worker imports; the fork server imports it once, before it forks workers.
 _WORKER_MODULES = ("aerial_synth.dataset._server_guard",  # first: see that module
-                   "aerial_synth.numba_setup", "aerial_synth.dataset.worker", "aerial_synth.render.frame",
-                   "aerial_synth.render.shading", "aerial_synth.placement.traffic",
+                   "aerial_synth.numba_setup", "aerial_synth.dataset.worker",
+                   "aerial_synth.render.frame", "aerial_synth.render.shading", "aerial_synth.placement.traffic",
                    "aerial_synth.annotate", "aerial_synth.formats.registry", "open3d",
                    "scipy.special", "cv2")
 
