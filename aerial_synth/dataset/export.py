@@ -249,11 +249,12 @@ def _run_pool(cfg: ExportConfig, build: Path, tasks, workers: int, bar, scene=No
 
 
 #: What a pool worker imports; the fork server imports it once, before it forks workers.
-_WORKER_MODULES = ("aerial_synth.dataset._server_guard",  # first: see that module
-                   "aerial_synth.numba_setup", "aerial_synth.dataset.worker",
-                   "aerial_synth.render.frame", "aerial_synth.render.shading",
-                   "aerial_synth.placement.traffic", "aerial_synth.annotate", "aerial_synth.formats.registry", "open3d",
-                   "scipy.special", "cv2")
+_WORKER_MODULES = (
+    "aerial_synth.dataset._server_guard",  # first: see that module
+    "aerial_synth.numba_setup", "aerial_synth.dataset.worker", "aerial_synth.render.frame",
+    "aerial_synth.render.shading", "aerial_synth.placement.traffic", "aerial_synth.annotate",
+    "aerial_synth.formats.registry", "open3d", "scipy.special", "cv2",
+)
 
 
 def pool_context(dask: bool = False):
