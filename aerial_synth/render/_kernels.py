@@ -21,39 +21,6 @@ from . import _materials
 MATERIALS_SHA = "985acd3111da2903"
 
 
-@njit(parallel=True, **_OPTS)
-def finish_buffers(rays, t, gid, pid, lut, offs, face_label, face_instance, normal, face,
-                   depth, semantic, instance):  # pragma: no cover - compiled
-    """One pass over the n primary hits, straight from Embree's answer (no numpy temporaries):
-
-    ``face`` (n,) int64 global face = ``lut[offs[gid] + pid]`` (-1 on miss, i.e. ``gid`` not
-    a geometry of the scene: see ``RayScene._face_lut``), ``semantic`` (n,) uint8 and
-    ``instance`` (n,) uint32 from the per-face tables ``face_label`` / ``face_instance``
-    (0 on miss), ``depth`` (n,) = t (0 on miss), and in place: ``normal`` (n, 3) flipped to
-    face the camera."""
-    n = t.shape[0]
-    ng = offs.shape[0] - 1
-    for i in prange(n):
-        g = np.int64(gid[i])
-        f = np.int64(-1)
-        if g < ng:
-            f = lut[offs[g] + np.int64(pid[i])]
-        face[i] = f
-        if f >= 0:
-            semantic[i] = np.uint8(face_label[f])
-            instance[i] = np.uint32(face_instance[f])
-        else:
-            semantic[i] = 0
-            instance[i] = 0
-        ti = t[i]
-        depth[i] = ti if np.isfinite(ti) else np.float32(0.0)
-        d = normal[i, 0] * rays[i, 3] + normal[i, 1] * rays[i, 4] + normal[i, 2] * rays[i, 5]
-        if d > 0:
-            normal[i, 0] = -normal[i, 0]
-            normal[i, 1] = -normal[i, 1]
-            normal[i, 2] = -normal[i, 2]
-
-
 _bilinear = _materials._bil  # wrapped bilinear lookup in a 256 x 256 noise tile (one copy)
 
 
@@ -208,34 +175,27 @@ def gather_shadow_rays(own, rays, t, normal, light, peel, disk, seed):  # pragma
     return idx, out
 
 
-@njit(parallel=True, **_OPTS)
+_BLOCK_FIRST = np.zeros(0, np.uint8)  # no corner table: every pixel copies its block's first
+
+
+@njit(**_OPTS)
 def spread_shadow(h, w, step, own, ndl, idx, vis, lit):  # pragma: no cover - compiled
     """``lit`` (n,) float32, all ones on entry: the sun visibility ``vis`` (k,) float32 of
     each shadow ray (0 blocked, 1 clear, in between through a tree crown's gaps); pixels
     without their own ray copy their block's first pixel (when they face the sun)."""
-    k = idx.shape[0]
-    for j in prange(k):
-        lit[idx[j]] = vis[j]
-    if step > 1:
-        for r in prange(h):
-            rb = (r // step) * step
-            cb = 0  # c - c % step
-            for c in range(w):
-                if c - cb == step:
-                    cb = c
-                i = r * w + c
-                if not own[i] and ndl[i] > 0:
-                    lit[i] = lit[rb * w + cb]
+    spread_shadow_nearest(h, w, step, own, ndl, _BLOCK_FIRST, idx, vis, lit)
 
 
 @njit(parallel=True, **_OPTS)
 def spread_shadow_nearest(h, w, step, own, ndl, src, idx, vis, lit):  # pragma: no cover
     """:func:`spread_shadow` for :func:`surface` with ``nearest``: a pixel without its own
     ray that faces the sun copies the corner sample ``src`` (from :func:`surface`) of its
-    cell (its block's first pixel when on the same surface, else the next corner that is)."""
-    k = idx.shape[0]
-    for j in prange(k):
-        lit[idx[j]] = vis[j]
+    cell (its block's first pixel when on the same surface, else the next corner that is;
+    an empty ``src``: always its block's first pixel)."""
+    scatter_values(idx, vis, lit)
+    if step <= 1:
+        return
+    first = src.shape[0] == 0
     for r in prange(h):
         rb = (r // step) * step
         cb = 0  # c - c % step
@@ -244,7 +204,7 @@ def spread_shadow_nearest(h, w, step, own, ndl, src, idx, vis, lit):  # pragma: 
                 cb = c
             i = r * w + c
             if not own[i] and ndl[i] > 0:
-                q = src[i]
+                q = 0 if first else src[i]
                 lit[i] = lit[(rb + (step if q >= 2 else 0)) * w + cb + (step if q % 2 == 1
                                                                           else 0)]
 

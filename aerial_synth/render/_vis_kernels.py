@@ -85,6 +85,19 @@ def amodal_cast_mask(rows, cols, multi, instance, depth, centre, rot, fx, fy, cx
     return out
 
 
+@njit(inline="always")
+def _grow(box, k, c, r, first):  # pragma: no cover - compiled
+    """Box k (x0, y0, x1, y1; pixel c, r inclusive on the low side) takes in pixel (c, r);
+    ``first``: the box starts at that pixel."""
+    if first:
+        box[k, 0], box[k, 1], box[k, 2], box[k, 3] = c, r, c + 1, r + 1
+    else:
+        box[k, 0] = min(box[k, 0], c)
+        box[k, 1] = min(box[k, 1], r)
+        box[k, 2] = max(box[k, 2], c + 1)
+        box[k, 3] = max(box[k, 3], r + 1)
+
+
 @njit(**_OPTS)
 def amodal_groups(ids, prow, pcol, h, w):  # pragma: no cover - compiled
     """Per vehicle of the (id, pixel) pairs ``ids`` (m,) sorted, with pixel rows / columns
@@ -114,20 +127,9 @@ def amodal_groups(ids, prow, pcol, h, w):  # pragma: no cover - compiled
         if j == 0 or ids[j] != ids[j - 1]:
             k += 1
             uid[k] = ids[j]
-            box_all[k, 0], box_all[k, 1] = c, r
-            box_all[k, 2], box_all[k, 3] = c + 1, r + 1
+        _grow(box_all, k, c, r, count[k] == 0)
         count[k] += 1
-        box_all[k, 0] = min(box_all[k, 0], c)
-        box_all[k, 1] = min(box_all[k, 1], r)
-        box_all[k, 2] = max(box_all[k, 2], c + 1)
-        box_all[k, 3] = max(box_all[k, 3], r + 1)
         if inside[j]:
-            if n_in[k] == 0:
-                box_in[k, 0], box_in[k, 1] = c, r
-                box_in[k, 2], box_in[k, 3] = c + 1, r + 1
+            _grow(box_in, k, c, r, n_in[k] == 0)
             n_in[k] += 1
-            box_in[k, 0] = min(box_in[k, 0], c)
-            box_in[k, 1] = min(box_in[k, 1], r)
-            box_in[k, 2] = max(box_in[k, 2], c + 1)
-            box_in[k, 3] = max(box_in[k, 3], r + 1)
     return inside, uid, count, n_in, box_all, box_in

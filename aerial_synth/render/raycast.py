@@ -157,10 +157,9 @@ def cast_buffers(rayscene, camera) -> Buffers:
 
     Embree's answer is read without copies and turned into faces, labels, depth and
     camera-facing normals, with the smooth shading normals of crown clumps
-    (:mod:`.smooth`), in one compiled pass (:func:`.smooth.finish_smooth_buffers`, the
-    same per-pixel operations as :func:`._kernels.finish_buffers` followed by
-    :func:`.smooth.smooth_shading_normals`); the result is the same as mapping
-    :meth:`RayScene.cast_rays` hits."""
+    (:mod:`.smooth`), in one compiled pass (:func:`.smooth.finish_smooth_buffers`); the
+    result is the same as mapping :meth:`RayScene.cast_rays` hits and then
+    :func:`.smooth.smooth_shading_normals` (tests/render/test_smooth_normals.py)."""
     from .smooth import corner_normals, finish_smooth_buffers
 
     h, w = camera.height_px, camera.width_px

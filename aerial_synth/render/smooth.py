@@ -95,9 +95,11 @@ def _smooth_one(i, f, uv, rays, row, corners, normal):  # pragma: no cover - com
 def finish_smooth_buffers(rays, t, gid, pid, uv, lut, offs, face_label, face_instance, row,
                           corners, normal, face, depth, semantic,
                           instance):  # pragma: no cover - compiled
-    """:func:`._kernels.finish_buffers` and then :func:`smooth_shading_normals` in one pass
-    over the n primary hits (the same operations per pixel, so the same result): face,
-    semantic, instance, depth, the normal turned to the camera, then for hits on smooth
+    """One pass over the n primary hits, straight from Embree's answer (no numpy
+    temporaries): ``face`` (n,) int64 global face = ``lut[offs[gid] + pid]`` (-1 on miss,
+    ``gid`` not a geometry of the scene: see ``RayScene._face_lut``), ``semantic`` (n,)
+    uint8 and ``instance`` (n,) uint32 from the per-face tables (0 on miss), ``depth`` (n,)
+    = t (0 on miss), the normal turned to the camera, then for hits on smooth
     faces (``row``, ``corners`` from :func:`corner_normals`; ``row`` may be empty) the
     interpolated vertex normal at the hit's barycentric ``uv`` (n, 2)."""
     n = t.shape[0]

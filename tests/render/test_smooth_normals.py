@@ -76,11 +76,28 @@ def test_corner_table_is_cached_and_covers_only_foliage():
     np.testing.assert_allclose(np.linalg.norm(corners, axis=2), 1.0, atol=1e-6)
 
 
+def finish_buffers(rays, t, gid, pid, lut, offs, face_label, face_instance, normal, face,
+                   depth, semantic, instance):
+    """The straightforward numpy formulation of the fused pass's first half: global face
+    (-1 on miss), labels and instance ids (0 on miss), depth (0 on miss), and the normal
+    turned to face the camera, in place, with the same float32 operations."""
+    g = np.asarray(gid).astype(np.int64)
+    valid = g < len(offs) - 1
+    face[:] = -1
+    face[valid] = lut[offs[g[valid]] + np.asarray(pid)[valid].astype(np.int64)]
+    hit = face >= 0
+    f = np.maximum(face, 0)
+    semantic[:] = np.where(hit, face_label[f], 0).astype(np.uint8)
+    instance[:] = np.where(hit, face_instance[f], 0).astype(np.uint32)
+    depth[:] = np.where(np.isfinite(t), t, np.float32(0.0))
+    d = normal[:, 0] * rays[:, 3] + normal[:, 1] * rays[:, 4] + normal[:, 2] * rays[:, 5]
+    normal[d > 0] *= np.float32(-1.0)
+
+
 def test_fused_finish_pass_equals_finish_then_smooth():
     # cast_buffers' one pass (render/smooth.finish_smooth_buffers) against the two passes it
-    # replaces: _kernels.finish_buffers, then smooth_shading_normals; also with no smooth
-    # faces at all (an empty corner table)
-    from aerial_synth.render._kernels import finish_buffers
+    # replaces: mapping the hits (finish_buffers above), then smooth_shading_normals; also
+    # with no smooth faces at all (an empty corner table)
     from aerial_synth.render.smooth import finish_smooth_buffers
 
     rs = RayScene(_scene())
