@@ -252,8 +252,13 @@ def _run_pool(cfg: ExportConfig, build: Path, tasks, workers: int, bar, scene=No
 _WORKER_MODULES = (
     "aerial_synth.dataset._server_guard",  # first: see that module
     "aerial_synth.numba_setup", "aerial_synth.dataset.worker", "aerial_synth.render.frame",
-    "aerial_synth.render.shading", "aerial_synth.placement.traffic", "aerial_synth.annotate",
-    "aerial_synth.formats.registry", "open3d", "scipy.special", "cv2",
+    "aerial_synth.render.shading", "aerial_synth.render._kernels", "aerial_synth.render._tone",
+    "aerial_synth.render._vis_kernels", "aerial_synth.render.smooth", "aerial_synth.render.world",
+    "aerial_synth.camera_rays", "aerial_synth.scene.raycast", "aerial_synth.placement.traffic",
+    "aerial_synth.annotate", "aerial_synth.formats.registry", "aerial_synth.formats.coco",
+    "aerial_synth.formats.dota", "aerial_synth.formats.meta", "open3d", "scipy.special",
+    "scipy.spatial", "scipy.ndimage", "cv2",
+    "aerial_synth.dataset._server_warm",  # last: see that module
 )
 
 

@@ -128,6 +128,7 @@ class ImageWorker:
         self._group = None
         self._rayscene = None
         self._placement = None
+        self._cameras: dict = {}  # the current group's cameras not yet rendered
         self._placement_warnings: list[str] = []
         self._writer: ImageWriter | None = None
 
@@ -184,9 +185,39 @@ class ImageWorker:
                 f"placement group {group}: scenario {self.cfg.scenario!r} placed no vehicles "
                 f"on scene {self.cfg.scene!r} (no road found?)"
             )
-        add_placement(rs, pl, self.catalog, simple_boxes=self.cfg.simple_vehicles)
+        self._cameras = self._group_cameras(group, pl)
+        add_placement(rs, self._visible_part(rs, pl), self.catalog,
+                      simple_boxes=self.cfg.simple_vehicles)
         self._placement_warnings = sorted({str(w.message) for w in caught})
         self._group, self._rayscene, self._placement = group, rs, pl
+
+    def _group_cameras(self, group: int, pl) -> dict:
+        """{index: Camera} of every image of placement group ``group`` (all of them, not
+        only this task's: the group's RayScene must not depend on how its images are split
+        into tasks), drawn as :meth:`record` would draw them."""
+        from ..camera import sample_pose_targeted
+
+        cfg = self.cfg
+        first = group * cfg.images_per_placement
+        cams = {}
+        for i in range(first, min(first + cfg.images_per_placement, cfg.images)):
+            cam_ss, _ = np.random.SeedSequence([cfg.seed, i]).spawn(2)
+            cams[i] = sample_pose_targeted(cfg.camera_config(), pl, np.random.default_rng(cam_ss),
+                                           within_xy=self.scene_xy_bounds)
+        return cams
+
+    def _visible_part(self, rs, pl):
+        """``pl`` with only the vehicles some camera of the group (``self._cameras``) can
+        see in ``rs``'s scene, directly, in a shadow or a reflection
+        (:func:`aerial_synth.render.cull.vehicles_for_views`): the group's Embree scenes
+        and meshes are built for those only."""
+        import dataclasses
+
+        from ..render.cull import vehicles_for_views
+
+        kept = vehicles_for_views(pl.vehicles, self._cameras.values(), self.render_config,
+                                  z_low=float(rs.scene.bounds()[0, 2]))
+        return pl if len(kept) == len(pl.vehicles) else dataclasses.replace(pl, vehicles=kept)
 
     def record(self, index: int):
         """Render and annotate image ``index``: (ImageRecord, RGB (H, W, 3) uint8)."""
@@ -201,8 +232,10 @@ class ImageWorker:
         pl, rs = self._placement, self._rayscene
         ss = np.random.SeedSequence([cfg.seed, index])
         cam_ss, render_ss = ss.spawn(2)
-        cam = sample_pose_targeted(cfg.camera_config(), pl, np.random.default_rng(cam_ss),
-                                   within_xy=self.scene_xy_bounds)
+        cam = self._cameras.pop(index, None)  # drawn with the group (see _ensure_group)
+        if cam is None:
+            cam = sample_pose_targeted(cfg.camera_config(), pl, np.random.default_rng(cam_ss),
+                                       within_xy=self.scene_xy_bounds)
         frame = render_frame(rs, cam, pl, np.random.default_rng(render_ss), config=self.render_config)
         H, W = frame.instance.shape
         segs = {}
@@ -364,9 +397,11 @@ class TiledImageWorker(ImageWorker):
             scene = world.scene_for(rect)
             self._window_cache = (rect, scene)
         rs = RayScene(scene, nthreads=self.nthreads)  # fresh: independent of history
-        add_placement(rs, pl, self.catalog, simple_boxes=self.cfg.simple_vehicles)
+        self._within = within  # the cameras' bounds (scene_xy_bounds)
+        self._cameras = self._group_cameras(group, pl)
+        add_placement(rs, self._visible_part(rs, pl), self.catalog,
+                      simple_boxes=self.cfg.simple_vehicles)
         self._placement_warnings = warned
-        self._within = within
         self._group, self._rayscene, self._placement = group, rs, pl
 
 

@@ -396,7 +396,8 @@ _KIND = _kinds()
 #: unblurred shadows: compose reads the block samples itself instead of a spread pass (the
 #: same image; tests/render/test_kernels.py compares both)
 _SPREAD_IN_COMPOSE = True
-_TANGENTS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+#: id(scene) -> (weak reference to the scene, ids of its objects, face tangents)
+_TANGENTS: dict[int, tuple] = {}
 
 
 def face_tangents(scene) -> np.ndarray:
@@ -457,12 +458,19 @@ def _tex_hash_seed(texture_seed: int) -> int:
 
 
 def _face_tangents_cached(rayscene) -> np.ndarray:
-    """:func:`face_tangents` of the RayScene's static scene, computed once per RayScene."""
-    t = _TANGENTS.get(rayscene)
-    if t is None:
-        t = face_tangents(rayscene.scene)
-        t.setflags(write=False)
-        _TANGENTS[rayscene] = t
+    """:func:`face_tangents` of the RayScene's static scene, computed once per scene (an
+    export builds a fresh RayScene for every placement group of the same scene): kept while
+    the scene lives and holds the same objects."""
+    scene = rayscene.scene
+    key = tuple(map(id, scene.objects))
+    hit = _TANGENTS.get(id(scene))
+    if hit is not None and hit[0]() is scene and hit[1] == key:
+        return hit[2]
+    t = face_tangents(scene)
+    t.setflags(write=False)
+    for k in [k for k, v in _TANGENTS.items() if v[0]() is None]:  # scenes gone
+        del _TANGENTS[k]
+    _TANGENTS[id(scene)] = (weakref.ref(scene), key, t)
     return t
 
 _FOLIAGE = MATERIAL_IDS["foliage"]
