@@ -10,7 +10,8 @@ Sections (each also records its command and wall time):
 * ``export``     city_park jam exports at 1 and 2 local workers: images/s, speed-up; and
                  1 worker pinned to one core, for the per-worker scaling efficiency
                  (2 workers / (2 x one worker on one core)); ``--export-presets full,fast``
-                 adds the same readings for the fast preset;
+                 adds the same readings for the fast preset; ``workers_2_long``: 2 workers
+                 on ``--long-images`` (120) images, the start-up spread over more images;
 * ``dask``       the same export on a 2-process Dask LocalCluster: images/s (and its
                  ratios to the 1-worker runs of this suite);
 * ``tiles``      tiled placement of ``city_2km`` (4 km^2) in a child process per grid:
@@ -190,10 +191,11 @@ def bench_tiles(a) -> dict:
     return res
 
 
-def _export(a, *engine: str, preset: str = "full") -> dict:
+def _export(a, *engine: str, preset: str = "full", images: int | None = None) -> dict:
     """One timed export in a fresh process (tools/bench_export.py --json): the scene load
     and, for Dask, the cluster start are included, as a user sees them."""
-    cmd = [PY, "tools/bench_export.py", "--images", str(a.images), "--scene", a.scene, "--format", "dota",
+    images = a.images if images is None else images
+    cmd = [PY, "tools/bench_export.py", "--images", str(images), "--scene", a.scene, "--format", "dota",
            "--images-per-placement", str(a.images_per_placement), "--preset", preset, "--json",
            "--target-s", "1e9", *engine]
     out, wall = _run(cmd)
@@ -243,6 +245,13 @@ def bench_export(a) -> dict:
     for preset in a.export_presets.split(","):
         if preset.strip() and preset.strip() != "full":
             res[f"preset_{preset.strip()}"] = _export_readings(a, preset.strip())
+    if a.long_images > 0:
+        # a longer export: the start-up (scene, fork server, each worker's first group)
+        # spread over more images, nearer what a 100,000-image export runs at
+        for preset in ["full"] + [p.strip() for p in a.export_presets.split(",")
+                                  if p.strip() and p.strip() != "full"]:
+            key = "workers_2_long" if preset == "full" else f"preset_{preset}_workers_2_long"
+            res[key] = _export(a, "--workers", "2", preset=preset, images=a.long_images)
     return res
 
 
@@ -268,6 +277,8 @@ def main(argv=None) -> int:
     ap.add_argument("--scene", default="city_park")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--export-presets", default="full", help="export readings for these presets (full,fast)")
+    ap.add_argument("--long-images", type=int, default=120,
+                    help="also a 2-worker export of this many images per preset (0: none)")
     ap.add_argument("--place-vehicles", type=int, default=1000)
     ap.add_argument("--tile-vehicles", type=int, default=20000)
     ap.add_argument("--world-vehicles", type=int, default=20000,
