@@ -35,6 +35,7 @@ __all__ = [
     "BoxConfig",
     "OrientedBox",
     "VehicleAnnotation",
+    "instance_slices",
     "mask_to_rect_corners",
     "points_to_rect_corners",
     "order_corners",
@@ -446,6 +447,26 @@ def _crop_touches_border(sl, shape) -> bool:
     return ys.start == 0 or xs.start == 0 or ys.stop == shape[0] or xs.stop == shape[1]
 
 
+def instance_slices(inst: np.ndarray) -> dict[int, tuple[slice, slice]]:
+    """{id: (row slice, column slice)} of the bounding crop of every non-zero id of an
+    (H, W) id image (``scipy.ndimage.find_objects``). Its list has one entry per id up to
+    the largest, so sparse large ids (a tiled world's reach billions: gigabytes and
+    seconds) are first renumbered 1..k in id order."""
+    from scipy import ndimage
+
+    if not inst.any():
+        return {}
+    if int(inst.max()) <= max(4 * inst.size, 1 << 16):
+        found = ndimage.find_objects(inst.astype(np.int64, copy=False))
+        return {i + 1: s for i, s in enumerate(found) if s is not None}
+    ids, lab = np.unique(inst, return_inverse=True)
+    lab = lab.reshape(inst.shape).astype(np.int64)
+    if ids[0] != 0:  # no background pixel: keep label 0 free
+        ids, lab = np.concatenate([[0], ids]), lab + 1
+    found = ndimage.find_objects(lab)
+    return {int(ids[i + 1]): s for i, s in enumerate(found) if s is not None}
+
+
 def annotate_instances(
     instance: np.ndarray,
     vehicles: Mapping[int, object],
@@ -471,13 +492,11 @@ def annotate_instances(
 
     Works per instance on its bounding crop (``scipy.ndimage.find_objects``).
     """
-    from scipy import ndimage
-
     inst = np.asarray(instance)
     if inst.ndim != 2:
         raise ValueError(f"instance: expected an (H, W) array, got shape {inst.shape}")
-    slices = ndimage.find_objects(inst.astype(np.int64, copy=False)) if inst.any() else []
-    ids = set(int(i) + 1 for i, s in enumerate(slices) if s is not None)
+    slices = instance_slices(inst)
+    ids = set(slices)
     if visibility is not None:
         ids |= {int(k) for k, v in visibility.items() if int(getattr(v, "amodal_px", 0)) > 0}
     out: list[VehicleAnnotation] = []
@@ -485,7 +504,7 @@ def annotate_instances(
         veh = vehicles.get(vid)
         if veh is None:
             continue  # an id the placement does not know (should not happen)
-        sl = slices[vid - 1] if vid - 1 < len(slices) else None
+        sl = slices.get(vid)
         crop = None
         if sl is not None:
             crop = inst[sl] == vid

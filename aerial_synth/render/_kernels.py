@@ -672,31 +672,43 @@ def add_noise(img, seed, scale, shot, quantiles):  # pragma: no cover - compiled
 
 
 @njit(**_OPTS)
-def instance_boxes(instance, n_ids):  # pragma: no cover - compiled
-    """One pass over an (h, w) id image: per id < ``n_ids`` its pixel count and pixel-edge
-    box. Returns counts (n_ids,) int64 and boxes (n_ids, 4) int64 [x0, y0, x1, y1]
-    (x1, y1 exclusive; [w, h, 0, 0] for an id with no pixels). Ids >= n_ids are skipped."""
+def instance_boxes(instance, ids):  # pragma: no cover - compiled
+    """One pass over an (h, w) id image: pixel count and pixel-edge box of each id of
+    ``ids`` (k,) (sorted, unique). Returns counts (k,) int64 and boxes (k, 4) int64
+    [x0, y0, x1, y1] (x1, y1 exclusive; [w, h, 0, 0] for an id with no pixels), in the
+    order of ``ids``; other ids are skipped. Memory follows k, not the largest id (a tiled
+    world's ids reach billions)."""
     h, w = instance.shape
-    counts = np.zeros(n_ids, np.int64)
-    boxes = np.empty((n_ids, 4), np.int64)
+    k = ids.shape[0]
+    counts = np.zeros(k, np.int64)
+    boxes = np.empty((k, 4), np.int64)
     boxes[:, 0] = w
     boxes[:, 1] = h
     boxes[:, 2] = 0
     boxes[:, 3] = 0
+    last_v = 0
+    j = -1
     for r in range(h):
         for c in range(w):
             v = instance[r, c]
-            if v == 0 or v >= n_ids:
+            if v == 0:
                 continue
-            counts[v] += 1
-            if c < boxes[v, 0]:
-                boxes[v, 0] = c
-            if r < boxes[v, 1]:
-                boxes[v, 1] = r
-            if c + 1 > boxes[v, 2]:
-                boxes[v, 2] = c + 1
-            if r + 1 > boxes[v, 3]:
-                boxes[v, 3] = r + 1
+            if v != last_v:  # runs of one id along a row: search once per run
+                last_v = v
+                j = np.searchsorted(ids, v)
+                if j >= k or ids[j] != v:
+                    j = -1
+            if j < 0:
+                continue
+            counts[j] += 1
+            if c < boxes[j, 0]:
+                boxes[j, 0] = c
+            if r < boxes[j, 1]:
+                boxes[j, 1] = r
+            if c + 1 > boxes[j, 2]:
+                boxes[j, 2] = c + 1
+            if r + 1 > boxes[j, 3]:
+                boxes[j, 3] = r + 1
     return counts, boxes
 
 

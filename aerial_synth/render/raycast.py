@@ -431,7 +431,9 @@ def compute_visibility(
     masks = AmodalMasks(ids[inside], prow[inside], pcol[inside])
     by_id = {int(v.id): (k, v) for k, v in enumerate(vehicles)}
     # visible pixel counts and boxes: one pass over the instance image
-    vis_counts, vis_boxes = instance_boxes(instance, int(max(by_id)) + 1)
+    vids = np.array(sorted(by_id), np.int64)
+    vis_counts, vis_boxes = instance_boxes(instance, vids.astype(instance.dtype))
+    vis_at = {vid: j for j, vid in enumerate(vids.tolist())}
 
     out: dict[int, VehicleVisibility] = {}
     centre_world = np.array(
@@ -443,9 +445,9 @@ def compute_visibility(
         if n_in == 0 or vid not in by_id:
             continue
         k, v = by_id[vid]
-        visible = int(vis_counts[vid])
+        visible = int(vis_counts[vis_at[vid]])
         amodal = max(n_in, visible)
-        vb = tuple(int(x) for x in vis_boxes[vid]) if visible else None
+        vb = tuple(int(x) for x in vis_boxes[vis_at[vid]]) if visible else None
         out[vid] = VehicleVisibility(
             id=vid,
             visible_px=visible,

@@ -199,3 +199,34 @@ def test_annotation_dict_round_trip():
 def test_config_rejects_bad_values(kw):
     with pytest.raises(ConfigError):
         BoxConfig(**kw)
+
+
+def test_sparse_huge_ids_annotate_as_small_ones():
+    """A tiled world's instance ids reach billions: annotations are those of the same
+    vehicles numbered 1..k, without an array as long as the largest id."""
+    import dataclasses
+    import resource
+
+    from aerial_synth.annotate.boxes import instance_slices
+
+    cam = NadirCamera()
+    small = [vehicle(1, -6.0, 0.0), vehicle(2, 4.0, 3.0, heading_deg=70.0),
+             vehicle(3, 0.0, -7.0, heading_deg=200.0, length=9.0, width=2.5, height=3.2,
+                     cls="large-vehicle")]
+    big_ids = {1: 2_000_000_017, 2: 1_999_999_001, 3: 2_100_000_000}
+    big = [dataclasses.replace(v, id=big_ids[v.id]) for v in small]
+    inst_small = render_instance(cam, small)
+    inst_big = render_instance(cam, big)
+    rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    slices = instance_slices(inst_big)
+    assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss0 < 200_000  # KiB
+    assert slices == {big_ids[k]: s for k, s in instance_slices(inst_small).items()}
+    a = annotate_instances(inst_small, {v.id: v for v in small}, cam.project)
+    b = annotate_instances(inst_big, {v.id: v for v in big}, cam.project)
+    assert [x.vehicle_id for x in b] == sorted(big_ids.values())
+    by_small = {x.vehicle_id: x for x in a}
+    for x in b:
+        old = [k for k, v in big_ids.items() if v == x.vehicle_id][0]
+        y = by_small[old]
+        assert (x.status, x.visible_px, x.heading_img_deg) == (y.status, y.visible_px, y.heading_img_deg)
+        assert np.array_equal(x.box.corners, y.box.corners)

@@ -51,13 +51,19 @@ def test_instance_boxes_match_numpy():
     for vid in range(1, 30):
         r, c = rng.integers(0, 110), rng.integers(0, 80)
         inst[r : r + rng.integers(1, 10), c : c + rng.integers(1, 10)] = vid
-    inst[5, 5] = 1000  # an id beyond n_ids is skipped
-    counts, boxes = K.instance_boxes(inst, 40)
-    for vid in range(1, 40):
+    inst[5, 5] = 1000  # an id not asked for is skipped
+    inst[60:63, 2:9] = 3_000_000_000  # a tiled world's id: memory follows the ids asked for
+    ids = np.array(list(range(1, 40)) + [3_000_000_000, 4_000_000_000], np.uint32)
+    counts, boxes = K.instance_boxes(inst, ids)
+    assert counts.shape == (len(ids),) and boxes.shape == (len(ids), 4)
+    for j, vid in enumerate(ids):
         rows, cols = np.nonzero(inst == vid)
-        assert counts[vid] == len(rows)
+        assert counts[j] == len(rows)
         if len(rows):
-            assert tuple(boxes[vid]) == (cols.min(), rows.min(), cols.max() + 1, rows.max() + 1)
+            assert tuple(boxes[j]) == (cols.min(), rows.min(), cols.max() + 1, rows.max() + 1)
+        else:
+            assert tuple(boxes[j]) == (90, 120, 0, 0)
+    assert counts[-2] == 21 and counts[-1] == 0
 
 
 def test_box_union_pixels_match_a_canvas():
