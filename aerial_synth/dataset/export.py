@@ -130,14 +130,19 @@ def export_dataset(
         start_pool_server()  # imports the workers' modules while the scene loads here
     elif dask is not None and str(dask).strip().startswith("local:"):
         start_pool_server(dask=True)  # the LocalCluster's workers fork from it too
-    scene, catalog = validate_inputs(cfg)
+    starting = _start_dask(dask)  # --dask local:K: the cluster starts while the scene loads
+    try:
+        scene, catalog = validate_inputs(cfg)
+    except BaseException:
+        starting.close()
+        raise
     geo = _georeference(scene)
 
     # --- from here on, files are written (only into plan.build until the final swap), under
     # a lock on --out; the plan is made again under it (another export may have finished).
-    with output_lock(out_dir):
+    with starting, output_lock(out_dir):  # (closes a cluster not handed over to the engine)
         plan = plan_output(cfg, out_dir, resume, force)
-        engine = _dask_engine(dask, workers)  # before any write: an unreachable scheduler writes nothing
+        engine = _dask_engine(dask, workers, starting)  # before any write: an unreachable scheduler writes nothing
         try:
             prepare_build(plan)
         except BaseException:
@@ -204,12 +209,21 @@ def _check_dask(dask, workers):
     probe_scheduler(dask)
 
 
-def _dask_engine(dask, workers):
+def _start_dask(dask):
+    """``--dask local:K``: the LocalCluster starting in the background; else nothing starts
+    (see :class:`.engine_dask.LocalStart`)."""
+    from .engine_dask import LocalStart
+
+    return LocalStart(dask)
+
+
+def _dask_engine(dask, workers, starting=None):
     if dask is None:
         return None
     from .engine_dask import DaskEngine
 
-    return DaskEngine.connect(dask)
+    engine = starting.engine() if starting is not None else None
+    return engine if engine is not None else DaskEngine.connect(dask)
 
 
 def _run_pool(cfg: ExportConfig, build: Path, tasks, workers: int, bar, scene=None, catalog=None) -> int:
@@ -271,14 +285,17 @@ def pool_context(dask: bool = False):
     process that has started no threads (so forking it is safe, unlike forking the
     exporter once open3d or numba run), and every worker is a fork of it: nothing to
     import. Workers still get everything else through pickled arguments, as with spawn.
-    ``dask``: also preload Dask distributed (a ``--dask local:K`` cluster's workers are
-    forked from the same server, see :mod:`.engine_dask`)."""
+    ``dask``: also preload Dask distributed and freeze the server's objects (a ``--dask
+    local:K`` cluster's workers are forked from the same server, see
+    :data:`.engine_dask.FORK_SERVER_PRELOAD`)."""
     import multiprocessing as mp
 
     if "forkserver" not in mp.get_all_start_methods():
         return mp.get_context("spawn")
     ctx = mp.get_context("forkserver")
-    ctx.set_forkserver_preload(list(_WORKER_MODULES) + (["distributed"] if dask else []))
+    from .engine_dask import FORK_SERVER_PRELOAD
+
+    ctx.set_forkserver_preload(list(_WORKER_MODULES) + (list(FORK_SERVER_PRELOAD) if dask else []))
     return ctx
 
 

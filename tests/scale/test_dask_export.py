@@ -246,3 +246,139 @@ def test_tiled_placement_on_the_cluster(cluster, small_city_spec):
             there = place_tiled(world, grid, "jam", seed=3, n_vehicles=120, executor=cl.get_executor())
     assert len(here.vehicles) > 40
     assert [v.to_dict() for v in there.vehicles] == [v.to_dict() for v in here.vehicles]
+
+
+def _starting_threads():
+    return [t for t in threading.enumerate() if t.name == "aerial-synth-dask-start"]
+
+
+@pytest.mark.slow  # a 2-process LocalCluster: 15-60 s on a shared 2-core machine
+def test_local_cluster_starts_while_the_scene_loads(cross_scene, reference, tmp_path, monkeypatch):
+    """--dask local:2 starts its LocalCluster in the background before the scene loads: the
+    scene load finds the start under way (and here waits for the whole cluster to be up
+    before loading); the export then uses that cluster and is byte-identical."""
+    from aerial_synth.dataset import export as ex
+
+    seen = []
+    real = ex.validate_inputs
+
+    def validate(cfg):
+        starting = _starting_threads()
+        seen.append(len(starting))
+        for t in starting:
+            t.join(240)  # the whole cluster comes up while the scene has not loaded yet
+        seen.append(sum(t.is_alive() for t in starting))
+        return real(cfg)
+
+    monkeypatch.setattr(ex, "validate_inputs", validate)
+    out = tmp_path / "bg"
+    res = export_dataset(_cfg(cross_scene), out, dask="local:2", progress=False)
+    assert seen == [1, 0]
+    assert res.rendered == 8
+    _same(reference, tree_bytes(out))
+    assert _starting_threads() == []
+
+
+@pytest.mark.slow  # a 2-process LocalCluster: 10-40 s on a shared 2-core machine
+def test_a_failed_scene_load_stops_the_starting_cluster(cross_scene, tmp_path, monkeypatch):
+    """The scene fails to load while the LocalCluster starts: the export raises the scene's
+    error, every worker process of that cluster has exited, and nothing is written."""
+    from aerial_synth.dataset import engine_dask
+    from aerial_synth.dataset import export as ex
+
+    started = []
+    real_start = ex._start_dask
+
+    def start(dask):
+        s = real_start(dask)
+        started.append(s)
+        return s
+
+    pids = []
+
+    def validate(cfg):
+        for t in _starting_threads():
+            t.join(240)
+        (s,) = started
+        assert isinstance(s, engine_dask.LocalStart)
+        pids.extend(s._engine.client.run(os.getpid).values())
+        raise ExportError("scene: broken on purpose")
+
+    monkeypatch.setattr(ex, "_start_dask", start)
+    monkeypatch.setattr(ex, "validate_inputs", validate)
+    out = tmp_path / "never"
+    with pytest.raises(ExportError, match="broken on purpose"):
+        export_dataset(_cfg(cross_scene), out, dask="local:2", progress=False)
+    assert len(pids) == 2
+
+    def alive(pid):
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return False
+        return True
+
+    deadline = time.monotonic() + 30  # closed before the error is raised; a margin for reaping
+    while any(alive(p) for p in pids) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert [p for p in pids if alive(p)] == []
+    assert list(tmp_path.iterdir()) == []
+    assert _starting_threads() == []
+
+
+def test_local_start_only_for_local_clusters():
+    """Nothing starts in the background for no --dask or a tcp:// scheduler."""
+    from aerial_synth.dataset.engine_dask import LocalStart
+
+    for spec in (None, "tcp://127.0.0.1:9"):
+        with LocalStart(spec) as s:
+            assert _starting_threads() == []
+            assert s.engine() is None
+
+
+_PROBE = """
+import gc, json, os
+from multiprocessing import forkserver
+
+from aerial_synth.dataset.engine_dask import DaskEngine
+from aerial_synth.dataset.export import start_pool_server
+
+
+def probe(dask_worker):
+    return {"ppid": os.getppid(), "frozen": gc.get_freeze_count(),
+            "callbacks": {k: float(v.callback_time) for k, v in dask_worker.periodic_callbacks.items()}}
+
+
+if __name__ == "__main__":
+    start_pool_server(dask=True)
+    eng = DaskEngine.connect("local:2")
+    try:
+        workers = list(eng.client.run(probe).values())
+    finally:
+        eng.close()
+    print(json.dumps({"server": forkserver._forkserver._forkserver_pid, "workers": workers}))
+"""
+
+
+@pytest.mark.slow  # a 2-process LocalCluster in a fresh interpreter: 5-20 s
+def test_local_cluster_workers_are_quiet_forks_of_the_server(tmp_path):
+    """The workers of --dask local:K: forks of the export's fork server (in a fresh process:
+    a server already running keeps its first caller's imports), which froze its objects
+    (gc.freeze) before forking, with Dask's stack profiler off and the event-loop health
+    check, system monitor and memory polling slowed down (LOCAL_CLUSTER_CONFIG)."""
+    import json
+
+    script = tmp_path / "probe.py"
+    script.write_text(_PROBE)
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]))
+    r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300, env=env)
+    assert r.returncode == 0, r.stderr
+    got = json.loads(r.stdout.strip().splitlines()[-1])
+    assert len(got["workers"]) == 2
+    for w in got["workers"]:
+        assert w["ppid"] == got["server"]
+        assert w["frozen"] > 10_000  # the server's imported modules
+        cb = w["callbacks"]
+        assert "profile" not in cb and "profile-cycle" not in cb
+        assert cb["tick"] >= 1000 and cb["monitor"] >= 5000 and cb["memory_monitor"] >= 500
+        assert "heartbeat" in cb  # a worker all the same
