@@ -285,8 +285,9 @@ def pool_context(dask: bool = False):
     process that has started no threads (so forking it is safe, unlike forking the
     exporter once open3d or numba run), and every worker is a fork of it: nothing to
     import. Workers still get everything else through pickled arguments, as with spawn.
-    ``dask``: also preload Dask distributed and freeze the server's objects (a ``--dask
-    local:K`` cluster's workers are forked from the same server, see
+    The server's objects are frozen last (:mod:`._server_freeze`: a worker's collections
+    then never copy the server's heap). ``dask``: Dask distributed is preloaded before
+    that (a ``--dask local:K`` cluster's workers are forked from the same server, see
     :data:`.engine_dask.FORK_SERVER_PRELOAD`)."""
     import multiprocessing as mp
 
@@ -295,7 +296,8 @@ def pool_context(dask: bool = False):
     ctx = mp.get_context("forkserver")
     from .engine_dask import FORK_SERVER_PRELOAD
 
-    ctx.set_forkserver_preload(list(_WORKER_MODULES) + (list(FORK_SERVER_PRELOAD) if dask else []))
+    ctx.set_forkserver_preload(list(_WORKER_MODULES) + list(
+        FORK_SERVER_PRELOAD if dask else ("aerial_synth.dataset._server_freeze",)))
     return ctx
 
 
