@@ -85,6 +85,11 @@ class _Cand:
     ok: np.ndarray
     reason: np.ndarray  # object array of str
     edge_dist: np.ndarray
+    #: what :meth:`_Engine.precheck` learnt, for :meth:`_Engine.accept_many`: (pose (n, 3)
+    #: [x, y, heading] it saw, footprints (n,) object (None where not built), clear (n,)
+    #: bool: no conflict with the index, size of the index then); reused only where the
+    #: pose and the index are unchanged
+    checked: tuple | None = None
 
 
 class _Engine:
@@ -244,10 +249,10 @@ class _Engine:
         if not len(sel):
             return z
         pts, owner, start, _ = footprint_points(c.x[sel], c.y[sel], c.heading[sel], L[sel], W[sel])
-        tr = self.prober.trace(pts)
-        on = np.isin(tr.label_id, self.drivable_ids)
+        lab, zc = self.prober.labels_and_heights(pts, start + 4)  # sample 4 is the centre
+        on = self.prober.drivable_lut[lab]
         good = np.bincount(owner[~on], minlength=len(sel)) == 0
-        z[sel] = tr.z[start + 4]  # sample 4 is the centre
+        z[sel] = zc
         bad = sel[~good]
         c.ok[bad] = False
         c.reason[bad] = "off_road"
@@ -273,9 +278,15 @@ class _Engine:
         if not len(sel) or not len(self.index):
             return
         geoms, xy, r = self.index.polygons(c.x[sel], c.y[sel], c.heading[sel], L[sel], W[sel])
-        hit = sel[self.index.collides_many(geoms, xy, r, heading=c.heading[sel])]
+        blocked = self.index.collides_many(geoms, xy, r, heading=c.heading[sel])
+        hit = sel[blocked]
         c.ok[hit] = False
         c.reason[hit] = "blocked"
+        all_geoms = np.full(len(c.x), None, dtype=object)
+        all_geoms[sel] = geoms
+        clear = np.zeros(len(c.x), bool)
+        clear[sel[~blocked]] = True
+        c.checked = (np.stack([c.x, c.y, c.heading], 1), all_geoms, clear, len(self.index))
 
     def accept_many(self, c: _Cand, variants) -> np.ndarray:
         """Overlap and gap test of a batch of candidates in order (each against every placed
@@ -285,7 +296,21 @@ class _Engine:
         n = len(c.x)
         L = np.array([v.model.length_m for v in variants]) if n else np.zeros(0)
         W = np.array([v.model.width_m for v in variants]) if n else np.zeros(0)
-        geoms, xy, r = self.index.polygons(c.x, c.y, c.heading, L, W)
+        xy = np.stack([np.asarray(c.x, np.float64), np.asarray(c.y, np.float64)], 1).reshape(-1, 2)
+        r = 0.5 * np.hypot(L, W)  # as FootprintIndex.polygons
+        # footprints only where they can be used (the candidates still ok), reusing the
+        # precheck's where the pose is the same; its "clear" holds while the index is as then
+        geoms = np.full(n, None, dtype=object)
+        clear = None
+        if c.checked is not None:
+            pose, pg, pclear, n_index = c.checked
+            same = (pose == np.stack([c.x, c.y, c.heading], 1)).all(axis=1) & (pg != None)  # noqa: E711
+            geoms[same] = pg[same]
+            if n_index == len(self.index):
+                clear = pclear & same
+        todo = np.flatnonzero(c.ok & (geoms == None))  # noqa: E711
+        if len(todo):
+            geoms[todo] = self.index.polygons(c.x[todo], c.y[todo], c.heading[todo], L[todo], W[todo])[0]
         max_n = None if self.limit is None else max(0, self.limit - self.counted)
         counts = None
         if self.owns is not None and n:
@@ -295,7 +320,8 @@ class _Engine:
             out = c.ok & ~counts
             c.ok[out] = False
             c.reason[out] = "tile_border"
-        acc = self.index.select(geoms, xy, r, ok=c.ok, max_n=max_n, heading=c.heading, counts=counts)
+        acc = self.index.select(geoms, xy, r, ok=c.ok, max_n=max_n, heading=c.heading, counts=counts,
+                                clear=clear)
         tried = c.ok.copy()
         if max_n is not None and acc.sum() >= max_n and acc.any():
             tried[np.flatnonzero(acc)[-1] + 1:] = False  # the limit stopped the batch there
@@ -406,8 +432,10 @@ class _Engine:
         ang = np.tile(np.arange(D) * (TWO_PI / D), (P, 1))
         # Only the direction with the fewest road hits is used (a first heading guess that
         # the two-direction probe below refines), so this march takes coarse steps: 5 x
-        # step_m (0.25 m at the defaults), without edge refinement.
-        pr = self.prober.march(seeds, ang, first_only=True, chunk=8, step_m=self.coarse_m, refine=False)
+        # step_m (0.25 m at the defaults), without edge refinement. That direction is the
+        # first to meet a non-road step whatever the chunks, so the march casts 4 steps at a
+        # time: a seed stops within 4 steps of its nearest edge (36 traces a step).
+        pr = self.prober.march(seeds, ang, first_only=True, chunk=4, grow=1, step_m=self.coarse_m, refine=False)
         best = np.argmin(pr.count, axis=1)  # fewest road hits: perpendicular to the edge
         has_edge = pr.found[np.arange(P), best]
         phi = ang[np.arange(P), best]
@@ -429,7 +457,7 @@ class _Engine:
             n = len(sel)
             toward = np.concatenate([c.heading[sel] + self.side * np.pi / 2,   # traffic side
                                      c.heading[sel] - self.side * np.pi / 2])  # far side
-            _, crossed, _ = self.prober.road_runs(
+            crossed = self.prober.crosses_gap(
                 np.concatenate([pos, pos]), toward,
                 cfg.probe.max_distance_m + cfg.probe.median_max_m + 2.0, cfg.probe.median_max_m,
             )
@@ -454,22 +482,22 @@ class _Engine:
             # both reach 2 x probe.max_distance_m (32 m): further than any carriageway is
             # wide, so a vehicle turned across a wide road at its end is refused too
             reach = 2.0 * cfg.probe.max_distance_m
-            along_p = self.prober.march(pos, np.stack([h, h + np.pi], 1), max_distance_m=reach, chunk=12,
-                                        step_m=self.coarse_m)
-            across_p = self.prober.march(pos, (h - self.side * np.pi / 2)[:, None], max_distance_m=reach,
-                                         chunk=12, step_m=self.coarse_m)
-            along = along_p.dist_m[:, 0] + along_p.dist_m[:, 1]
-            across = offs[sel] + across_p.dist_m[:, 0]
+            # one march for the three directions (each direction's edge is its own)
+            pr3 = self.prober.march(pos, np.stack([h, h + np.pi, h - self.side * np.pi / 2], 1),
+                                    max_distance_m=reach, chunk=12, step_m=self.coarse_m)
+            along = pr3.dist_m[:, 0] + pr3.dist_m[:, 1]
+            across_d = pr3.dist_m[:, 2]
+            across = offs[sel] + across_d
             bad = sel[along <= across]
             c.ok[bad] = False
             c.reason[bad] = "road_end"
             # Multi-lane: an inner lane beyond the middle of the road is only right where a
             # median lies on the far side (a divided carriageway); on an undivided road it
             # would be the opposite lane, driven the wrong way.
-            inner = (offs[sel] > cfg.lane_offset_m + 1e-9) & (across_p.dist_m[:, 0] < offs[sel]) & c.ok[sel]
+            inner = (offs[sel] > cfg.lane_offset_m + 1e-9) & (across_d < offs[sel]) & c.ok[sel]
             if inner.any():
                 ii = sel[inner]
-                far, crossed, _ = self.prober.road_runs(
+                crossed = self.prober.crosses_gap(
                     np.stack([c.x[ii], c.y[ii]], 1), c.heading[ii] - self.side * np.pi / 2,
                     float(offs.max()) + cfg.probe.median_max_m + 2.0, cfg.probe.median_max_m)
                 wrong = ii[~crossed & ~lanes_ok[ii]]  # direction hints: tagged lanes say it is ours
