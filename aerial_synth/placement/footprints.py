@@ -255,16 +255,17 @@ class FootprintIndex:
         xy = np.asarray(xy, float).reshape(-1, 2)
         if not len(xy):
             return np.zeros(0, bool)
-        pts = np.asarray(shapely.points(xy), dtype=object)
         r = np.full(len(xy), float(radius_m))
         out = np.zeros(len(xy), bool)
         i, j = self._candidates(xy, r, centers=False)
         if len(i):
             dd = np.sqrt(((xy[i] - self._xy[j]) ** 2).sum(axis=1))
             k = np.flatnonzero(dd <= r[i] + self._r[j] + self._reach())
-            d = radius_m + max(self.gap_m, 0.0) - GAP_TOL_M
-            hit = np.asarray(shapely.dwithin(pts[i[k]], self._geoms[j[k]], d), bool)
-            out[i[k[hit]]] = True
+            if len(k):
+                d = radius_m + max(self.gap_m, 0.0) - GAP_TOL_M
+                pts = np.asarray(shapely.points(xy[i[k]]), dtype=object)  # the pairs' points only
+                hit = np.asarray(shapely.dwithin(pts, self._geoms[j[k]], d), bool)
+                out[i[k[hit]]] = True
         return out
 
     def collides(self, poly, center_xy=None) -> bool:

@@ -83,6 +83,43 @@ class Prober:
         lab = self.rs.trace_labels(xy)
         return self._road_lut[lab].reshape(shp)
 
+    def _rays(self, n: int) -> np.ndarray:
+        """(n, 6) float32 vertical traces down from the scene's top (``RayScene._down_rays``)
+        with x, y (columns 0, 1) left for the caller to fill."""
+        rays = np.empty((n, 6), np.float32)
+        rays[:, 2] = self.rs.z_top
+        rays[:, 3:5] = 0.0
+        rays[:, 5] = -1.0
+        return rays
+
+    def _road_of_rays(self, rays: np.ndarray) -> np.ndarray:
+        """(n,) bool: the trace of each row of :meth:`_rays` (filled) hits road; counts rays."""
+        self.n_rays += len(rays)
+        self.n_casts += 1
+        return self._road_lut[self.rs.cast_labels(rays)]
+
+    def _road_along(self, o: np.ndarray, u: np.ndarray, t: np.ndarray, head: np.ndarray | None = None) -> np.ndarray:
+        """Road test of the points o + u * t: o, u (n, 2) origins and unit directions, t (k,)
+        or (n, k) distances (metres); with ``head`` (h, 2), those points are traced first.
+        Returns (n, k) bool (and the (h,) bool of ``head`` first, when given).
+
+        The points are computed in float64 exactly as ``o[:, None] + u[:, None] * t[..., None]``
+        and written straight into one float32 ray buffer."""
+        n = len(o)
+        t2 = np.broadcast_to(t, (n, t.shape[-1])) if t.ndim == 1 else t
+        k = t2.shape[1]
+        h = 0 if head is None else len(head)
+        rays = self._rays(h + n * k)
+        if h:
+            rays[:h, :2] = head
+        body = rays[h:].reshape(n, k, 6)
+        body[:, :, 0] = o[:, 0:1] + u[:, 0:1] * t2
+        body[:, :, 1] = o[:, 1:2] + u[:, 1:2] * t2
+        road = self._road_of_rays(rays)
+        if head is None:
+            return road.reshape(n, k)
+        return road[:h], road[h:].reshape(n, k)
+
     # ------------------------------------------------------------------ marching
     def march(self, origins: np.ndarray, angles: np.ndarray, max_distance_m: float | None = None,
               first_only: bool = False, include_origin: bool = False, chunk: int = 48,
@@ -132,17 +169,14 @@ class Prober:
         while k0 < K and len(ai):
             kk = min(chunk, K - k0)
             ks = (np.arange(k0 + 1, k0 + kk + 1, dtype=np.float64) * step)
-            pts = o_rep[ai][:, None, :] + u_rep[ai][:, None, :] * ks[None, :, None]
-            flat = pts.reshape(-1, 2)
             if first_extra is not None:
-                flat = np.concatenate([first_extra, flat])
-            road = self.is_road(flat)
-            n_rays += len(flat)
-            if first_extra is not None:
-                origin_ok = road[:P]
-                road = road[P:]
+                origin_ok, road = self._road_along(o_rep[ai], u_rep[ai], ks, head=first_extra)
+                n_rays += P
                 first_extra = None
-            nonroad = ~road.reshape(len(ai), kk)
+            else:
+                road = self._road_along(o_rep[ai], u_rep[ai], ks)
+            n_rays += road.size
+            nonroad = ~road
             first = nonroad.argmax(axis=1)
             hit = nonroad[np.arange(len(ai)), first]  # any non-road step in this chunk
             fr = ai[hit]
@@ -175,8 +209,7 @@ class Prober:
                 bits -= b
                 m = (1 << b) - 1
                 sub = (np.arange(1, m + 1) / (m + 1)) * w  # (m,)
-                pts = o_f[:, None, :] + u_f[:, None, :] * (d_f[:, None] + sub[None, :])[:, :, None]
-                road = self.is_road(pts.reshape(-1, 2)).reshape(len(fi), m)
+                road = self._road_along(o_f, u_f, d_f[:, None] + sub[None, :])
                 n_rays += road.size
                 # last sub-sample still on road before the first non-road one
                 nonroad = ~road
@@ -222,8 +255,7 @@ class Prober:
         while k0 < K and len(ai):
             kk = min(chunk, K - k0)
             ks = np.arange(k0 + 1, k0 + kk + 1) * step_m
-            pts = origins[ai][:, None, :] + u[ai][:, None, :] * ks[None, :, None]
-            road = self.is_road(pts.reshape(-1, 2)).reshape(len(ai), kk)
+            road = self._road_along(origins[ai], u[ai], ks)
             cols = np.arange(k0, k0 + kk)
             if k0 == 0:
                 on[ai] = road[:, 0]

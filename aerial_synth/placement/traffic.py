@@ -358,9 +358,12 @@ class _Engine:
         return pv
 
     def _original(self, x: float, y: float, z: float) -> dict:
-        """The vehicle's position in the scene's original frame (``Scene.to_original``)."""
-        o = self.rs.scene.to_original(np.array([x, y, z], dtype=np.float64))
-        return {"x_orig_m": float(o[0]), "y_orig_m": float(o[1]), "z_orig_m": float(o[2])}
+        """The vehicle's position in the scene's original frame (``Scene.to_original``: local
+        + origin, float64; the origin is read once)."""
+        o = getattr(self, "_origin", None)
+        if o is None:
+            o = self._origin = tuple(float(v) for v in np.asarray(self.rs.scene.origin, np.float64))
+        return {"x_orig_m": x + o[0], "y_orig_m": y + o[1], "z_orig_m": z + o[2]}
 
     # ------------------------------------------------------------------ direction hints
     def wrong_way(self, c: _Cand, mark: bool = True) -> np.ndarray:
@@ -454,15 +457,17 @@ class _Engine:
         sel = np.flatnonzero(c.ok)
         if len(sel) and cfg.probe.median_max_m > 0:
             pos = np.stack([c.x[sel], c.y[sel]], 1)
-            n = len(sel)
-            toward = np.concatenate([c.heading[sel] + self.side * np.pi / 2,   # traffic side
-                                     c.heading[sel] - self.side * np.pi / 2])  # far side
-            crossed = self.prober.crosses_gap(
-                np.concatenate([pos, pos]), toward,
-                cfg.probe.max_distance_m + cfg.probe.median_max_m + 2.0, cfg.probe.median_max_m,
-            )
-            # road beyond a narrow gap on the traffic side only: that gap is our median
-            flip = sel[crossed[:n] & ~crossed[n:]]
+            reach = cfg.probe.max_distance_m + cfg.probe.median_max_m + 2.0
+            # road beyond a narrow gap on the traffic side only: that gap is our median (the
+            # far side is probed only where the traffic side has one)
+            near = self.prober.crosses_gap(pos, c.heading[sel] + self.side * np.pi / 2,  # traffic side
+                                           reach, cfg.probe.median_max_m)
+            k = np.flatnonzero(near)
+            if len(k):
+                far = self.prober.crosses_gap(pos[k], c.heading[sel[k]] - self.side * np.pi / 2,  # far side
+                                              reach, cfg.probe.median_max_m)
+                near[k[far]] = False
+            flip = sel[near]
             if len(flip):
                 cf = self.locate(np.stack([c.x[flip], c.y[flip]], 1), c.heading[flip] + np.pi, offs[flip])
                 c.x[flip], c.y[flip], c.heading[flip] = cf.x, cf.y, cf.heading

@@ -314,8 +314,10 @@ class RayScene:
         gid = ans["geometry_ids"].numpy()
         pid = ans["primitive_ids"].numpy()
         concat, offs = self._face_lut(built)
-        if len(offs) == 2:  # one geometry (id 0, offset 0): the common case of a probe
-            return np.where(gid == 0, pid, np.int64(len(concat) - 1))
+        if len(offs) == 2:
+            # one geometry (id 0, offset 0), the common case of a probe: a hit's primitive id
+            # is its entry, a miss's is INVALID_ID (the largest uint32), clipped to the sentinel
+            return np.minimum(pid, np.uint32(len(concat) - 1))
         valid = gid < len(offs) - 1
         return np.where(valid, offs[np.where(valid, gid, 0)] + pid, len(concat) - 1)
 
@@ -354,10 +356,17 @@ class RayScene:
     def trace_labels(self, xy: np.ndarray, ignore: Iterable[str] | None = None) -> np.ndarray:
         """Semantic id of the first surface below each point (the fast path of
         :meth:`trace_down` for probes). xy : (n, 2) metres. Returns (n,) int16, 0 on miss."""
-        ign = self.label_config.ignore if ignore is None else frozenset(ignore)
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        return self.cast_labels(self._down_rays(xy), ignore)
+
+    def cast_labels(self, rays: np.ndarray, ignore: Iterable[str] | None = None) -> np.ndarray:
+        """Semantic id of the first surface each ray hits (0 on miss): :meth:`trace_labels`
+        for rays built by the caller (e.g. vertical traces from ``z_top`` written straight
+        into one buffer). rays : (n, 6) float32 C-contiguous, [origin, direction], metres,
+        world; ignore : as :meth:`trace_labels`. Returns (n,) int16."""
+        ign = self.label_config.ignore if ignore is None else frozenset(ignore)
         built = self._get_built(frozenset(ign))
-        ans = built.scene.cast_rays(_o3d().core.Tensor.from_numpy(self._down_rays(xy)))
+        ans = built.scene.cast_rays(_o3d().core.Tensor.from_numpy(rays))
         return self._label_lut(built)[self._lut_index(built, ans)]
 
     def test_occlusions(self, rays: np.ndarray, ignore: Iterable[str] = (), tnear: float = 0.0,
