@@ -46,6 +46,16 @@ def _unit_samples(length: float, width: float, edge_step_m: float, inner_step_m:
     return out
 
 
+@lru_cache(maxsize=1024)
+def _scaled_samples(length: float, width: float, edge_step_m: float, inner_step_m: float) -> np.ndarray:
+    """(k, 2) the samples of :func:`_unit_samples` in metres along and across the vehicle
+    (u x length, v x width), cached per size."""
+    uv = _unit_samples(length, width, edge_step_m, inner_step_m)
+    out = np.stack([uv[:, 0] * length, uv[:, 1] * width], axis=1)
+    out.setflags(write=False)
+    return out
+
+
 def footprint_points(x, y, heading, length, width, edge_step_m: float = EDGE_STEP_M,
                      inner_step_m: float = INNER_STEP_M):
     """Points that stand for the whole footprint of each of n vehicles, metres.
@@ -64,20 +74,23 @@ def footprint_points(x, y, heading, length, width, edge_step_m: float = EDGE_STE
     n = len(x)
     if n == 0:
         return np.zeros((0, 2)), np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64)
-    sizes, inv = np.unique(np.stack([ln, w], axis=1), axis=0, return_inverse=True)
+    # the distinct sizes (complex keys sort like (length, width) rows, much faster)
+    sizes, inv = np.unique(ln + 1j * w, return_inverse=True)
     inv = inv.reshape(-1)
-    tables = [_unit_samples(float(a), float(b), float(edge_step_m), float(inner_step_m)) for a, b in sizes]
+    tables = [_scaled_samples(float(k.real), float(k.imag), float(edge_step_m), float(inner_step_m))
+              for k in sizes]
     sizes_k = np.array([len(t) for t in tables], dtype=np.int64)
     count = sizes_k[inv]
     start = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
     owner = np.repeat(np.arange(n), count)
     # every vehicle's rows of its size's table, gathered from all tables at once
     t_start = np.concatenate([[0], np.cumsum(sizes_k)[:-1]]).astype(np.int64)
-    uv = np.concatenate(tables)[t_start[inv][owner] + (np.arange(len(owner)) - start[owner])]
-    lx = uv[:, 0] * ln[owner]
-    ly = uv[:, 1] * w[owner]
+    lxy = np.concatenate(tables)[t_start[inv][owner] + (np.arange(len(owner)) - start[owner])]
+    lx, ly = lxy[:, 0], lxy[:, 1]
     c, s = np.cos(h)[owner], np.sin(h)[owner]
-    pts = np.stack([x[owner] + c * lx - s * ly, y[owner] + s * lx + c * ly], axis=1)
+    pts = np.empty((len(owner), 2))
+    pts[:, 0] = x[owner] + c * lx - s * ly
+    pts[:, 1] = y[owner] + s * lx + c * ly
     return pts, owner, start, count
 
 

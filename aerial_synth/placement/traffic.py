@@ -109,7 +109,7 @@ class _Engine:
         # Marches step COARSE x probe.step_m (0.25 m at the defaults) and refine the edges
         # they find to the same precision as the thesis's 0.05 m march (linetrace.Prober.march)
         self.coarse_m = COARSE * cfg.probe.step_m
-        b = rayscene.scene.bounds()
+        b = rayscene.scene_bounds()
         self.xy_lo, self.xy_hi = b[0, :2], b[1, :2]
         # tiled placement: seeds only inside the tile's core, vehicles only where the core
         # owns them (region = ((x0, y0, x1, y1), owns(xy) -> (n,) bool)); the rest of the

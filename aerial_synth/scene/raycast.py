@@ -132,7 +132,13 @@ class RayScene:
         self._tables_dirty = True
         self._rebuild_tables()
         b = scene.bounds()
+        self._scene_bounds = b
         self.z_top = float(b[1, 2]) + 10.0
+
+    def scene_bounds(self) -> np.ndarray:
+        """(2, 3) float ``scene.bounds()`` as it was when this RayScene was built (the static
+        geometry it traces), without walking the objects again."""
+        return self._scene_bounds.copy()
 
     # ------------------------------------------------------------------ vehicles
     def add_vehicle(
