@@ -105,16 +105,14 @@ class Prober:
 
         The points are computed in float64 exactly as ``o[:, None] + u[:, None] * t[..., None]``
         and written straight into one float32 ray buffer."""
-        n = len(o)
-        t2 = np.broadcast_to(t, (n, t.shape[-1])) if t.ndim == 1 else t
-        k = t2.shape[1]
+        n, k = len(o), t.shape[-1]
         h = 0 if head is None else len(head)
         rays = self._rays(h + n * k)
         if h:
             rays[:h, :2] = head
         body = rays[h:].reshape(n, k, 6)
-        body[:, :, 0] = o[:, 0:1] + u[:, 0:1] * t2
-        body[:, :, 1] = o[:, 1:2] + u[:, 1:2] * t2
+        body[:, :, 0] = o[:, 0:1] + u[:, 0:1] * t  # t (k,) broadcasts over the rows
+        body[:, :, 1] = o[:, 1:2] + u[:, 1:2] * t
         road = self._road_of_rays(rays)
         if head is None:
             return road.reshape(n, k)

@@ -234,7 +234,8 @@ class Catalog:
         mi = rng.choice(len(self.models), size=n, p=self.model_probabilities)
         ci = rng.choice(len(self.colors), size=n, p=self.color_probabilities)
         picked = self.draw_options(mi, key)
-        return [VehicleVariant(m, self.colors[j]) for m, j in zip(picked, ci)]
+        colors = self.colors
+        return [VehicleVariant(m, colors[j]) for m, j in zip(picked, ci.tolist())]
 
     def draw_options(self, model_idx, key: int) -> list[VehicleModel]:
         """The models ``self.models[i]`` for ``i`` in ``model_idx``, each with the trim
