@@ -87,9 +87,7 @@ class Prober:
         """(n, 6) float32 vertical traces down from the scene's top (``RayScene._down_rays``)
         with x, y (columns 0, 1) left for the caller to fill."""
         rays = np.empty((n, 6), np.float32)
-        rays[:, 2] = self.rs.z_top
-        rays[:, 3:5] = 0.0
-        rays[:, 5] = -1.0
+        rays[:, 2:] = np.array([self.rs.z_top, 0.0, 0.0, -1.0], np.float32)
         return rays
 
     def _road_of_rays(self, rays: np.ndarray) -> np.ndarray:

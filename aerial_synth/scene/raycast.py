@@ -315,15 +315,15 @@ class RayScene:
         return ans, concat[self._lut_index(built, ans)]
 
     def _lut_index(self, built: _Built, ans) -> np.ndarray:
-        """(n,) int64 index into the entries of :meth:`_face_lut` of each hit (its last
+        """(n,) integer index into the entries of :meth:`_face_lut` of each hit (its last
         entry, the sentinel, on a miss)."""
-        gid = ans["geometry_ids"].numpy()
         pid = ans["primitive_ids"].numpy()
         concat, offs = self._face_lut(built)
         if len(offs) == 2:
             # one geometry (id 0, offset 0), the common case of a probe: a hit's primitive id
             # is its entry, a miss's is INVALID_ID (the largest uint32), clipped to the sentinel
             return np.minimum(pid, np.uint32(len(concat) - 1))
+        gid = ans["geometry_ids"].numpy()
         valid = gid < len(offs) - 1
         return np.where(valid, offs[np.where(valid, gid, 0)] + pid, len(concat) - 1)
 
