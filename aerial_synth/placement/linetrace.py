@@ -119,7 +119,8 @@ class Prober:
     # ------------------------------------------------------------------ marching
     def march(self, origins: np.ndarray, angles: np.ndarray, max_distance_m: float | None = None,
               first_only: bool = False, include_origin: bool = False, chunk: int = 48,
-              step_m: float | None = None, refine: bool = True, grow: int = 2) -> EdgeProbe:
+              step_m: float | None = None, refine: bool = True, grow: int = 2,
+              complete_only: bool = False) -> EdgeProbe:
         """March from each origin along each of its directions in ``step_m`` steps.
 
         origins : (P, 2) metres, world (assumed on road)
@@ -134,6 +135,9 @@ class Prober:
                  road step
         chunk, grow : the march casts ``chunk`` steps of every unfinished direction at a
                  time, ``grow`` times as many each cast after the first
+        complete_only : refine only the points whose every direction met an edge (and whose
+                 origin is on road): a caller that needs all of a point's edges has no use
+                 for the others, whose dist_m then stays at the last road step
 
         The march is chunked (``chunk`` steps, then growing) so a probe pays only for the
         distance to its edge; without ``first_only`` the chunks change how many traces are
@@ -191,34 +195,62 @@ class Prober:
             chunk *= grow
         lo = count.astype(np.float64) * step
         dist = lo.copy()
-        if refine and cfg.refine_steps and found.any():
-            # the edge lies in (lo, lo + step]: cut that bracket in passes of up to 32 evenly
-            # spaced traces (5 bisections each) until it is step_m / 2**refine_steps wide
-            bits = int(cfg.refine_steps) + max(0, int(np.ceil(np.log2(step / cfg.step_m - 1e-9))))
-            fi = np.flatnonzero(found_f)
-            o_f = o_rep[fi]
-            u_f = u_rep[fi]
-            d_f = lo.ravel()[fi].copy()
-            w = step
-            while bits > 0:
-                b = min(bits, 5)
-                bits -= b
-                m = (1 << b) - 1
-                sub = (np.arange(1, m + 1) / (m + 1)) * w  # (m,)
-                road = self._road_along(o_f, u_f, d_f[:, None] + sub[None, :])
-                n_rays += road.size
-                # last sub-sample still on road before the first non-road one
-                nonroad = ~road
-                firstn = nonroad.argmax(axis=1)
-                firstn = np.where(nonroad[np.arange(len(fi)), firstn], firstn, m)
-                d_f = d_f + np.where(firstn > 0, sub[np.maximum(firstn - 1, 0)], 0.0)
-                w = w / (m + 1)
+        if refine:
+            todo = found & (found.all(axis=1) & origin_ok)[:, None] if complete_only else found
+            fi = np.flatnonzero(todo.ravel())
+            d_f, n = self._bisect(o_rep[fi], u_rep[fi], lo.ravel()[fi], step)
             dist.ravel()[fi] = d_f
+            n_rays += n
         if include_origin:
             count[~origin_ok] = -1
             found[~origin_ok] = False
         edge = origins[:, None, :] + u * dist[..., None]
         return EdgeProbe(count=count, found=found, dist_m=dist, edge_xy=edge, n_rays=n_rays)
+
+    def _bisect(self, o: np.ndarray, u: np.ndarray, lo: np.ndarray, step: float):
+        """Refine edges known to lie in (lo, lo + step] along o + u t (o, u (n, 2), lo (n,)):
+        cut that bracket in passes of up to 32 evenly spaced traces (5 bisections each)
+        until it is probe.step_m / 2**refine_steps wide. Each edge's answer depends on its
+        own traces only. Returns (dist (n,), rays cast)."""
+        cfg = self.cfg
+        d_f = np.array(lo, dtype=np.float64)
+        if not cfg.refine_steps or not len(d_f):
+            return d_f, 0
+        bits = int(cfg.refine_steps) + max(0, int(np.ceil(np.log2(step / cfg.step_m - 1e-9))))
+        n_rays = 0
+        w = step
+        while bits > 0:
+            b = min(bits, 5)
+            bits -= b
+            m = (1 << b) - 1
+            sub = (np.arange(1, m + 1) / (m + 1)) * w  # (m,)
+            road = self._road_along(o, u, d_f[:, None] + sub[None, :])
+            n_rays += road.size
+            # last sub-sample still on road before the first non-road one
+            nonroad = ~road
+            firstn = nonroad.argmax(axis=1)
+            firstn = np.where(nonroad[np.arange(len(d_f)), firstn], firstn, m)
+            d_f = d_f + np.where(firstn > 0, sub[np.maximum(firstn - 1, 0)], 0.0)
+            w = w / (m + 1)
+        return d_f, n_rays
+
+    def refine(self, origins: np.ndarray, angles: np.ndarray, probe: EdgeProbe, which: np.ndarray,
+               step_m: float) -> EdgeProbe:
+        """``probe`` (a :meth:`march` of ``origins``/``angles`` in ``step_m`` steps with
+        ``refine=False``) with the edges ``which`` (P, D) bool, where found, refined as the
+        march would have refined them; the others as they were."""
+        origins = np.asarray(origins, dtype=np.float64).reshape(-1, 2)
+        angles = np.asarray(angles, dtype=np.float64).reshape(len(origins), -1)
+        D = angles.shape[1]
+        u = unit(angles)
+        fi = np.flatnonzero((probe.found & which).ravel())
+        dist = probe.dist_m.copy()
+        d_f, n = self._bisect(np.repeat(origins, D, axis=0)[fi], u.reshape(-1, 2)[fi], dist.ravel()[fi],
+                              float(step_m))
+        dist.ravel()[fi] = d_f
+        edge = origins[:, None, :] + u * dist[..., None]
+        return EdgeProbe(count=probe.count, found=probe.found, dist_m=dist, edge_xy=edge,
+                         n_rays=probe.n_rays + n)
 
     def _scan(self, origins: np.ndarray, angles: np.ndarray, max_distance_m: float, gap_m: float,
               step_m: float, until_crossed: bool = False):

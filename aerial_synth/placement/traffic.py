@@ -54,6 +54,22 @@ class PlacementWarning(UserWarning):
     """Fewer vehicles than asked for fit on the roads."""
 
 
+def _road_end_needs_edges(lo: np.ndarray, found: np.ndarray, step_m: float, offs: np.ndarray,
+                          lane_offset_m: float) -> np.ndarray:
+    """Which rows of start_lines' road-end test need their edges refined: (n,) bool.
+
+    lo (n, 3): the unrefined distances of a march along, against and across the heading
+    (the last road step; the march's reach where no edge was found), found (n, 3). A
+    refined distance d lies in [lo, lo + step_m) where found and is lo where not, so the
+    tests ``d0 + d1 <= offs + d2`` (road end) and ``d2 < offs`` (inner lane, where offs
+    exceeds lane_offset_m) give with lo what they give with d wherever the bracket decides
+    them; only the other rows need the refinement."""
+    hi = lo + np.where(found, step_m, 0.0)
+    end_known = (hi[:, 0] + hi[:, 1] <= offs + lo[:, 2]) | (lo[:, 0] + lo[:, 1] > offs + hi[:, 2])
+    inner_known = (hi[:, 2] <= offs) | (lo[:, 2] >= offs)
+    return ~end_known | ((offs > lane_offset_m + 1e-9) & ~inner_known)
+
+
 def _wrap(a):
     return np.mod(a, TWO_PI)
 
@@ -180,7 +196,10 @@ class _Engine:
         theta = np.asarray(theta, float).reshape(-1)
         a1 = theta + self.side * np.pi / 2
         a2 = a1 - self.side * np.radians(cfg.probe.side_angle_deg)
-        pr = self.prober.march(q, np.stack([a1, a2], axis=1), include_origin=True, chunk=12, step_m=self.coarse_m)
+        # only a point with both edges (and on road) can give a candidate: only its edges
+        # are refined (the others' positions are never read)
+        pr = self.prober.march(q, np.stack([a1, a2], axis=1), include_origin=True, chunk=12, step_m=self.coarse_m,
+                               complete_only=True)
         e1, e2 = pr.edge_xy[:, 0], pr.edge_xy[:, 1]
         t = e2 - e1
         tn = np.linalg.norm(t, axis=1)
@@ -487,9 +506,15 @@ class _Engine:
             # both reach 2 x probe.max_distance_m (32 m): further than any carriageway is
             # wide, so a vehicle turned across a wide road at its end is refused too
             reach = 2.0 * cfg.probe.max_distance_m
-            # one march for the three directions (each direction's edge is its own)
-            pr3 = self.prober.march(pos, np.stack([h, h + np.pi, h - self.side * np.pi / 2], 1),
-                                    max_distance_m=reach, chunk=12, step_m=self.coarse_m)
+            # one march for the three directions (each direction's edge is its own); an edge
+            # is refined only where the comparisons below need it: a refined distance lies in
+            # [last road step, + one step), so the bracket often decides them already
+            ang3 = np.stack([h, h + np.pi, h - self.side * np.pi / 2], 1)
+            pr3 = self.prober.march(pos, ang3, max_distance_m=reach, chunk=12, step_m=self.coarse_m,
+                                    refine=False)
+            need = _road_end_needs_edges(pr3.dist_m, pr3.found, self.coarse_m, offs[sel], cfg.lane_offset_m)
+            if need.any():
+                pr3 = self.prober.refine(pos, ang3, pr3, np.repeat(need[:, None], 3, axis=1), self.coarse_m)
             along = pr3.dist_m[:, 0] + pr3.dist_m[:, 1]
             across_d = pr3.dist_m[:, 2]
             across = offs[sel] + across_d

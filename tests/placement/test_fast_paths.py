@@ -151,6 +151,50 @@ def test_march_chunks_change_the_traces_not_the_edges(divided, include_origin):
     assert runs[0].found.any() and not runs[0].found.all()
 
 
+def test_refining_later_or_only_complete_points_gives_the_same_edges(divided):
+    rs, pr = divided
+    xy, ang = _probe_points(rs, 300, 7)
+    angles = np.stack([ang, ang - 0.17], 1)
+    full = pr.march(xy, angles, include_origin=True, chunk=12, step_m=0.25)
+    raw = pr.march(xy, angles, include_origin=True, chunk=12, step_m=0.25, refine=False)
+    rng = np.random.default_rng(0)
+    which = rng.random(angles.shape) < 0.5
+    later = pr.refine(xy, angles, raw, which, 0.25)
+    done = raw.found & which
+    assert np.array_equal(later.dist_m[done], full.dist_m[done])
+    assert np.array_equal(later.dist_m[~done], raw.dist_m[~done])
+    assert np.array_equal(pr.refine(xy, angles, raw, np.ones_like(which), 0.25).edge_xy, full.edge_xy)
+    part = pr.march(xy, angles, include_origin=True, chunk=12, step_m=0.25, complete_only=True)
+    complete = full.found.all(axis=1)  # found is False wherever the origin is off road
+    assert complete.any() and not complete.all()
+    assert np.array_equal(part.edge_xy[complete], full.edge_xy[complete])
+    assert np.array_equal(part.count, full.count) and np.array_equal(part.found, full.found)
+    assert part.n_rays < full.n_rays
+
+
+def test_road_end_brackets_decide_what_the_refined_edges_would():
+    """Rows start_lines leaves unrefined give the same road-end and inner-lane answers with
+    the bracket's lower end as with any refined distance inside the bracket."""
+    rng = np.random.default_rng(9)
+    n, step = 20000, 0.25
+    lo = rng.integers(0, 128, (n, 3)) * step
+    found = rng.random((n, 3)) < 0.8
+    lo[~found] = 128 * step
+    offs = rng.choice([1.75, 5.25], n) + rng.integers(-2, 3, n) * step / 2
+    need = traffic_mod._road_end_needs_edges(lo, found, step, offs, 1.75)
+    assert need.any() and not need.all()
+    keep = ~need
+
+    def answers(d):
+        return d[:, 0] + d[:, 1] <= offs + d[:, 2], (offs > 1.75 + 1e-9) & (d[:, 2] < offs)
+
+    at_lo = answers(lo)
+    for frac in (0.0, 1 / 512, 0.5, 511 / 512):
+        d = lo + np.where(found, frac * step, 0.0)
+        for a, b in zip(answers(d), at_lo, strict=True):
+            assert np.array_equal(a[keep], b[keep])
+
+
 def test_nearest_edge_direction_does_not_depend_on_the_chunks(divided):
     rs, pr = divided
     xy, _ = _probe_points(rs, 400, 3)
