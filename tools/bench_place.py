@@ -8,11 +8,19 @@ validator's quality figures over all timed placements (whole footprint on drivab
 surface, overlaps, gap violations, heading error).
 
     .venv/bin/python tools/bench_place.py [--scene city_park] [--scenario jam] [--vehicles 1000] [--repeat 5]
+        [--pin-one-core] [--fresh-scene]
+
+``--pin-one-core`` pins the process to one core (and one compute thread) before open3d or
+numba start, as an export worker of a 2-worker run is; ``--fresh-scene`` places on a new
+RayScene each time, as an export does per placement group (so the Embree build of the
+probe scene is part of every timing). CPU time (``time.process_time``) is reported beside
+wall time: on a shared machine it is the steadier figure.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import time
 import warnings
 
@@ -25,7 +33,17 @@ def main() -> None:
     ap.add_argument("--scenario", default="jam")
     ap.add_argument("--vehicles", type=int, default=1000)
     ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--pin-one-core", action="store_true", help="pin to one core, one compute thread")
+    ap.add_argument("--fresh-scene", action="store_true", help="a new RayScene per placement")
     args = ap.parse_args()
+    if args.pin_one_core:  # before open3d, numba or OpenMP start a thread
+        from aerial_synth.dataset.affinity import allowed_cores, limit_threads, pin_cores
+
+        core = allowed_cores()[0]
+        if not pin_cores([core]):
+            raise SystemExit("--pin-one-core: this platform does not allow pinning")
+        limit_threads(1)
+        print(f"pinned to core {core}")
 
     from aerial_synth.placement import place, validate_placement
     from aerial_synth.placement.traffic import PlacementWarning
@@ -40,11 +58,14 @@ def main() -> None:
     warnings.simplefilter("ignore", PlacementWarning)
     place(rs, args.scenario, seed=12345, catalog=cat, n_vehicles=args.vehicles)  # warm-up
     print(f"setup (scene, BVH, catalog, warm-up): {time.perf_counter() - t0:.2f} s")
-    times, vps, rays, casts, counts, reports = [], [], [], [], [], []
+    times, cpus, vps, rays, casts, counts, reports = [], [], [], [], [], [], []
     for seed in range(args.repeat):
-        t = time.perf_counter()
+        if args.fresh_scene:
+            rs = RayScene(scene, nthreads=1 if args.pin_one_core else 0)
+        t, c = time.perf_counter(), time.process_time()
         p = place(rs, args.scenario, seed=seed, catalog=cat, n_vehicles=args.vehicles)
         dt = time.perf_counter() - t
+        cpus.append(time.process_time() - c)
         times.append(dt)
         counts.append(len(p.vehicles))
         rays.append(p.stats["rays"])
@@ -64,6 +85,8 @@ def main() -> None:
     print(f"\n{args.scenario} on {args.scene}: median {med:.3f} s for {int(np.median(counts))} vehicles "
           f"(min {min(times):.3f} s); {np.median(vps):.0f} vehicles/s; "
           f"{n_rays / med / 1e6:.2f} M rays/s through the engine")
+    print(f"CPU time per placement: median {np.median(cpus):.3f} s (min {min(cpus):.3f} s); "
+          f"load average {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     print(f"bare trace of the same {n_rays:,} rays in one cast: {bare:.3f} s "
           f"({n_rays / bare / 1e6:.1f} M rays/s); engine/bare = {med / bare:.1f}x")
     n = sum(r.n for r in reports)

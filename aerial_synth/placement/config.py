@@ -476,6 +476,9 @@ def load_scenario(name_or_path: str | ScenarioConfig, overrides: Mapping | None 
             text = p.read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as exc:
             raise ConfigError(f"{source}: cannot read it ({getattr(exc, 'strerror', None) or exc})") from None
+        key = (str(p), source, text, override_label)
+        if not overrides and key in _PARSED:
+            return _PARSED[key]
         try:
             base = yaml.safe_load(text)
         except yaml.YAMLError as exc:
@@ -490,7 +493,19 @@ def load_scenario(name_or_path: str | ScenarioConfig, overrides: Mapping | None 
     over = dict(overrides or {})
     merged = _deep_merge(base, over)
     labels = _Labels(source, _leaf_paths(over), override_label)
-    return parse_scenario(merged, labels)
+    cfg = parse_scenario(merged, labels)
+    if not overrides and not isinstance(name_or_path, ScenarioConfig):
+        if len(_PARSED) >= 64:
+            _PARSED.clear()
+        _PARSED[key] = cfg
+    return cfg
+
+
+#: Scenario files parsed before, by (path, label, text, override label), without overrides:
+#: a ScenarioConfig is immutable, and solving a spacing law takes milliseconds (a dataset
+#: export loads its scenario once per placement group). Keyed by the text, so an edited
+#: file is parsed again.
+_PARSED: dict[tuple, ScenarioConfig] = {}
 
 
 def describe_keys() -> str:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -24,6 +25,7 @@ INNER_STEP_M = 1.0
 AREA_TOL_M = EDGE_STEP_M / 2
 
 
+@lru_cache(maxsize=1024)
 def _unit_samples(length: float, width: float, edge_step_m: float, inner_step_m: float) -> np.ndarray:
     """(k, 2) sample positions of one footprint as fractions (u along, v across) in
     [-0.5, 0.5]: 4 corners (front-left, front-right, rear-right, rear-left), the centre,
@@ -39,7 +41,19 @@ def _unit_samples(length: float, width: float, edge_step_m: float, inner_step_m:
     il = max(1, int(np.ceil(length / inner_step_m)))
     iw = max(1, int(np.ceil(width / inner_step_m)))
     gu, gv = np.meshgrid((np.arange(il) + 0.5) / il - 0.5, (np.arange(iw) + 0.5) / iw - 0.5, indexing="ij")
-    return np.stack([np.concatenate([u, gu.ravel()]), np.concatenate([v, gv.ravel()])], axis=1)
+    out = np.stack([np.concatenate([u, gu.ravel()]), np.concatenate([v, gv.ravel()])], axis=1)
+    out.setflags(write=False)  # cached: shared by every call for this size
+    return out
+
+
+@lru_cache(maxsize=1024)
+def _scaled_samples(length: float, width: float, edge_step_m: float, inner_step_m: float) -> np.ndarray:
+    """(k, 2) the samples of :func:`_unit_samples` in metres along and across the vehicle
+    (u x length, v x width), cached per size."""
+    uv = _unit_samples(length, width, edge_step_m, inner_step_m)
+    out = np.stack([uv[:, 0] * length, uv[:, 1] * width], axis=1)
+    out.setflags(write=False)
+    return out
 
 
 def footprint_points(x, y, heading, length, width, edge_step_m: float = EDGE_STEP_M,
@@ -60,17 +74,23 @@ def footprint_points(x, y, heading, length, width, edge_step_m: float = EDGE_STE
     n = len(x)
     if n == 0:
         return np.zeros((0, 2)), np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64)
-    sizes, inv = np.unique(np.stack([ln, w], axis=1), axis=0, return_inverse=True)
+    # the distinct sizes (complex keys sort like (length, width) rows, much faster)
+    sizes, inv = np.unique(ln + 1j * w, return_inverse=True)
     inv = inv.reshape(-1)
-    tables = [_unit_samples(float(a), float(b), edge_step_m, inner_step_m) for a, b in sizes]
-    count = np.array([len(tables[j]) for j in inv], dtype=np.int64)
+    tables = [_scaled_samples(float(k.real), float(k.imag), float(edge_step_m), float(inner_step_m))
+              for k in sizes]
+    sizes_k = np.array([len(t) for t in tables], dtype=np.int64)
+    count = sizes_k[inv]
     start = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
-    uv = np.concatenate([tables[j] for j in inv])
     owner = np.repeat(np.arange(n), count)
-    lx = uv[:, 0] * ln[owner]
-    ly = uv[:, 1] * w[owner]
+    # every vehicle's rows of its size's table, gathered from all tables at once
+    t_start = np.concatenate([[0], np.cumsum(sizes_k)[:-1]]).astype(np.int64)
+    lxy = np.concatenate(tables)[t_start[inv][owner] + (np.arange(len(owner)) - start[owner])]
+    lx, ly = lxy[:, 0], lxy[:, 1]
     c, s = np.cos(h)[owner], np.sin(h)[owner]
-    pts = np.stack([x[owner] + c * lx - s * ly, y[owner] + s * lx + c * ly], axis=1)
+    pts = np.empty((len(owner), 2))
+    pts[:, 0] = x[owner] + c * lx - s * ly
+    pts[:, 1] = y[owner] + s * lx + c * ly
     return pts, owner, start, count
 
 
@@ -94,8 +114,9 @@ class FootprintIndex:
     closer than the spacing floor (the headings of both must be given).
 
     Candidate pairs come from the footprints' centres and bounding radii (a scipy cKDTree
-    over the older footprints, rebuilt every ``rebuild_every`` insertions, plus a brute-force
-    pass over the recent ones); only those pairs get the exact shapely test, vectorised.
+    over the older footprints, plus a brute-force pass over the recent ones: the tree is
+    rebuilt once those reach an eighth of it, at least 64 and at most ``rebuild_every``);
+    only those pairs get the exact shapely test, vectorised.
     :meth:`select` decides a whole batch at once with the same result as testing and adding
     its footprints one after the other.
     """
@@ -215,7 +236,7 @@ class FootprintIndex:
                 ii_j = np.fromiter((k for v in lists for k in v), np.int64, int(lens.sum()))
                 jj.append(ii_j)
         m0 = self._tree_n
-        if n > m0:  # recent footprints: brute force (at most rebuild_every of them)
+        if n > m0:  # recent footprints: brute force (see add_many for how many)
             rxy = self._xy[m0:n]
             d2 = ((qxy[:, None, :] - rxy[None, :, :]) ** 2).sum(axis=2)
             a, b = np.nonzero(d2 <= (rq[:, None]) ** 2)
@@ -247,16 +268,17 @@ class FootprintIndex:
         xy = np.asarray(xy, float).reshape(-1, 2)
         if not len(xy):
             return np.zeros(0, bool)
-        pts = np.asarray(shapely.points(xy), dtype=object)
         r = np.full(len(xy), float(radius_m))
         out = np.zeros(len(xy), bool)
         i, j = self._candidates(xy, r, centers=False)
         if len(i):
             dd = np.sqrt(((xy[i] - self._xy[j]) ** 2).sum(axis=1))
             k = np.flatnonzero(dd <= r[i] + self._r[j] + self._reach())
-            d = radius_m + max(self.gap_m, 0.0) - GAP_TOL_M
-            hit = np.asarray(shapely.dwithin(pts[i[k]], self._geoms[j[k]], d), bool)
-            out[i[k[hit]]] = True
+            if len(k):
+                d = radius_m + max(self.gap_m, 0.0) - GAP_TOL_M
+                pts = np.asarray(shapely.points(xy[i[k]]), dtype=object)  # the pairs' points only
+                hit = np.asarray(shapely.dwithin(pts, self._geoms[j[k]], d), bool)
+                out[i[k[hit]]] = True
         return out
 
     def collides(self, poly, center_xy=None) -> bool:
@@ -264,11 +286,15 @@ class FootprintIndex:
         return bool(self.collides_many(np.array([poly], dtype=object), c[None], [r],
                                        centers=center_xy is not None)[0])
 
-    def select(self, geoms, xy, r, ok=None, max_n: int | None = None, heading=None, counts=None) -> np.ndarray:
+    def select(self, geoms, xy, r, ok=None, max_n: int | None = None, heading=None, counts=None,
+               clear=None) -> np.ndarray:
         """Decide a batch in order: footprint k is accepted when it keeps the rules with every
         indexed footprint and every footprint of the batch accepted before it (as testing and
         adding them one by one would); acceptance stops once ``max_n`` accepted ones that
-        ``counts`` (default: all) have been reached. Candidates with ``ok`` False are skipped.
+        ``counts`` (default: all) have been reached. Candidates with ``ok`` False are skipped
+        (their geometries are never read: None will do). ``clear`` (n,) bool marks candidates
+        already known to keep the rules with every indexed footprint (:meth:`collides_many`
+        said so, with the same headings, and nothing was indexed since); they skip that test.
         The accepted ones are added; returns (n,) bool."""
         from scipy.spatial import cKDTree
 
@@ -281,7 +307,7 @@ class FootprintIndex:
         if not n or not ok.any() or (max_n is not None and max_n <= 0):
             return acc
         h = None if heading is None else np.asarray(heading, float).reshape(-1)
-        sel = np.flatnonzero(ok)
+        sel = np.flatnonzero(ok if clear is None else ok & ~np.asarray(clear, bool))
         ok[sel[self.collides_many(geoms[sel], xy[sel], r[sel], heading=None if h is None else h[sel])]] = False
         sel = np.flatnonzero(ok)
         earlier: dict[int, list[int]] = {}
@@ -338,7 +364,7 @@ class FootprintIndex:
         self._h[self._n:need] = np.nan if heading is None else np.asarray(heading, float).reshape(-1)
         self._rmax = max(self._rmax, float(np.max(r)))
         self._n = need
-        if self._n - self._tree_n >= self.rebuild_every:
+        if self._n - self._tree_n >= min(self.rebuild_every, max(64, self._tree_n // 8)):
             self._tree = cKDTree(self._xy[: self._n].copy())
             self._tree_n = self._n
 

@@ -54,6 +54,22 @@ class PlacementWarning(UserWarning):
     """Fewer vehicles than asked for fit on the roads."""
 
 
+def _road_end_needs_edges(lo: np.ndarray, found: np.ndarray, step_m: float, offs: np.ndarray,
+                          lane_offset_m: float) -> np.ndarray:
+    """Which rows of start_lines' road-end test need their edges refined: (n,) bool.
+
+    lo (n, 3): the unrefined distances of a march along, against and across the heading
+    (the last road step; the march's reach where no edge was found), found (n, 3). A
+    refined distance d lies in [lo, lo + step_m) where found and is lo where not, so the
+    tests ``d0 + d1 <= offs + d2`` (road end) and ``d2 < offs`` (inner lane, where offs
+    exceeds lane_offset_m) give with lo what they give with d wherever the bracket decides
+    them; only the other rows need the refinement."""
+    hi = lo + np.where(found, step_m, 0.0)
+    end_known = (hi[:, 0] + hi[:, 1] <= offs + lo[:, 2]) | (lo[:, 0] + lo[:, 1] > offs + hi[:, 2])
+    inner_known = (hi[:, 2] <= offs) | (lo[:, 2] >= offs)
+    return ~end_known | ((offs > lane_offset_m + 1e-9) & ~inner_known)
+
+
 def _wrap(a):
     return np.mod(a, TWO_PI)
 
@@ -85,6 +101,11 @@ class _Cand:
     ok: np.ndarray
     reason: np.ndarray  # object array of str
     edge_dist: np.ndarray
+    #: what :meth:`_Engine.precheck` learnt, for :meth:`_Engine.accept_many`: (pose (n, 3)
+    #: [x, y, heading] it saw, footprints (n,) object (None where not built), clear (n,)
+    #: bool: no conflict with the index, size of the index then); reused only where the
+    #: pose and the index are unchanged
+    checked: tuple | None = None
 
 
 class _Engine:
@@ -104,7 +125,7 @@ class _Engine:
         # Marches step COARSE x probe.step_m (0.25 m at the defaults) and refine the edges
         # they find to the same precision as the thesis's 0.05 m march (linetrace.Prober.march)
         self.coarse_m = COARSE * cfg.probe.step_m
-        b = rayscene.scene.bounds()
+        b = rayscene.scene_bounds()
         self.xy_lo, self.xy_hi = b[0, :2], b[1, :2]
         # tiled placement: seeds only inside the tile's core, vehicles only where the core
         # owns them (region = ((x0, y0, x1, y1), owns(xy) -> (n,) bool)); the rest of the
@@ -175,7 +196,10 @@ class _Engine:
         theta = np.asarray(theta, float).reshape(-1)
         a1 = theta + self.side * np.pi / 2
         a2 = a1 - self.side * np.radians(cfg.probe.side_angle_deg)
-        pr = self.prober.march(q, np.stack([a1, a2], axis=1), include_origin=True, chunk=12, step_m=self.coarse_m)
+        # only a point with both edges (and on road) can give a candidate: only its edges
+        # are refined (the others' positions are never read)
+        pr = self.prober.march(q, np.stack([a1, a2], axis=1), include_origin=True, chunk=12, step_m=self.coarse_m,
+                               complete_only=True)
         e1, e2 = pr.edge_xy[:, 0], pr.edge_xy[:, 1]
         t = e2 - e1
         tn = np.linalg.norm(t, axis=1)
@@ -244,10 +268,10 @@ class _Engine:
         if not len(sel):
             return z
         pts, owner, start, _ = footprint_points(c.x[sel], c.y[sel], c.heading[sel], L[sel], W[sel])
-        tr = self.prober.trace(pts)
-        on = np.isin(tr.label_id, self.drivable_ids)
+        lab, zc = self.prober.labels_and_heights(pts, start + 4)  # sample 4 is the centre
+        on = self.prober.drivable_lut[lab]
         good = np.bincount(owner[~on], minlength=len(sel)) == 0
-        z[sel] = tr.z[start + 4]  # sample 4 is the centre
+        z[sel] = zc
         bad = sel[~good]
         c.ok[bad] = False
         c.reason[bad] = "off_road"
@@ -273,9 +297,15 @@ class _Engine:
         if not len(sel) or not len(self.index):
             return
         geoms, xy, r = self.index.polygons(c.x[sel], c.y[sel], c.heading[sel], L[sel], W[sel])
-        hit = sel[self.index.collides_many(geoms, xy, r, heading=c.heading[sel])]
+        blocked = self.index.collides_many(geoms, xy, r, heading=c.heading[sel])
+        hit = sel[blocked]
         c.ok[hit] = False
         c.reason[hit] = "blocked"
+        all_geoms = np.full(len(c.x), None, dtype=object)
+        all_geoms[sel] = geoms
+        clear = np.zeros(len(c.x), bool)
+        clear[sel[~blocked]] = True
+        c.checked = (np.stack([c.x, c.y, c.heading], 1), all_geoms, clear, len(self.index))
 
     def accept_many(self, c: _Cand, variants) -> np.ndarray:
         """Overlap and gap test of a batch of candidates in order (each against every placed
@@ -285,7 +315,21 @@ class _Engine:
         n = len(c.x)
         L = np.array([v.model.length_m for v in variants]) if n else np.zeros(0)
         W = np.array([v.model.width_m for v in variants]) if n else np.zeros(0)
-        geoms, xy, r = self.index.polygons(c.x, c.y, c.heading, L, W)
+        xy = np.stack([np.asarray(c.x, np.float64), np.asarray(c.y, np.float64)], 1).reshape(-1, 2)
+        r = 0.5 * np.hypot(L, W)  # as FootprintIndex.polygons
+        # footprints only where they can be used (the candidates still ok), reusing the
+        # precheck's where the pose is the same; its "clear" holds while the index is as then
+        geoms = np.full(n, None, dtype=object)
+        clear = None
+        if c.checked is not None:
+            pose, pg, pclear, n_index = c.checked
+            same = (pose == np.stack([c.x, c.y, c.heading], 1)).all(axis=1) & (pg != None)  # noqa: E711
+            geoms[same] = pg[same]
+            if n_index == len(self.index):
+                clear = pclear & same
+        todo = np.flatnonzero(c.ok & (geoms == None))  # noqa: E711
+        if len(todo):
+            geoms[todo] = self.index.polygons(c.x[todo], c.y[todo], c.heading[todo], L[todo], W[todo])[0]
         max_n = None if self.limit is None else max(0, self.limit - self.counted)
         counts = None
         if self.owns is not None and n:
@@ -295,7 +339,8 @@ class _Engine:
             out = c.ok & ~counts
             c.ok[out] = False
             c.reason[out] = "tile_border"
-        acc = self.index.select(geoms, xy, r, ok=c.ok, max_n=max_n, heading=c.heading, counts=counts)
+        acc = self.index.select(geoms, xy, r, ok=c.ok, max_n=max_n, heading=c.heading, counts=counts,
+                                clear=clear)
         tried = c.ok.copy()
         if max_n is not None and acc.sum() >= max_n and acc.any():
             tried[np.flatnonzero(acc)[-1] + 1:] = False  # the limit stopped the batch there
@@ -332,9 +377,12 @@ class _Engine:
         return pv
 
     def _original(self, x: float, y: float, z: float) -> dict:
-        """The vehicle's position in the scene's original frame (``Scene.to_original``)."""
-        o = self.rs.scene.to_original(np.array([x, y, z], dtype=np.float64))
-        return {"x_orig_m": float(o[0]), "y_orig_m": float(o[1]), "z_orig_m": float(o[2])}
+        """The vehicle's position in the scene's original frame (``Scene.to_original``: local
+        + origin, float64; the origin is read once)."""
+        o = getattr(self, "_origin", None)
+        if o is None:
+            o = self._origin = tuple(float(v) for v in np.asarray(self.rs.scene.origin, np.float64))
+        return {"x_orig_m": x + o[0], "y_orig_m": y + o[1], "z_orig_m": z + o[2]}
 
     # ------------------------------------------------------------------ direction hints
     def wrong_way(self, c: _Cand, mark: bool = True) -> np.ndarray:
@@ -406,8 +454,10 @@ class _Engine:
         ang = np.tile(np.arange(D) * (TWO_PI / D), (P, 1))
         # Only the direction with the fewest road hits is used (a first heading guess that
         # the two-direction probe below refines), so this march takes coarse steps: 5 x
-        # step_m (0.25 m at the defaults), without edge refinement.
-        pr = self.prober.march(seeds, ang, first_only=True, chunk=8, step_m=self.coarse_m, refine=False)
+        # step_m (0.25 m at the defaults), without edge refinement. That direction is the
+        # first to meet a non-road step whatever the chunks, so the march casts 4 steps at a
+        # time: a seed stops within 4 steps of its nearest edge (36 traces a step).
+        pr = self.prober.march(seeds, ang, first_only=True, chunk=4, grow=1, step_m=self.coarse_m, refine=False)
         best = np.argmin(pr.count, axis=1)  # fewest road hits: perpendicular to the edge
         has_edge = pr.found[np.arange(P), best]
         phi = ang[np.arange(P), best]
@@ -426,15 +476,17 @@ class _Engine:
         sel = np.flatnonzero(c.ok)
         if len(sel) and cfg.probe.median_max_m > 0:
             pos = np.stack([c.x[sel], c.y[sel]], 1)
-            n = len(sel)
-            toward = np.concatenate([c.heading[sel] + self.side * np.pi / 2,   # traffic side
-                                     c.heading[sel] - self.side * np.pi / 2])  # far side
-            _, crossed, _ = self.prober.road_runs(
-                np.concatenate([pos, pos]), toward,
-                cfg.probe.max_distance_m + cfg.probe.median_max_m + 2.0, cfg.probe.median_max_m,
-            )
-            # road beyond a narrow gap on the traffic side only: that gap is our median
-            flip = sel[crossed[:n] & ~crossed[n:]]
+            reach = cfg.probe.max_distance_m + cfg.probe.median_max_m + 2.0
+            # road beyond a narrow gap on the traffic side only: that gap is our median (the
+            # far side is probed only where the traffic side has one)
+            near = self.prober.crosses_gap(pos, c.heading[sel] + self.side * np.pi / 2,  # traffic side
+                                           reach, cfg.probe.median_max_m)
+            k = np.flatnonzero(near)
+            if len(k):
+                far = self.prober.crosses_gap(pos[k], c.heading[sel[k]] - self.side * np.pi / 2,  # far side
+                                              reach, cfg.probe.median_max_m)
+                near[k[far]] = False
+            flip = sel[near]
             if len(flip):
                 cf = self.locate(np.stack([c.x[flip], c.y[flip]], 1), c.heading[flip] + np.pi, offs[flip])
                 c.x[flip], c.y[flip], c.heading[flip] = cf.x, cf.y, cf.heading
@@ -454,22 +506,28 @@ class _Engine:
             # both reach 2 x probe.max_distance_m (32 m): further than any carriageway is
             # wide, so a vehicle turned across a wide road at its end is refused too
             reach = 2.0 * cfg.probe.max_distance_m
-            along_p = self.prober.march(pos, np.stack([h, h + np.pi], 1), max_distance_m=reach, chunk=12,
-                                        step_m=self.coarse_m)
-            across_p = self.prober.march(pos, (h - self.side * np.pi / 2)[:, None], max_distance_m=reach,
-                                         chunk=12, step_m=self.coarse_m)
-            along = along_p.dist_m[:, 0] + along_p.dist_m[:, 1]
-            across = offs[sel] + across_p.dist_m[:, 0]
+            # one march for the three directions (each direction's edge is its own); an edge
+            # is refined only where the comparisons below need it: a refined distance lies in
+            # [last road step, + one step), so the bracket often decides them already
+            ang3 = np.stack([h, h + np.pi, h - self.side * np.pi / 2], 1)
+            pr3 = self.prober.march(pos, ang3, max_distance_m=reach, chunk=12, step_m=self.coarse_m,
+                                    refine=False)
+            need = _road_end_needs_edges(pr3.dist_m, pr3.found, self.coarse_m, offs[sel], cfg.lane_offset_m)
+            if need.any():
+                pr3 = self.prober.refine(pos, ang3, pr3, np.repeat(need[:, None], 3, axis=1), self.coarse_m)
+            along = pr3.dist_m[:, 0] + pr3.dist_m[:, 1]
+            across_d = pr3.dist_m[:, 2]
+            across = offs[sel] + across_d
             bad = sel[along <= across]
             c.ok[bad] = False
             c.reason[bad] = "road_end"
             # Multi-lane: an inner lane beyond the middle of the road is only right where a
             # median lies on the far side (a divided carriageway); on an undivided road it
             # would be the opposite lane, driven the wrong way.
-            inner = (offs[sel] > cfg.lane_offset_m + 1e-9) & (across_p.dist_m[:, 0] < offs[sel]) & c.ok[sel]
+            inner = (offs[sel] > cfg.lane_offset_m + 1e-9) & (across_d < offs[sel]) & c.ok[sel]
             if inner.any():
                 ii = sel[inner]
-                far, crossed, _ = self.prober.road_runs(
+                crossed = self.prober.crosses_gap(
                     np.stack([c.x[ii], c.y[ii]], 1), c.heading[ii] - self.side * np.pi / 2,
                     float(offs.max()) + cfg.probe.median_max_m + 2.0, cfg.probe.median_max_m)
                 wrong = ii[~crossed & ~lanes_ok[ii]]  # direction hints: tagged lanes say it is ours

@@ -85,6 +85,7 @@ class _Built:
         self.scene = o3d_scene
         self.geom_face_base = geom_face_base  # geometry id -> (m_g,) global face index
         self.lut = None  # (concatenated face maps + sentinel -1, per-geometry offsets)
+        self.label_lut = None  # (len(lut[0]),) int16: the label of each entry of lut[0]
 
 
 class RayScene:
@@ -131,7 +132,13 @@ class RayScene:
         self._tables_dirty = True
         self._rebuild_tables()
         b = scene.bounds()
+        self._scene_bounds = b
         self.z_top = float(b[1, 2]) + 10.0
+
+    def scene_bounds(self) -> np.ndarray:
+        """(2, 3) float ``scene.bounds()`` as it was when this RayScene was built (the static
+        geometry it traces), without walking the objects again."""
+        return self._scene_bounds.copy()
 
     # ------------------------------------------------------------------ vehicles
     def add_vehicle(
@@ -304,12 +311,28 @@ class RayScene:
         r = np.ascontiguousarray(np.asarray(rays, dtype=np.float32).reshape(-1, 6))
         o3d = _o3d()
         ans = built.scene.cast_rays(o3d.core.Tensor.from_numpy(r))
-        gid = ans["geometry_ids"].numpy()
+        concat, _ = self._face_lut(built)
+        return ans, concat[self._lut_index(built, ans)]
+
+    def _lut_index(self, built: _Built, ans) -> np.ndarray:
+        """(n,) integer index into the entries of :meth:`_face_lut` of each hit (its last
+        entry, the sentinel, on a miss)."""
         pid = ans["primitive_ids"].numpy()
         concat, offs = self._face_lut(built)
+        if len(offs) == 2:
+            # one geometry (id 0, offset 0), the common case of a probe: a hit's primitive id
+            # is its entry, a miss's is INVALID_ID (the largest uint32), clipped to the sentinel
+            return np.minimum(pid, np.uint32(len(concat) - 1))
+        gid = ans["geometry_ids"].numpy()
         valid = gid < len(offs) - 1
-        idx = np.where(valid, offs[np.where(valid, gid, 0)] + pid, len(concat) - 1)
-        return ans, concat[idx]
+        return np.where(valid, offs[np.where(valid, gid, 0)] + pid, len(concat) - 1)
+
+    def _label_lut(self, built: _Built) -> np.ndarray:
+        """The semantic id of every entry of :meth:`_face_lut` (0 for the sentinel)."""
+        if built.label_lut is None:
+            self._rebuild_tables()
+            built.label_lut = self._face_label_s[self._face_lut(built)[0]]
+        return built.label_lut
 
     def cast_rays(self, rays: np.ndarray, ignore: Iterable[str] = ()) -> RayHits:
         """Cast arbitrary rays.
@@ -339,11 +362,18 @@ class RayScene:
     def trace_labels(self, xy: np.ndarray, ignore: Iterable[str] | None = None) -> np.ndarray:
         """Semantic id of the first surface below each point (the fast path of
         :meth:`trace_down` for probes). xy : (n, 2) metres. Returns (n,) int16, 0 on miss."""
-        ign = self.label_config.ignore if ignore is None else frozenset(ignore)
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-        rays = self._down_rays(xy)
-        _, face = self._cast_faces(rays, frozenset(ign))
-        return self._face_label_s[face]
+        return self.cast_labels(self._down_rays(xy), ignore)
+
+    def cast_labels(self, rays: np.ndarray, ignore: Iterable[str] | None = None) -> np.ndarray:
+        """Semantic id of the first surface each ray hits (0 on miss): :meth:`trace_labels`
+        for rays built by the caller (e.g. vertical traces from ``z_top`` written straight
+        into one buffer). rays : (n, 6) float32 C-contiguous, [origin, direction], metres,
+        world; ignore : as :meth:`trace_labels`. Returns (n,) int16."""
+        ign = self.label_config.ignore if ignore is None else frozenset(ignore)
+        built = self._get_built(frozenset(ign))
+        ans = built.scene.cast_rays(_o3d().core.Tensor.from_numpy(rays))
+        return self._label_lut(built)[self._lut_index(built, ans)]
 
     def test_occlusions(self, rays: np.ndarray, ignore: Iterable[str] = (), tnear: float = 0.0,
                         tfar: float = float("inf")) -> np.ndarray:
@@ -394,42 +424,83 @@ class RayScene:
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         rays = self._down_rays(xy)
         ans, face = self._cast_faces(rays, frozenset(ign))
-        t = ans["t_hit"].numpy()
-        hit = face >= 0
-        z = np.where(hit, self.z_top - t.astype(np.float64), np.nan)
-        # Embree intersects in float32; refine static hits to the exact float64 plane height.
-        plane = self._static_planes()
-        n_static = len(self._static_faces)
-        st = hit & (face < n_static)
-        if st.any():
-            pl = plane[face[st]]
-            zz = pl[:, 0] * xy[st, 0] + pl[:, 1] * xy[st, 1] + pl[:, 2]
-            z[st] = np.where(np.isfinite(zz), zz, z[st])
         return TraceResult(
-            z=z,
+            z=self._heights(xy, ans["t_hit"].numpy(), face),
             label_id=self._face_label_s[face],
             object_index=self._face_object_s[face],
             instance_id=self._face_instance_s[face],
         )
 
+    def trace_labels_z(self, xy: np.ndarray, z_at: np.ndarray,
+                       ignore: Iterable[str] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """One cast of vertical traces: the semantic id of every trace (:meth:`trace_labels`)
+        and the hit height of the traces ``z_at`` only (``trace_down(xy).z[z_at]``).
+
+        xy : (n, 2) metres; z_at : (k,) int indices into xy.
+        Returns (label_id (n,) int16, z (k,) float64, nan on miss).
+        """
+        ign = self.label_config.ignore if ignore is None else frozenset(ignore)
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        z_at = np.asarray(z_at, np.int64).reshape(-1)
+        built = self._get_built(frozenset(ign))
+        ans = built.scene.cast_rays(_o3d().core.Tensor.from_numpy(self._down_rays(xy)))
+        idx = self._lut_index(built, ans)
+        face = self._face_lut(built)[0][idx[z_at]]
+        z = self._heights(xy[z_at], ans["t_hit"].numpy()[z_at], face)
+        return self._label_lut(built)[idx], z
+
+    def _heights(self, xy: np.ndarray, t: np.ndarray, face: np.ndarray) -> np.ndarray:
+        """(n,) float64 hit heights of vertical traces down through xy (n, 2) that hit the
+        global faces ``face`` (n,) (-1: miss, nan) at distances t (n,) float32 from z_top.
+        Embree intersects in float32; static hits are refined to the exact float64 plane
+        height (vehicle hits keep z_top - t)."""
+        hit = face >= 0
+        z = np.where(hit, self.z_top - t.astype(np.float64), np.nan)
+        n_static = len(self._static_faces)
+        st = hit & (face < n_static)
+        if st.any():
+            pl = self._face_planes(face[st])
+            zz = pl[:, 0] * xy[st, 0] + pl[:, 1] * xy[st, 1] + pl[:, 2]
+            z[st] = np.where(np.isfinite(zz), zz, z[st])
+        return z
+
     def _static_planes(self) -> np.ndarray:
         """(m_static, 3) float64 plane coefficients z = a x + b y + c per static face (nan for
         vertical faces), for exact trace heights."""
+        return self._face_planes(np.arange(len(self._static_faces)))
+
+    def _face_planes(self, face: np.ndarray) -> np.ndarray:
+        """(k, 3) float64 plane coefficients (see :meth:`_static_planes`) of the static faces
+        ``face`` (k,) int; each face's plane is computed the first time it is asked for (a
+        probe touches a small part of a large scene)."""
         if getattr(self, "_planes", None) is None:
-            tri = self._static_vertices64[self._static_faces.astype(np.int64)]
-            n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-            with np.errstate(divide="ignore", invalid="ignore"):
-                a = -n[:, 0] / n[:, 2]
-                b = -n[:, 1] / n[:, 2]
-            bad = np.abs(n[:, 2]) < 1e-12 * np.maximum(1.0, np.abs(n).max(axis=1))
-            a[bad] = np.nan
-            b[bad] = np.nan
-            c = tri[:, 0, 2] - a * tri[:, 0, 0] - b * tri[:, 0, 1]
-            self._planes = np.stack([a, b, c], axis=1)
-        return self._planes
+            self._planes = np.empty((len(self._static_faces), 3), np.float64)
+            self._plane_known = np.zeros(len(self._static_faces), bool)
+        face = np.asarray(face, np.int64)
+        new = face[~self._plane_known[face]]
+        if len(new):
+            new = np.unique(new)
+            self._planes[new] = _planes_of(self._static_vertices64[self._static_faces[new].astype(np.int64)])
+            self._plane_known[new] = True
+        return self._planes[face]
 
     def object_names(self, object_index: np.ndarray) -> list[str]:
         return [self.scene.objects[i].name if i >= 0 else "" for i in np.asarray(object_index)]
+
+
+def _planes_of(tri: np.ndarray) -> np.ndarray:
+    """(k, 3) float64 [a, b, c] with z = a x + b y + c of the triangles ``tri`` (k, 3, 3)
+    float64 (nan a, b for vertical triangles). Row by row: a triangle's plane does not
+    depend on which others are computed with it."""
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a = -n[:, 0] / n[:, 2]
+        b = -n[:, 1] / n[:, 2]
+    bad = np.abs(n[:, 2]) < 1e-12 * np.maximum(1.0, np.abs(n).max(axis=1))
+    a[bad] = np.nan
+    b[bad] = np.nan
+    c = tri[:, 0, 2] - a * tri[:, 0, 0] - b * tri[:, 0, 1]
+    return np.stack([a, b, c], axis=1)
 
 
 _NTHREADS_OK: bool | None = None

@@ -142,6 +142,7 @@ class Catalog:
     option_rates: dict = field(default_factory=dict, compare=False)
     _model_index: dict = field(default_factory=dict, repr=False, compare=False)
     _color_index: dict = field(default_factory=dict, repr=False, compare=False)
+    _option_tables: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         where = str(self.path) if self.path else "catalog"
@@ -233,7 +234,8 @@ class Catalog:
         mi = rng.choice(len(self.models), size=n, p=self.model_probabilities)
         ci = rng.choice(len(self.colors), size=n, p=self.color_probabilities)
         picked = self.draw_options(mi, key)
-        return [VehicleVariant(m, self.colors[j]) for m, j in zip(picked, ci)]
+        colors = self.colors
+        return [VehicleVariant(m, colors[j]) for m, j in zip(picked, ci.tolist())]
 
     def draw_options(self, model_idx, key: int) -> list[VehicleModel]:
         """The models ``self.models[i]`` for ``i`` in ``model_idx``, each with the trim
@@ -244,17 +246,27 @@ class Catalog:
         mi = np.asarray(model_idx, int).reshape(-1)
         n = len(mi)
         u = np.random.default_rng(np.random.SeedSequence([int(key), 17])).random(n) if n else np.zeros(0)
-        picked = [self.models[i] if i >= 0 else None for i in mi]
-        for i in np.unique(mi[mi >= 0]):
-            rates = self.options_of(self.models[i])
-            if not rates:
+        models = self.models
+        picked = [models[i] if i >= 0 else None for i in mi.tolist()]
+        for i in np.unique(mi[mi >= 0]).tolist():
+            names, cum = self._options_table(i)
+            if not names:
                 continue
             sel = np.flatnonzero(mi == i)
-            k = np.searchsorted(np.cumsum(list(rates.values())), u[sel], side="right")
-            names = list(rates)
-            for s, kk in zip(sel[k < len(names)], k[k < len(names)]):
-                picked[s] = self.model(f"{self.models[i].name}+{names[kk]}")
+            k = np.searchsorted(cum, u[sel], side="right")
+            some = k < len(names)
+            for s, kk in zip(sel[some].tolist(), k[some].tolist()):
+                picked[s] = self.model(f"{models[i].name}+{names[kk]}")
         return picked
+
+    def _options_table(self, i: int) -> tuple[list[str], np.ndarray]:
+        """(option names, cumulative rates) of model ``i`` (:meth:`options_of`), cached."""
+        tab = self._option_tables.get(i)
+        if tab is None:
+            rates = self.options_of(self.models[i])
+            tab = (list(rates), np.cumsum(list(rates.values())) if rates else np.zeros(0))
+            self._option_tables[i] = tab
+        return tab
 
     def with_models(self, models) -> "Catalog":
         """A copy restricted to the given models (names or VehicleModel objects)."""
