@@ -113,9 +113,15 @@ def _catalog_models(catalog):
 
 
 def hop_m(scenario_cfg, catalog) -> float:
-    """The longest centre distance of two colliding vehicles: a link of a drop chain."""
+    """The longest centre distance of two colliding vehicles: a link of a drop chain
+    (footprints within the gap, centres within the minimum distance, or two vehicles of one
+    lane within the lane rule's spacing)."""
+    from ..placement.traffic import lane_rule
+
     diag = max(math.hypot(m.length_m, m.width_m) for m in _catalog_models(catalog))
-    return max(diag + max(scenario_cfg.gap_m, 0.0), float(scenario_cfg.min_center_distance_m or 0.0))
+    rule = lane_rule(scenario_cfg)
+    return max(diag + max(scenario_cfg.gap_m, 0.0), float(scenario_cfg.min_center_distance_m or 0.0),
+               float(rule[0]) if rule is not None else 0.0)
 
 
 def _cells_met(edges: np.ndarray, span: float) -> int:
@@ -283,29 +289,18 @@ class _GroupPlacer:
 
     def placement(self, group: int, tile, area):
         """The whole world's vehicles (group ``group``) whose centre lies in ``area``."""
-        from ..placement.footprints import FootprintIndex
         from ..placement.model import Placement
+        from ..placement.tiled import BorderMerge
 
         sc = self.scenario
-        n_tiles = len(self.grid)
-        reach = self.longest + max(sc.gap_m, 0.0) + float(sc.min_center_distance_m or 0.0)
-        index = FootprintIndex(sc.gap_m, sc.min_center_distance_m)
+        merge = BorderMerge(sc, self.longest, len(self.grid))
         needed = tiles_needed(self.grid, area, self.dep)
-        kept, warned, dropped, ref = [], set(), 0, None
+        kept, warned, ref = [], set(), None
         for t in needed:  # raster order, as place_tiled merges
             vs, w, pl = self.tile_vehicles(group, t)
             warned.update(w)
             ref = ref or pl
-            x0, y0, x1, y1 = t.core
-            for v in vs:
-                x, y = v.x_m, v.y_m
-                if n_tiles > 1 and min(x - x0, x1 - x, y - y0, y1 - y) < reach:
-                    poly = index.polygon(x, y, v.heading_rad, v.length_m, v.width_m)
-                    if index.collides(poly, (x, y)):
-                        dropped += 1
-                        continue
-                    index.add(poly, (x, y))
-                kept.append(v)
+            kept += [v for v in vs if merge.keep(v, t.core)]
         ax0, ay0, ax1, ay1 = area
         inside = [v for v in kept if ax0 <= v.x_m <= ax1 and ay0 <= v.y_m <= ay1]
         g = self.grid
@@ -327,7 +322,7 @@ class _GroupPlacer:
             seed=None,
             parameters=params,
             vehicles=inside,
-            stats={"vehicles": len(inside), "tiles": {**tile_meta, "dropped_at_borders": dropped}},
+            stats={"vehicles": len(inside), "tiles": {**tile_meta, "dropped_at_borders": merge.dropped}},
             georeference=ref.georeference if ref is not None else None,
         )
         return out, sorted(warned)

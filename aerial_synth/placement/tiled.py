@@ -36,7 +36,7 @@ import numpy as np
 from ..errors import PlacementError
 from .model import Placement
 
-__all__ = ["place_tiled", "tile_seed"]
+__all__ = ["BorderMerge", "place_tiled", "tile_seed"]
 
 
 def tile_seed(seed, i: int, j: int, n_tiles: int) -> np.random.SeedSequence | int | None:
@@ -77,7 +77,6 @@ def place_tiled(
     """
     from ..scene.tiles import min_tile_m
     from .config import load_scenario
-    from .footprints import FootprintIndex
     from .traffic import PlacementWarning
 
     if catalog is None:
@@ -96,17 +95,10 @@ def place_tiled(
         keys = {(int(i), int(j)) for i, j in only}
         tiles = [t for t in tiles if t.key in keys]
     world_area = float(np.prod(grid.bounds[1] - grid.bounds[0]))
-    from .traffic import lane_rule
-
-    rule = lane_rule(cfg)  # the merge keeps the lane rule placement kept inside each tile
-    index = FootprintIndex(cfg.gap_m, cfg.min_center_distance_m, lane_spacing=rule)
-    reach = longest + max(cfg.gap_m, 0.0) + float(cfg.min_center_distance_m or 0.0)
-    if rule is not None:
-        reach = max(reach, longest + float(rule[0]))
+    merge = BorderMerge(cfg, longest, n_tiles)
     kept: list = []
     line_base = 0
     per_tile = []
-    dropped = 0
     warned: list[str] = []
     single_stats = None
     t_scene = t_place = c_scene = c_place = 0.0
@@ -137,18 +129,10 @@ def place_tiled(
         t_place += res["place_s"]
         c_scene += res.get("scene_cpu_s", 0.0)
         c_place += res.get("place_cpu_s", 0.0)
-        x0, y0, x1, y1 = tile.core
         n_kept = 0
         for v in res["owned"]:
-            x, y = v.x_m, v.y_m
-            near = n_tiles > 1 and min(x - x0, x1 - x, y - y0, y1 - y) < reach
-            if near:
-                geoms, xy, r = index.polygons(x, y, v.heading_rad, v.length_m, v.width_m)
-                h = np.array([np.nan if v.state == "parked" else v.heading_rad])  # parked: no lane
-                if index.collides_many(geoms, xy, r, heading=h)[0]:
-                    dropped += 1
-                    continue
-                index.add_many(geoms, xy, r, h)
+            if not merge.keep(v, tile.core):
+                continue
             kept.append(dataclasses.replace(
                 v, id=len(kept) + 1, line_id=v.line_id + line_base if v.line_id >= 0 else -1,
             ))
@@ -170,7 +154,7 @@ def place_tiled(
         "grid": list(grid.shape),
         "tile_m": grid.tile_m,
         "margin_m": grid.margin_m,
-        "dropped_at_borders": dropped,
+        "dropped_at_borders": merge.dropped,
         "per_tile": per_tile,
     }
     if not kept and not any(t["placed"] for t in per_tile):
@@ -189,6 +173,42 @@ def place_tiled(
     if warned and n_tiles == 1:
         warnings.warn(warned[0], PlacementWarning, stacklevel=2)
     return out
+
+
+class BorderMerge:
+    """The border rule of a tiled placement. Tiles are merged in raster order; a vehicle
+    whose centre lies within ``reach`` of its tile core's edge is dropped when it collides
+    with one kept before it (footprint gap, centre distance and the lane rule
+    :func:`.traffic.lane_rule`: the rules ``place`` keeps inside a tile). One grid of one
+    tile keeps everything. Used by :func:`place_tiled` and by a tiled export's groups
+    (:mod:`aerial_synth.dataset.tiled`), so both decide every border alike."""
+
+    def __init__(self, cfg, longest_m: float, n_tiles: int):
+        from .footprints import FootprintIndex
+        from .traffic import lane_rule
+
+        rule = lane_rule(cfg)
+        self.index = FootprintIndex(cfg.gap_m, cfg.min_center_distance_m, lane_spacing=rule)
+        reach = longest_m + max(cfg.gap_m, 0.0) + float(cfg.min_center_distance_m or 0.0)
+        if rule is not None:
+            reach = max(reach, longest_m + float(rule[0]))
+        self.reach = reach
+        self.active = n_tiles > 1
+        self.dropped = 0
+
+    def keep(self, v, core) -> bool:
+        """Keep vehicle ``v`` of the tile whose core is ``core`` (x0, y0, x1, y1)?"""
+        x0, y0, x1, y1 = core
+        x, y = v.x_m, v.y_m
+        if not self.active or min(x - x0, x1 - x, y - y0, y1 - y) >= self.reach:
+            return True
+        geoms, xy, r = self.index.polygons(x, y, v.heading_rad, v.length_m, v.width_m)
+        h = np.array([np.nan if v.state == "parked" else v.heading_rad])  # parked: no lane
+        if self.index.collides_many(geoms, xy, r, heading=h)[0]:
+            self.dropped += 1
+            return False
+        self.index.add_many(geoms, xy, r, h)
+        return True
 
 
 def _place_tile(job) -> dict:
