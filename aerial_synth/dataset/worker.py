@@ -612,6 +612,10 @@ def record_counts(record) -> dict:
 _POOL_WORKER: ImageWorker | None = None
 
 
+def _exit_on_sigterm(signum, frame):
+    raise SystemExit(128 + signum)
+
+
 def init_pool_worker(cfg: ExportConfig, out: str, nthreads: int, parent_pid: int,
                      extra_formats=(), slots=None, pool_size: int = 0, scene=None, catalog=None) -> None:
     """Pool initializer: watch the parent, share the cores, register run-time formats.
@@ -626,13 +630,17 @@ def init_pool_worker(cfg: ExportConfig, out: str, nthreads: int, parent_pid: int
     to the worker in a few milliseconds instead of loading the scene again (seconds).
 
     Ctrl-C is the parent's to handle (it stops the pool): workers ignore SIGINT, so an
-    interrupted export prints no worker tracebacks."""
+    interrupted export prints no worker tracebacks. The pool then stops its workers with
+    SIGTERM, which a worker turns into a normal exit: its exit handlers release what it
+    registered with multiprocessing's resource tracker (numba's lock of its threading
+    layer), which would otherwise report leaked semaphores after "interrupted"."""
     import signal
 
     from .affinity import limit_threads, pin_share
 
     global _POOL_WORKER
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _exit_on_sigterm)
     _watch_parent(parent_pid)
     share = None
     if slots is not None and int(pool_size) > 1:
