@@ -61,17 +61,16 @@ def _probe_points(rs, n, seed):
 
 # ----------------------------------------------------------------------------- ray scene
 def _planes_reference(rs):
-    """Plane coefficients of every static face at once (the eager formulation)."""
+    """Plane coefficients of every static face at once (the eager formulation), checked
+    against the geometry: each plane passes through its triangle's three vertices."""
+    from aerial_synth.scene.raycast import _planes_of
+
     tri = rs._static_vertices64[rs._static_faces.astype(np.int64)]
-    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        a = -n[:, 0] / n[:, 2]
-        b = -n[:, 1] / n[:, 2]
-    bad = np.abs(n[:, 2]) < 1e-12 * np.maximum(1.0, np.abs(n).max(axis=1))
-    a[bad] = np.nan
-    b[bad] = np.nan
-    c = tri[:, 0, 2] - a * tri[:, 0, 0] - b * tri[:, 0, 1]
-    return np.stack([a, b, c], axis=1)
+    pl = _planes_of(tri)
+    ok = np.isfinite(pl[:, 0])
+    z = pl[ok, 0, None] * tri[ok, :, 0] + pl[ok, 1, None] * tri[ok, :, 1] + pl[ok, 2, None]
+    assert ok.any() and np.allclose(z, tri[ok, :, 2], atol=1e-9)
+    return pl
 
 
 @pytest.mark.parametrize("with_vehicle", [False, True])
