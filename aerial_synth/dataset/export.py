@@ -265,6 +265,7 @@ def _run_pool(cfg: ExportConfig, build: Path, tasks, workers: int, bar, scene=No
 #: What a pool worker imports; the fork server imports it once, before it forks workers.
 _WORKER_MODULES = (
     "aerial_synth.dataset._server_guard",  # first: see that module
+    "aerial_synth.dataset._server_open3d",  # before anything imports open3d
     "aerial_synth.numba_setup", "aerial_synth.dataset.worker", "aerial_synth.render.frame",
     "aerial_synth.render.shading", "aerial_synth.render._kernels", "aerial_synth.render._tone",
     "aerial_synth.render._vis_kernels", "aerial_synth.render.smooth", "aerial_synth.render.world",

@@ -575,3 +575,39 @@ def test_png_encoding_is_lossless_and_fast_settings():
     p = dict(zip(png_params()[::2], png_params()[1::2]))
     assert p[cv2.IMWRITE_PNG_COMPRESSION] == 1
     assert p[cv2.IMWRITE_PNG_STRATEGY] == cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY
+
+
+def _server_state(_):
+    import sys
+
+    import numba.core.registry as reg
+
+    viewer = sys.modules.get("open3d.visualization.draw_plotly")
+    return {"stub": viewer is not None and "stub" in (viewer.__doc__ or ""), "dash": "dash" in sys.modules,
+            "open3d": "open3d" in sys.modules, "numba_warm": bool(reg.cpu_target.target_context._registries)}
+
+
+def test_fork_server_workers_are_ready_and_light():
+    """A pool worker is a fork of the warmed server: open3d imported without its plotly
+    viewer (no Dash), numba's contexts set up, the heap frozen; this process's open3d
+    import is untouched and the stub reports itself when called."""
+    import multiprocessing as mp
+    import sys
+
+    import pytest
+
+    from aerial_synth.dataset import _server_open3d
+    from aerial_synth.dataset.export import pool_context
+
+    if "forkserver" not in mp.get_all_start_methods():
+        pytest.skip("no fork server on this platform")
+    with pool_context().Pool(1) as pool:
+        state = pool.map(_server_state, [0])[0]
+    assert state == {"stub": True, "dash": False, "open3d": True, "numba_warm": True}
+    assert _server_open3d.STUBBED is False  # not in a fork server: nothing stubbed here
+    import open3d  # noqa: F401
+
+    viewer = sys.modules.get("open3d.visualization.draw_plotly")
+    assert viewer is None or "stub" not in (viewer.__doc__ or "")
+    with pytest.raises(RuntimeError, match="not loaded"):
+        _server_open3d._absent()
