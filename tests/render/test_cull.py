@@ -86,3 +86,23 @@ def test_a_shadow_from_outside_the_view_is_kept():
     kept = _kept(make_placement([truck, far]).vehicles, [cam], sun_elevation_deg=(20.0, 20.0),
                  sun_radius_deg=(0.3, 0.3))
     assert kept == {5}
+
+
+def test_face_tangents_once_per_scene():
+    """The shader's face tangents are computed once per scene (an export builds a RayScene
+    per placement group), again when the scene's objects change."""
+    from aerial_synth.render.shading import _face_tangents_cached, face_tangents
+    from aerial_synth.scene import build
+    from aerial_synth.scene.model import SceneObject
+
+    scene = make_scene()
+    t1 = _face_tangents_cached(RayScene(scene))
+    assert _face_tangents_cached(RayScene(scene)) is t1
+    assert np.array_equal(t1, face_tangents(scene)) and not t1.flags.writeable
+    import shapely
+
+    v, f = build.prism(shapely.box(-30, 10, -20, 18), 0.0, 6.0)
+    scene.objects.append(SceneObject("shed", "building", v, f))
+    rs = RayScene(scene)
+    t2 = _face_tangents_cached(rs)
+    assert t2 is not t1 and len(t2) == len(rs._static_faces) == len(t1) + len(f)
