@@ -133,8 +133,8 @@ def probe_scheduler(spec: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
         socket.create_connection((host, int(port)), timeout=timeout_s).close()
     except OSError as exc:
         raise ExportError(
-            f"--dask {arg}: cannot reach a Dask scheduler there within {time.perf_counter() - t0:.0f} s "
-            f"({exc.strerror or type(exc).__name__}); start one with 'dask scheduler' or check the address"
+            f"--dask {arg}: cannot reach a Dask scheduler there ({exc.strerror or type(exc).__name__} "
+            f"after {time.perf_counter() - t0:.1f} s); start one with 'dask scheduler' or check the address"
         ) from None
 
 
@@ -276,8 +276,8 @@ class DaskEngine:
             client = Client(str(arg), timeout=f"{timeout_s}s")
         except (OSError, TimeoutError) as exc:
             raise ExportError(
-                f"--dask {arg}: cannot reach a Dask scheduler there within {time.perf_counter() - t0:.0f} s "
-                f"({type(exc).__name__}); start one with 'dask scheduler' or check the address"
+                f"--dask {arg}: cannot reach a Dask scheduler there ({type(exc).__name__} after "
+                f"{time.perf_counter() - t0:.1f} s); start one with 'dask scheduler' or check the address"
             ) from None
         except Exception as exc:  # something else answers there (a web server, another protocol)
             raise ExportError(
