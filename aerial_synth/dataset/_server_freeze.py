@@ -15,10 +15,11 @@ needs anyway.
 from __future__ import annotations
 
 import gc
-import sys
+
+from ._server_guard import _in_fork_server
 
 FROZEN = False
-if sys.argv[:1] == ["-c"] and "multiprocessing.forkserver" in sys.modules:
+if _in_fork_server():
     gc.collect()
     gc.freeze()
     FROZEN = True

@@ -194,17 +194,19 @@ class ImageWorker:
     def _group_cameras(self, group: int, pl) -> dict:
         """{index: Camera} of every image of placement group ``group`` (all of them, not
         only this task's: the group's RayScene must not depend on how its images are split
-        into tasks), drawn as :meth:`record` would draw them."""
+        into tasks)."""
+        first = group * self.cfg.images_per_placement
+        last = min(first + self.cfg.images_per_placement, self.cfg.images)
+        return {i: self._draw_camera(i, pl) for i in range(first, last)}
+
+    def _draw_camera(self, index: int, pl):
+        """Image ``index``'s camera: the first of ``SeedSequence([seed, index])``'s two
+        streams (the second draws its rendering)."""
         from ..camera import sample_pose_targeted
 
-        cfg = self.cfg
-        first = group * cfg.images_per_placement
-        cams = {}
-        for i in range(first, min(first + cfg.images_per_placement, cfg.images)):
-            cam_ss, _ = np.random.SeedSequence([cfg.seed, i]).spawn(2)
-            cams[i] = sample_pose_targeted(cfg.camera_config(), pl, np.random.default_rng(cam_ss),
-                                           within_xy=self.scene_xy_bounds)
-        return cams
+        cam_ss, _ = np.random.SeedSequence([self.cfg.seed, index]).spawn(2)
+        return sample_pose_targeted(self.cfg.camera_config(), pl, np.random.default_rng(cam_ss),
+                                    within_xy=self.scene_xy_bounds)
 
     def _visible_part(self, rs, pl):
         """``pl`` with only the vehicles some camera of the group (``self._cameras``) can
@@ -222,7 +224,6 @@ class ImageWorker:
     def record(self, index: int):
         """Render and annotate image ``index``: (ImageRecord, RGB (H, W, 3) uint8)."""
         from ..annotate.boxes import annotate_frame
-        from ..camera import sample_pose_targeted
         from ..formats import coco, meta
         from ..render import render_frame
 
@@ -230,12 +231,10 @@ class ImageWorker:
         group = index // cfg.images_per_placement
         self._ensure_group(group)
         pl, rs = self._placement, self._rayscene
-        ss = np.random.SeedSequence([cfg.seed, index])
-        cam_ss, render_ss = ss.spawn(2)
+        _, render_ss = np.random.SeedSequence([cfg.seed, index]).spawn(2)
         cam = self._cameras.pop(index, None)  # drawn with the group (see _ensure_group)
         if cam is None:
-            cam = sample_pose_targeted(cfg.camera_config(), pl, np.random.default_rng(cam_ss),
-                                       within_xy=self.scene_xy_bounds)
+            cam = self._draw_camera(index, pl)
         frame = render_frame(rs, cam, pl, np.random.default_rng(render_ss), config=self.render_config)
         H, W = frame.instance.shape
         segs = {}
