@@ -17,7 +17,11 @@ Workers write into the output folder themselves, with the same atomic writes as 
 pool; on a multi-machine cluster that folder must be on a filesystem every worker sees at
 the same path. A worker that dies mid-image loses nothing: its temporary files never
 become the image's files, the scheduler gives its task to another worker, and the
-stray temporaries are removed before the aggregates are written.
+stray temporaries are removed before the aggregates are written. The scene the client
+scatters to the workers can die with them (Dask's memory manager keeps a single replica
+once no waiting task needs more); the scheduler then cancels the tasks that read it and
+the engine submits them again without it (:data:`MAX_RESUBMITS`), each worker loading the
+scene itself.
 
 Cores: the K worker processes of one host (numbered by address, :func:`host_slots`) each
 pin themselves to their own share of the host's cores before their first ray cast
@@ -34,6 +38,7 @@ import math
 import os
 import re
 import time
+from concurrent.futures import CancelledError
 from pathlib import Path
 
 from ..errors import ExportError
@@ -45,6 +50,8 @@ __all__ = ["DaskEngine", "plan_tasks", "threads_per_worker", "limit_threads", "p
 
 #: An unreachable scheduler is reported within this many seconds (the CLI promises 10).
 CONNECT_TIMEOUT_S = 6.0
+#: How often one task is submitted again after the scheduler cancelled it (lost input data)
+MAX_RESUBMITS = 3
 #: Dask settings of a ``--dask local:K`` cluster (the engine's own; an external cluster keeps
 #: its configuration). Dask's defaults wake each worker's event loop every 10 ms to sample
 #: the task thread's stack (a profile nobody reads: there is no dashboard) and every 20 ms
@@ -136,6 +143,12 @@ def probe_scheduler(spec: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
             f"--dask {arg}: cannot reach a Dask scheduler there ({exc.strerror or type(exc).__name__} "
             f"after {time.perf_counter() - t0:.1f} s); start one with 'dask scheduler' or check the address"
         ) from None
+
+
+def _cancel_reason(exc: BaseException) -> str:
+    """The scheduler's reason for a cancelled future, as one short phrase."""
+    reason = getattr(exc, "reason", None)
+    return f"reason: {reason}" if reason else (str(exc).splitlines() or ["no reason given"])[0]
 
 
 # ------------------------------------------------------------------ worker side
@@ -341,15 +354,36 @@ class DaskEngine:
         out = str(Path(build).resolve())
         token = f"{os.getpid()}-{time.time_ns()}"
         shared = self._scatter(scene, catalog)
-        futures = [
-            self.client.submit(_render_run, cfg, out, t, threads, extra, slots, *shared,
-                               key=f"aerial-synth-image-{t[0]:06d}-{t[-1]:06d}-{token}", pure=False)
-            for t in tasks
-        ]
+
+        def submit(t, attempt, data):
+            key = f"aerial-synth-image-{t[0]:06d}-{t[-1]:06d}-{token}" + (f"-r{attempt}" if attempt else "")
+            return self.client.submit(_render_run, cfg, out, t, threads, extra, slots, *data, key=key,
+                                      pure=False)
+
+        futures = [submit(t, 0, shared) for t in tasks]
+        task_of = {f.key: (t, 0) for f, t in zip(futures, tasks)}
         done = 0
         try:
-            for fut in as_completed(futures):
-                res = fut.result()
+            pending = as_completed(futures)
+            for fut in pending:
+                try:
+                    res = fut.result()
+                except CancelledError as exc:
+                    # The scheduler cancels a task whose input it lost: the scattered scene
+                    # when every worker holding a replica died (its memory manager drops
+                    # replicas no waiting task needs, so one worker may hold the only one).
+                    # Run it again without the scattered data: the worker loads the scene.
+                    t, attempt = task_of.pop(fut.key)
+                    if attempt >= MAX_RESUBMITS:
+                        raise ExportError(
+                            f"--dask: the scheduler cancelled the task of images {t[0]}..{t[-1]} "
+                            f"{attempt + 1} times ({_cancel_reason(exc)}); rerun with --resume"
+                        ) from None
+                    new = submit(t, attempt + 1, (None, None))
+                    task_of[new.key] = (t, attempt + 1)
+                    futures.append(new)
+                    pending.add(new)
+                    continue
                 done += len(res)
                 if bar is not None:
                     bar.update(len(res))

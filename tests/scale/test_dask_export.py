@@ -102,6 +102,37 @@ def test_killed_worker_image_redone(cluster, cross_scene, reference, tmp_path):
 
 
 @pytest.mark.slow  # a 2-process LocalCluster: 30-200 s on a shared 2-core machine
+def test_lost_scattered_scene_tasks_resubmitted(cluster, cross_scene, reference, tmp_path, monkeypatch):
+    """The scene the client scatters dies with the only worker holding it (Dask's memory
+    manager keeps one replica once no waiting task needs more): the scheduler cancels every
+    task that reads it, and the engine submits them again, each worker loading the scene."""
+    from aerial_synth.dataset import engine_dask
+
+    lost = []
+
+    def scatter_then_lose(self, scene, catalog):
+        cl = self.client
+        holder = sorted(cl.scheduler_info(n_workers=-1)["workers"])[0]
+        data = cl.scatter([scene, catalog], workers=[holder], broadcast=False, hash=False)
+        pid = cl.run(os.getpid, workers=[holder])[holder]
+        os.kill(pid, signal.SIGKILL)
+        deadline = time.monotonic() + 60
+        while holder in cl.scheduler_info(n_workers=-1)["workers"] and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert holder not in cl.scheduler_info(n_workers=-1)["workers"]
+        lost.append(holder)
+        return tuple(data)
+
+    monkeypatch.setattr(engine_dask.DaskEngine, "_scatter", scatter_then_lose)
+    out = tmp_path / "lost"
+    res = export_dataset(_cfg(cross_scene), out, dask=cluster.scheduler_address, progress=False)
+    assert lost and res.rendered == 8
+    _same(reference, tree_bytes(out))
+    with distributed.Client(cluster.scheduler_address) as cl:
+        cl.wait_for_workers(2, timeout=120)  # the nanny restarted the killed worker
+
+
+@pytest.mark.slow  # a 2-process LocalCluster: 30-200 s on a shared 2-core machine
 def test_resume_across_engines(cluster, cross_scene, reference, tmp_path):
     """Kill a --workers 1 export after its first image, finish it with --dask --resume."""
     out = tmp_path / "resumed"
