@@ -345,3 +345,59 @@ def test_shadow_spread_inside_compose_equals_the_spread_pass(monkeypatch, step):
             monkeypatch.setattr(shading, "_SPREAD_IN_COMPOSE", fused)
             out[fused] = shading.shade(rs, cam, buf, dict(factors))
         assert out[True].tobytes() == out[False].tobytes()
+
+
+def _spread_ao_reference(h, w, step, low, semantic, depth):
+    """Plain per-pixel statement of :func:`K.spread_ao` (no shortcut for all-ones cells)."""
+    bh, bw, half = -(-h // step), -(-w // step), step // 2
+    out = np.ones(h * w, np.float32)
+    f32 = np.float32
+    for r in range(h):
+        fr = (f32(r) - f32(half)) / f32(step)
+        br0 = min(max(int(np.floor(fr)), 0), bh - 1)
+        br1 = min(br0 + 1, bh - 1)
+        wr = min(max(fr - f32(br0), f32(0)), f32(1))
+        for c in range(w):
+            i = r * w + c
+            fc = (f32(c) - f32(half)) / f32(step)
+            bc0 = min(max(int(np.floor(fc)), 0), bw - 1)
+            bc1 = min(bc0 + 1, bw - 1)
+            wc = min(max(fc - f32(bc0), f32(0)), f32(1))
+            acc, wsum = f32(0), f32(0)
+            for bri, bci, wq in ((br0, bc0, (f32(1) - wr) * (f32(1) - wc)),
+                                 (br0, bc1, (f32(1) - wr) * wc),
+                                 (br1, bc0, wr * (f32(1) - wc)), (br1, bc1, wr * wc)):
+                v = low[bri * bw + bci]
+                si = min(bri * step + half, h - 1) * w + min(bci * step + half, w - 1)
+                if (v < 0 or wq <= 0 or semantic[si] != semantic[i]
+                        or abs(depth[si] - depth[i]) > f32(0.3) + f32(0.05) * depth[i]):
+                    continue
+                acc = f32(acc + f32(wq * v))
+                wsum = f32(wsum + wq)
+            if wsum > 0:
+                out[i] = f32(acc / wsum)
+            else:
+                v = low[(r // step) * bw + c // step]
+                out[i] = v if v >= 0 else f32(1)
+    return out
+
+
+@pytest.mark.parametrize("step", [1, 4, 5])
+def test_ao_spread_equals_a_plain_reference(step):
+    """Bilinear AO between same-surface block samples; most cells are all ones or empty (the
+    kernel's shortcut), some hold occluded samples, across label and depth edges."""
+    rng = np.random.default_rng(step)
+    h, w = 53, 61
+    bh, bw = -(-h // step), -(-w // step)
+    low = np.ones(bh * bw, np.float32)
+    low[rng.random(bh * bw) < 0.15] = -1.0  # no sample (a miss)
+    occluded = rng.random(bh * bw) < 0.2
+    low[occluded] = rng.random(int(occluded.sum())).astype(np.float32)
+    semantic = np.where(np.arange(w)[None, :] < 30, 1, 3).repeat(h, 0).astype(np.uint8).reshape(-1)
+    depth = (60.0 + np.where(np.arange(h)[:, None] < 20, -4.0, 0.0)
+             + 0.01 * rng.random((h, w))).astype(np.float32).reshape(-1)
+    ao = np.full(h * w, -7.0, np.float32)  # every pixel must be written
+    K.spread_ao(h, w, step, low, semantic, depth, ao)
+    ref = _spread_ao_reference(h, w, step, low, semantic, depth)
+    np.testing.assert_array_equal(ao, ref)
+    assert (ao == 1).mean() > 0.3 and (ao < 1).mean() > 0.1  # both paths taken
