@@ -10,7 +10,7 @@ shading kernels). Prints the median of every stage of the frame, in ms and as a 
 of the bare primary cast, for both presets with ``--compare-presets``.
 
     .venv/bin/python tools/bench_render.py [--scene city_park] [--vehicles 400] [--repeat 5]
-        [--preset full|fast] [--compare-presets]
+        [--preset full|fast] [--compare-presets] [--allocator tuned|default]
 
 ``--compare-presets`` also times every frame with the other preset (same camera, same
 seed), so the full / fast / bare-primary ratios come from one run on a shared machine.
@@ -71,7 +71,18 @@ def main(argv=None) -> int:
     ap.add_argument("--preset", choices=("full", "fast"), default="full")
     ap.add_argument("--compare-presets", action="store_true",
                     help="time the other preset on the same frames too")
+    ap.add_argument("--allocator", choices=("tuned", "default"), default="tuned",
+                    help="tuned: glibc keeps a frame's freed arrays for the next (as in an "
+                         "export, whose frames overlap with writing; aerial_synth.render.allocator); "
+                         "default: glibc's own, which maps them again every frame of this loop")
     a = ap.parse_args(argv)
+    if a.allocator == "tuned":
+        from aerial_synth.render.allocator import tune_allocator
+
+        tuned = tune_allocator()
+        print(f"allocator: {'tuned (frames reuse freed arrays, as in an export)' if tuned else 'glibc default (tuning unavailable)'}")
+    else:
+        print("allocator: glibc default")
 
     t = time.perf_counter()
     scene = load_scene(a.scene)
