@@ -31,9 +31,24 @@ the world), so a camera aimed at any vehicle of the core fits. The reach follows
 options by itself; ``margin_m`` is only the placement margin (as ``place-tiled``: how far a
 tile's placement window reaches past its core, 60 m when left out).
 
-**Render scene** of a group: the window ``core + reach + RENDER_PAD_M`` (shadows and tall
-buildings seen obliquely), with the group's vehicles; built once per group and kept per
-worker for the next group on the same tile.
+**Render scene** of a group: the window ``core + reach + render pad`` with the group's
+vehicles; built once per group and kept per worker for the next group on the same tile.
+The pads (:func:`export_pads`) follow from the world, the render config and the camera
+through :func:`aerial_synth.render.cull.secondary_reach_m`, the reach past the seen area
+of a shadow (``dz / tan(lowest sun)``), of a wet road's mirror image or of a tall object
+seen obliquely (``dz * tan(largest view angle)``, :func:`max_view_deg`) and of ambient
+occlusion: the render pad for the world's tallest structure
+(:meth:`~aerial_synth.scene.tiles.TiledWorld.structure_height_m`), the vehicle area's pad
+for the tallest vehicle of the catalog plus its footprint radius. The default city (32.8 m
+with roof details) at the presets' 24 deg lowest sun needs 74.7 m (``fast``) or 76.7 m
+(``full``: AO, wet-road mirror images at the 39.5 deg view of a 96 px camera) where 80 m
+were fixed before (same images), 95 m for ``full`` at the default camera (a 91 deg field of
+view tilted 15 deg: mirror rays 70 deg off the vertical); a city of 60 m buildings 142-179
+m. The vehicle pad keeps its old value (the longest vehicle + :data:`VEHICLE_PAD_M`, 28.5
+m) as a floor: the cameras aim at the area's vehicles. Both pads are capped at
+:data:`MAX_PAD_M` (memory: a window grows with the square of its side); a cap that cuts a
+derived pad (e.g. a sun under 3 deg: unbounded shadows) adds one line to the placement
+warnings of every image and warns once per worker.
 
 A grid of one tile (``--tile-m`` at least the world's size) renders the untiled export's
 images and labels.
@@ -51,16 +66,19 @@ from ..errors import ExportError, PlacementError
 from .seeds import PLACEMENT_STREAM
 
 __all__ = [
-    "RENDER_PAD_M",
     "TILE_STREAM",
+    "MAX_PAD_M",
     "camera_reach_m",
     "check_tiled_config",
     "dependency_m",
+    "export_pads",
     "group_placement",
     "group_tile",
     "hop_m",
     "id_stride",
     "load_world",
+    "max_view_deg",
+    "nadir_in_view",
     "tiles_needed",
 ]
 
@@ -68,12 +86,13 @@ __all__ = [
 TILE_STREAM = 2
 #: draws of a group's tile before giving up on tiles whose core holds no vehicle
 TILE_DRAWS = 16
-#: how far the render window reaches past the camera area (shadows of 30 m buildings at a
-#: 25 deg sun, tall buildings seen obliquely)
-RENDER_PAD_M = 80.0
-#: vehicles whose centre lies this far past the camera area still show (half a vehicle)
-#: or cast a shadow into it (4.5 m tall at a 25 deg sun): added to the longest vehicle
+#: the least the vehicle area reaches past the camera area, added to the longest vehicle
+#: (the fixed pad before :func:`export_pads` derived it; kept as a floor: the group's
+#: cameras aim at the vehicles of that area, so a smaller area would redraw every camera)
 VEHICLE_PAD_M = 12.0
+#: the most either pad may be: a render window of a 500 m tile and a 176 m camera reach is
+#: then at most 1.45 km square
+MAX_PAD_M = 300.0
 #: the most vehicle ids an export may use (int32 instance ids)
 MAX_ID = 2**31 - 1
 
@@ -105,6 +124,73 @@ def camera_reach_m(cam_cfg, jitter_frac: float = 0.25) -> float:
     # the axis is sampled every degree: the corner distance varies smoothly with it; 1 %
     # covers the angles between samples
     return 1.01 * far + jitter
+
+
+def max_view_deg(cam_cfg) -> float:
+    """The largest angle (degrees) off the vertical of a ray of a camera of ``cam_cfg``: the
+    largest tilt plus the image corner's angle off the optical axis (reached when the tilt
+    axis is square to the corner's direction)."""
+    half = math.hypot(0.5 * cam_cfg.width_px, 0.5 * cam_cfg.height_px)
+    return float(cam_cfg.max_tilt_deg) + math.degrees(math.atan(half / cam_cfg.f_px))
+
+
+def nadir_in_view(cam_cfg) -> bool:
+    """Whether every camera of ``cam_cfg`` sees the point straight below it (its tilt at
+    most the half field of view across the image's narrower side). Its view between the
+    ground and any height then lies over its ground footprint: a tall object outside the
+    footprint never shows directly."""
+    half = 0.5 * min(cam_cfg.width_px, cam_cfg.height_px)
+    return math.tan(math.radians(float(cam_cfg.max_tilt_deg))) * cam_cfg.f_px <= half
+
+
+@dataclasses.dataclass(frozen=True)
+class Pads:
+    """How far (metres) a group's render window (``render_m``) and its vehicle area
+    (``vehicle_m``) reach past its camera area; ``warning``: the line saying what the
+    :data:`MAX_PAD_M` cap cut, or None."""
+
+    render_m: float
+    vehicle_m: float
+    warning: str | None = None
+
+
+def export_pads(world, render_config, cam_cfg, catalog) -> Pads:
+    """The pads of a tiled export (:class:`Pads`).
+
+    Render window: :func:`~aerial_synth.render.cull.secondary_reach_m` of the world's tallest
+    structure above its lowest surface, counting what ``render_config`` renders, at the
+    camera's largest view angle (:func:`max_view_deg`) and the world's road slope
+    (``oblique`` only for cameras that can tilt their nadir out of view,
+    :func:`nadir_in_view`: the camera area is their ground footprints). Vehicle
+    area: the same reach of the tallest vehicle standing on the highest drivable surface,
+    plus the largest footprint radius (half the diagonal), and at least the longest vehicle +
+    :data:`VEHICLE_PAD_M` (its fixed value before). Both at most :data:`MAX_PAD_M`."""
+    from ..render.cull import lowest_sun_deg, secondary_reach_m
+
+    models = _catalog_models(catalog)
+    view = max_view_deg(cam_cfg)
+    slope = world.surface_slope_deg()
+    kw = {"enabled_only": True, "oblique": not nadir_in_view(cam_cfg)}
+    if slope is not None:
+        kw["slope_deg"] = slope
+    tall = world.structure_height_m()
+    render = secondary_reach_m(tall, render_config, view, **kw)
+    v_dz = max(m.height_m for m in models) + world.drive_height_m()
+    radius = max(0.5 * math.hypot(m.length_m, m.width_m) for m in models)
+    vehicle = radius + secondary_reach_m(v_dz, render_config, view, **kw)
+    vehicle = max(max(m.length_m for m in models) + VEHICLE_PAD_M, vehicle)
+    cut = [(what, need) for what, need in (("render window", render), ("vehicle area", vehicle))
+           if need > MAX_PAD_M]
+    warning = None
+    if cut:
+        sun = lowest_sun_deg(render_config)
+        needs = ", ".join(f"the {what} {'an unbounded pad' if not math.isfinite(need) else f'{need:.0f} m'}"
+                          for what, need in cut)
+        warning = (f"tiled export: pads capped at {MAX_PAD_M:g} m past the camera area, short of what "
+                   f"shadows, mirror images and oblique views of {tall:g} m structures and "
+                   f"{v_dz:.2f} m vehicles need at a {sun:g} deg sun and a {view:.1f} deg view "
+                   f"({needs}): those of farther ones are cut at the window's edge")
+    return Pads(float(min(render, MAX_PAD_M)), float(min(vehicle, MAX_PAD_M)), warning)
 
 
 def _catalog_models(catalog):
@@ -234,6 +320,9 @@ def group_tile(cfg, grid, group: int, draw: int = 0):
     return grid.tile(k % nx, k // nx)
 
 
+_WARNED: set = set()  # pad warnings this process has shown
+
+
 class _GroupPlacer:
     """Places the tiles a group needs, one ``place_tiled(only=[tile])`` call each (the whole
     grid's seeds), and merges them in raster order with ``place_tiled``'s border rule."""
@@ -247,6 +336,10 @@ class _GroupPlacer:
         self.dep = dependency_m(grid, hop_m(self.scenario, catalog))
         self.stride = id_stride(grid, catalog)
         self.reach = float(math.ceil(camera_reach_m(cfg.camera_config())))
+        self.pads = export_pads(world, cfg.render_config(), cfg.camera_config(), catalog)
+        if self.pads.warning is not None and self.pads.warning not in _WARNED:
+            _WARNED.add(self.pads.warning)  # once per process (each worker builds one placer)
+            warnings.warn(self.pads.warning, stacklevel=2)
         if len(grid) * self.stride > MAX_ID:
             raise ExportError(
                 f"--tile-m: {len(grid)} tiles of up to {self.stride - 1} vehicles each cannot be "
@@ -346,6 +439,8 @@ def group_placement(world, grid, cfg, group: int, catalog=None, placer=None):
         raise ExportError(f"placement group {group}: {TILE_DRAWS} tiles drawn, none holds a vehicle "
                           f"(scenario {cfg.scenario!r} on scene {cfg.scene!r}: no road?)")
     within = _grow(tile.core, placer.reach, bounds)
-    area = _grow(within, placer.longest + VEHICLE_PAD_M, bounds)
+    area = _grow(within, placer.pads.vehicle_m, bounds)
     pl, warned = placer.placement(group, tile, area)
+    if placer.pads.warning is not None:
+        warned = sorted({*warned, placer.pads.warning})
     return tile, within, area, pl, warned

@@ -378,7 +378,7 @@ class TiledImageWorker(ImageWorker):
             return
         from ..render import add_placement
         from ..scene.raycast import RayScene
-        from .tiled import RENDER_PAD_M, _GroupPlacer, _grow, group_placement
+        from .tiled import _GroupPlacer, _grow, group_placement
 
         world, grid = self.scene, self.grid
         if self._placer is None:
@@ -388,7 +388,7 @@ class TiledImageWorker(ImageWorker):
         if not pl.vehicles:
             raise ExportError(f"placement group {group}: scenario {self.cfg.scenario!r} placed no "
                               f"vehicles near tile {list(tile.key)} of scene {self.cfg.scene!r}")
-        rect = _grow(within, RENDER_PAD_M, grid.bounds)
+        rect = _grow(within, self._placer.pads.render_m, grid.bounds)
         if self._window_cache is not None and self._window_cache[0] == rect:
             scene = self._window_cache[1]
         else:

@@ -19,6 +19,9 @@ one of the views, directly or through a secondary ray:
 Each vehicle is kept if its footprint circle comes within that reach of the frustum's
 outline. Where a bound does not hold (the sun or a corner ray near the horizon) every
 vehicle is kept.
+
+:func:`secondary_reach_m` is that reach for anything ``dz`` tall: the tiled export
+(:mod:`aerial_synth.dataset.tiled`) sizes its render window and its vehicle area with it.
 """
 
 from __future__ import annotations
@@ -27,7 +30,7 @@ import math
 
 import numpy as np
 
-__all__ = ["vehicles_for_views"]
+__all__ = ["lowest_sun_deg", "secondary_reach_m", "vehicles_for_views"]
 
 #: extra angle for mirror rays off sloped or cambered roads, degrees
 _SLOPE_DEG = 10.0
@@ -36,6 +39,51 @@ _MAX_VIEW_DEG = 80.0
 _MIN_SUN_DEG = 3.0
 #: slack for mesh parts past the nominal box (mirrors) and float error, metres
 _SLACK_M = 1.0
+
+
+def lowest_sun_deg(render_config) -> float:
+    """The lowest sun (degrees) a frame of ``render_config`` can cast a shadow ray towards:
+    the lowest elevation less the largest sun-disk radius."""
+    return float(render_config.sun_elevation_deg[0]) - float(render_config.sun_radius_deg[1])
+
+
+def _mirror_possible(rc) -> bool:
+    return bool(rc.wet_reflections) and float(rc.wet_probability) > 0 and float(rc.wet[1]) > 0
+
+
+def secondary_reach_m(dz: float, render_config, view_deg: float, *, slope_deg: float = _SLOPE_DEG,
+                      enabled_only: bool = False, oblique: bool = True) -> float:
+    """How far (xy metres) past the area a view sees something ``dz`` metres tall (above the
+    lowest surface) can still put a pixel into it: its shadow (``dz / tan(sun)`` at the
+    lowest sun, :func:`lowest_sun_deg`), its mirror image in a wet road (a reflected ray
+    rises at the camera ray's angle off the vertical, at most ``view_deg``, plus
+    ``slope_deg`` for sloped roads: ``dz * tan(view_deg + slope_deg)``), or its ambient
+    occlusion (``ao_radius_m``), plus 1 m of slack.
+
+    ``oblique``: also count the view's own reach ``dz * tan(view_deg)`` (something tall
+    seen obliquely past the area's outline on the ground; never more than the mirror
+    term). Leave it out where the area already holds every point the views see between
+    the lowest surface and ``dz`` (the cull's frustum outline; the ground footprint of a
+    camera whose nadir lies in it). ``enabled_only``: count only what ``render_config``
+    renders (no AO term without ``ambient_occlusion``, no shadow term without ``shadows``,
+    no mirror term without wet reflections). The cull counts everything (so its vehicle
+    sets stay as they were).
+
+    ``inf`` where no bound holds: a counted sun under 3 deg, or a ray at or past the
+    horizon. (:func:`vehicles_for_views` also stops culling past an 80 deg mirror angle.)"""
+    rc = render_config
+    shadows = not enabled_only or bool(rc.shadows)
+    mirror = not enabled_only or _mirror_possible(rc)
+    ao = not enabled_only or bool(rc.ambient_occlusion)
+    elev = lowest_sun_deg(rc)
+    ang = view_deg + slope_deg if mirror else view_deg
+    if (shadows and elev < _MIN_SUN_DEG) or ang >= 90.0:
+        return math.inf
+    dz = max(float(dz), 0.0)
+    far = dz * math.tan(math.radians(ang)) if (mirror or oblique) else 0.0
+    if shadows:
+        far = max(dz / math.tan(math.radians(elev)), far)
+    return (float(rc.ao_radius_m) if ao else 0.0) + _SLACK_M + far
 
 
 def vehicles_for_views(vehicles, cameras, render_config, z_low: float) -> list:
@@ -51,8 +99,7 @@ def vehicles_for_views(vehicles, cameras, render_config, z_low: float) -> list:
     top = max(float(v.z_m) + float(v.height_m) for v in vehicles)
     lo = min(float(z_low), min(float(v.z_m) for v in vehicles))
     dz = max(top - lo, 0.0)
-    elev = float(render_config.sun_elevation_deg[0]) - float(render_config.sun_radius_deg[1])
-    if elev < _MIN_SUN_DEG:
+    if lowest_sun_deg(render_config) < _MIN_SUN_DEG:
         return vehicles
     import shapely
 
@@ -70,8 +117,7 @@ def vehicles_for_views(vehicles, cameras, render_config, z_low: float) -> list:
     mirror_deg = view_deg + _SLOPE_DEG
     if mirror_deg > _MAX_VIEW_DEG:
         return vehicles
-    reach = (float(render_config.ao_radius_m) + _SLACK_M
-             + max(dz / math.tan(math.radians(elev)), dz * math.tan(math.radians(mirror_deg))))
+    reach = secondary_reach_m(dz, render_config, view_deg)
     area = shapely.union_all(outlines)
     xy = np.array([[float(v.x_m), float(v.y_m)] for v in vehicles])
     radius = np.array([0.5 * math.hypot(float(v.length_m), float(v.width_m)) for v in vehicles])

@@ -194,6 +194,41 @@ class TiledWorld:
                 return cls.from_spec(data, seed=seed)
         return cls.from_scene(load_scene(name_or_path, seed=seed))
 
+    def structure_height_m(self) -> float:
+        """How far the world's tallest structure rises above its lowest surface (metres): a
+        ``city`` spec's bound from its parameters (:func:`~.procedural.city.city_max_height_m`:
+        tallest building with roof details, trees, poles), a scene's z extent otherwise."""
+        if self._spec is not None:
+            from .procedural.city import city_max_height_m
+
+            return city_max_height_m(self._spec)
+        b = self._scene.bounds()
+        return max(float(b[1, 2] - b[0, 2]), 0.0)
+
+    def drive_height_m(self) -> float:
+        """How far a vehicle's wheels can stand above the world's lowest surface (metres): a
+        city's road surfaces are at most 6 cm above its ground; a scene's highest drivable
+        surface (``label_config.drivable``) above its lowest vertex (its z extent when it
+        has none)."""
+        if self._spec is not None:
+            from .procedural.builder import Z_GROUND, Z_MARKING
+
+            return Z_MARKING - Z_GROUND
+        sc = self._scene
+        drivable = sc.label_config.drivable
+        tops = [float(o.vertices[:, 2].max()) for o in sc.objects
+                if o.label in drivable and len(o.vertices)]
+        if not tops:
+            return self.structure_height_m()
+        return max(max(tops) - float(sc.bounds()[0, 2]), 0.0)
+
+    def surface_slope_deg(self) -> float | None:
+        """The steepest tilt of a wet-glossed surface off the horizontal that a mirror ray
+        can leave from: 0 for a city (its roads, markings, sidewalks and flat roofs are
+        horizontal, their sides vertical: a ray reflected off a vertical face keeps its
+        downward angle), None (not known: the cull's margin applies) for a scene."""
+        return 0.0 if self._spec is not None else None
+
     def georeference(self) -> dict:
         """``Scene.georeference()`` of the world's scenes (a generated city: origin 0, no CRS)."""
         if self._scene is not None:

@@ -47,16 +47,23 @@ from ..build import merge_meshes
 from ..model import SceneObject
 from .builder import Builder
 from .roads import Road
-from .roofs import building_objects
+from .roofs import ROOF_DETAIL_MAX_M, building_objects
 from .trees import draw_species, tree_objects
 
-__all__ = ["generate_city", "city_layout", "with_size_m", "CityLayout", "CITY_DEFAULTS"]
+__all__ = ["generate_city", "city_layout", "city_max_height_m", "with_size_m", "CityLayout",
+           "CITY_DEFAULTS"]
 
 #: Marking dash period (3 m dash + 6 m gap) times 4 = pole spacing: streets start at
 #: multiples of this from the world's west/south edge in every window.
 _PHASE_M = 36.0
 #: Streets reach this far past the window (so junction clearing and markings match).
 _PAD_M = 72.0
+
+#: Heights (metres) of park trees, courtyard trees (crown tops: a crown ends at its tree's
+#: height, procedural/trees.py) and of the poles along avenues.
+_PARK_TREE_M = (7.0, 15.0)
+_YARD_TREE_M = (6.0, 10.0)
+_POLE_M = 9.0
 
 CITY_DEFAULTS: dict = {
     "block_m": [90.0, 140.0],
@@ -189,6 +196,19 @@ def _layout_cached(key, size_m, block, street_w, avenue_w, avenue_every) -> City
     return CityLayout(key, half, xs, ys, wx, wy, avx, avy)
 
 
+def city_max_height_m(spec: Mapping) -> float:
+    """How far the tallest structure of a city of ``spec`` can rise above its lowest surface
+    (the ground and the ponds, z = 0; roads, markings and sidewalks lie 5-12 cm above it):
+    the ``building_height_m`` upper bound plus the tallest roof detail
+    (:data:`~.roofs.ROOF_DETAIL_MAX_M`, none with ``roofs: {enabled: false}`` or
+    ``{details: false}``), or a park tree (15 m), or a pole (9 m), whichever is higher."""
+    _, hmax = _pair(spec, "building_height_m", 2.0)
+    roofs = spec.get("roofs") or {}
+    details = roofs.get("enabled", True) and roofs.get("details", True)
+    return float(max(hmax + (ROOF_DETAIL_MAX_M if details else 0.0), _PARK_TREE_M[1], _YARD_TREE_M[1],
+                     _POLE_M))
+
+
 def _span(lo: float, hi: float, w_lo: float, w_hi: float) -> tuple[float, float] | None:
     """Street span inside the window [w_lo, w_hi] (padded), snapped to the world phase."""
     a = max(lo, lo + np.floor((w_lo - _PAD_M - lo) / _PHASE_M) * _PHASE_M)
@@ -278,7 +298,7 @@ def generate_city(b: Builder, spec: Mapping) -> None:
     b._city_trees = tr
     for r in b.roads:
         if r.lanes >= 2:
-            b.add_poles_along(r, _PHASE_M, 9.0, r.sidewalk_m + 0.6)
+            b.add_poles_along(r, _PHASE_M, _POLE_M, r.sidewalk_m + 0.6)
     b.scene = functools.partial(_city_scene, b)  # buildings and trees with seeded colours
 
 
@@ -300,7 +320,7 @@ def _park(rng, box, density, pond_f, b: Builder, trees: list) -> None:
         return
     xy = np.column_stack([rng.uniform(bx0 + 3, bx1 - 3, n), rng.uniform(by0 + 3, by1 - 3, n)])
     r = rng.uniform(2.5, 5.0, n)
-    hgt = rng.uniform(7.0, 15.0, n)
+    hgt = rng.uniform(*_PARK_TREE_M, n)
     sp, u = draw_species(rng, n, b.species_weights())
     col = rng.random(n)
     if pond is not None:
@@ -361,7 +381,7 @@ def _built(rng, box, heights, lot_f, b: Builder, buildings: list, trees: list, e
     if n and (iy1 - iy0) > 2 * depth + 12 and (ix1 - ix0) > 2 * depth + 12:
         xy = np.column_stack([rng.uniform(ix0 + depth + 4, ix1 - depth - 4, n),
                               rng.uniform(iy0 + depth + 4, iy1 - depth - 4, n)])
-        r, hgt = rng.uniform(2.5, 4.0, n), rng.uniform(6.0, 10.0, n)
+        r, hgt = rng.uniform(2.5, 4.0, n), rng.uniform(*_YARD_TREE_M, n)
         sp, u = draw_species(rng, n, b.species_weights())
         trees.append(np.column_stack([xy, r, hgt, sp, u, rng.random(n)]))
 

@@ -27,8 +27,8 @@ import numpy as np
 
 from ..build import prism
 
-__all__ = ["ROOF_MATERIALS", "ROOF_COLORS", "DEFAULT_ROOFS", "RoofParts", "roof_parts", "roof_weights",
-           "detail_objects", "building_objects"]
+__all__ = ["ROOF_MATERIALS", "ROOF_COLORS", "DEFAULT_ROOFS", "ROOF_DETAIL_MAX_M", "RoofParts",
+           "roof_parts", "roof_weights", "detail_objects", "building_objects"]
 
 ROOF_MATERIALS: tuple[str, ...] = ("roof_gravel", "roof_tiles", "roof_metal")
 
@@ -39,6 +39,10 @@ ROOF_COLORS: dict[str, tuple[tuple[float, float, float], ...]] = {
                    (0.48, 0.27, 0.20)),
     "roof_metal": ((0.58, 0.60, 0.62), (0.45, 0.50, 0.55), (0.40, 0.47, 0.42), (0.68, 0.68, 0.66)),
 }
+#: The most a roof detail rises above the building height: a stairwell housing (2.2-2.8 m);
+#: parapets and AC units reach 0.8 and 1.0 m, chimneys 0.9 m above a gabled roof's ridge,
+#: which is at the building height.
+ROOF_DETAIL_MAX_M = 2.8
 #: Covering mix per generator where it differs from the per-building rule (roof_weights).
 DEFAULT_ROOFS: dict[str, dict[str, float]] = {"depot": {"roof_metal": 0.85, "roof_gravel": 0.15}}
 _DETAIL_RGB = {"metal": (0.62, 0.63, 0.64), "roof_metal": (0.70, 0.71, 0.72),
@@ -261,7 +265,7 @@ def roof_parts(poly, height: float, rng: np.random.Generator, override: Mapping 
             taken.append((0.0, t, 0.7 * a, 1.2))
             out_details.append(("glass", bv, bf))
     if area > 200.0 and rng.random() < 0.6:  # stairwell / lift housing
-        add("concrete", (rng.uniform(2.5, 3.5), rng.uniform(2.2, 3.0)), rng.uniform(2.2, 2.8))
+        add("concrete", (rng.uniform(2.5, 3.5), rng.uniform(2.2, 3.0)), rng.uniform(2.2, ROOF_DETAIL_MAX_M))
     for _ in range(int(min(4, rng.poisson(area / 250.0)))):  # AC units
         add("metal", (rng.uniform(1.0, 1.8), rng.uniform(0.7, 1.1)), rng.uniform(0.6, 1.0))
     for _ in range(int(min(4, rng.poisson(area / 200.0)))):  # vents
