@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import os
 import time
+import warnings
 from pathlib import Path
 
 from .. import validators as v
@@ -93,6 +94,12 @@ def validate_inputs(cfg: ExportConfig):
     load_scenario(cfg.scenario)
     catalog = load_catalog()
     scene = ImageWorker(cfg, Path(".")).scene
+    if getattr(cfg, "tile_m", None) is not None:  # a capped render pad: said once, here
+        from .tiled import export_pads
+
+        cut = export_pads(scene, cfg.render_config(), cfg.camera_config(), catalog).warning
+        if cut is not None:
+            warnings.warn(cut, stacklevel=2)
     return scene, catalog
 
 

@@ -48,7 +48,7 @@ m. The vehicle pad keeps its old value (the longest vehicle + :data:`VEHICLE_PAD
 m) as a floor: the cameras aim at the area's vehicles. Both pads are capped at
 :data:`MAX_PAD_M` (memory: a window grows with the square of its side); a cap that cuts a
 derived pad (e.g. a sun under 3 deg: unbounded shadows) adds one line to the placement
-warnings of every image and warns once per worker.
+warnings of every image, and the exporter prints it once.
 
 A grid of one tile (``--tile-m`` at least the world's size) renders the untiled export's
 images and labels.
@@ -320,9 +320,6 @@ def group_tile(cfg, grid, group: int, draw: int = 0):
     return grid.tile(k % nx, k // nx)
 
 
-_WARNED: set = set()  # pad warnings this process has shown
-
-
 class _GroupPlacer:
     """Places the tiles a group needs, one ``place_tiled(only=[tile])`` call each (the whole
     grid's seeds), and merges them in raster order with ``place_tiled``'s border rule."""
@@ -336,10 +333,9 @@ class _GroupPlacer:
         self.dep = dependency_m(grid, hop_m(self.scenario, catalog))
         self.stride = id_stride(grid, catalog)
         self.reach = float(math.ceil(camera_reach_m(cfg.camera_config())))
+        # a capped pad is in every image's placement warnings; the exporter prints it once
+        # (validate_inputs), not every worker
         self.pads = export_pads(world, cfg.render_config(), cfg.camera_config(), catalog)
-        if self.pads.warning is not None and self.pads.warning not in _WARNED:
-            _WARNED.add(self.pads.warning)  # once per process (each worker builds one placer)
-            warnings.warn(self.pads.warning, stacklevel=2)
         if len(grid) * self.stride > MAX_ID:
             raise ExportError(
                 f"--tile-m: {len(grid)} tiles of up to {self.stride - 1} vehicles each cannot be "

@@ -122,7 +122,8 @@ def test_a_cut_pad_warns():
 
 def test_cut_pad_is_a_placement_warning(tmp_path):
     """A tiled export whose render config allows a 1.5 deg sun: every group's placement
-    warnings say the pads were capped (and the worker warns)."""
+    warnings say the pads were capped (the placer itself does not warn: the exporter
+    does, once)."""
     import yaml
 
     scene = tmp_path / "c.yaml"
@@ -133,21 +134,18 @@ def test_cut_pad_is_a_placement_warning(tmp_path):
     world = TiledWorld.load(str(scene))
     grid = world.grid(250.0, 60.0)
     cat = load_catalog()
-    import aerial_synth.dataset.tiled as tiled
 
     sunset = RenderConfig.preset("fast", sun_elevation_deg=(1.5, 20.0))
     orig = ExportConfig.render_config
     try:
         ExportConfig.render_config = lambda self: sunset
-        tiled._WARNED.clear()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             placer = _GroupPlacer(world, grid, cfg, cat)
         _, _, _, _, warned = group_placement(world, grid, cfg, 0, cat, placer)
     finally:
         ExportConfig.render_config = orig
-        tiled._WARNED.clear()
-    assert [str(w.message) for w in caught] == [placer.pads.warning]
+    assert caught == [] and placer.pads.warning is not None
     assert placer.pads.warning in warned
 
 
@@ -189,3 +187,28 @@ def test_render_window_holds_every_building_whose_shadow_reaches_the_views():
                 checked += 1
     assert checked > 50
     assert missed_before > 0
+
+
+def test_cli_says_a_capped_pad_once_whatever_the_workers(tmp_path):
+    """Buildings up to 300 m: the render pad is capped, which the CLI says in one line, once
+    (not once per worker), and every image's metadata records it."""
+    import json
+
+    import yaml
+
+    from .conftest import run_cli
+
+    scene = tmp_path / "towers.yaml"
+    scene.write_text(yaml.safe_dump({"generator": "city", "name": "towers", "seed": 5, "size_km": 0.5,
+                                     "building_height_m": [150, 300]}))
+    out = tmp_path / "ds"
+    r = run_cli("export", "--scene", scene, "--tile-m", 250, "--images", 2, "--images-per-placement", 1,
+                "--workers", 2, "--vehicles", 30, "--size", 64, "--gsd", 0.25, "--altitude", 30,
+                "--max-tilt", 10, "--simple-vehicles", "--no-progress", "--out", out)
+    assert r.returncode == 0, r.stderr
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    capped = [ln for ln in lines if "pads capped" in ln]
+    assert len(capped) == 1 and capped[0].startswith("aerial-synth: warning: tiled export: pads capped")
+    assert not any("UserWarning" in ln or ".py:" in ln for ln in lines), lines
+    for m in sorted((out / "meta").glob("*.json")):
+        assert any("pads capped" in w for w in json.loads(m.read_text())["placement"]["warnings"])
