@@ -107,7 +107,8 @@ def _stage_lines(out: str) -> list[str]:
 
 
 def bench_frame(a) -> dict:
-    cmd = [PY, "tools/bench_render.py", "--repeat", str(a.repeat), "--compare-presets"]
+    # at least 7 frames: on a shared machine the median of 3 moved the ratio by +-0.2
+    cmd = [PY, "tools/bench_render.py", "--repeat", str(max(a.repeat, 7)), "--compare-presets"]
     out, wall = _run(cmd)
     return {
         "command": " ".join(cmd[1:]),
@@ -116,6 +117,9 @@ def bench_frame(a) -> dict:
         "frame_over_bare_primary": _num(r"primary rays: median [\d.]+ ms -> frame / bare ([\d.]+)", out),
         "fast_frame_ms_median": _num(r"frame \(fast\) median ([\d.]+) ms", out),
         "fast_frame_over_bare_primary": _num(r"frame \(fast\) median [\d.]+ ms -> frame / bare ([\d.]+)", out),
+        # each frame over the bare primary cast timed just before it (steadier under drift)
+        "frame_over_bare_primary_paired": _num(r"paired: .*?: full ([\d.]+)", out),
+        "fast_frame_over_bare_primary_paired": _num(r"paired: .*?, fast ([\d.]+)", out),
         "stages": _stage_lines(out),
         "wall_s": round(wall, 1),
     }
