@@ -561,8 +561,8 @@ def test_pool_workers_fork_from_a_preloading_server():
 
 
 def test_png_encoding_is_lossless_and_fast_settings():
-    """Exported PNGs use the fast settings (zlib 1, Huffman only, Paeth where OpenCV has
-    the option) and decode to the very pixels rendered."""
+    """Exported PNGs use the fast settings (zlib 1, Huffman only, the Average filter where
+    OpenCV has the option) and decode to the very pixels rendered."""
     import cv2
 
     from aerial_synth.dataset.worker import encode_image, png_params
@@ -575,6 +575,8 @@ def test_png_encoding_is_lossless_and_fast_settings():
     p = dict(zip(png_params()[::2], png_params()[1::2]))
     assert p[cv2.IMWRITE_PNG_COMPRESSION] == 1
     assert p[cv2.IMWRITE_PNG_STRATEGY] == cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY
+    if hasattr(cv2, "IMWRITE_PNG_FILTER_AVG"):
+        assert p[cv2.IMWRITE_PNG_FILTER] == cv2.IMWRITE_PNG_FILTER_AVG
 
 
 def _server_state(_):
