@@ -12,16 +12,20 @@ import json
 import os
 import stat
 import tempfile
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
 from .errors import OutputError
 
 __all__ = [
+    "StreamedList",
     "atomic_write_bytes",
+    "atomic_write_chunks",
     "atomic_write_text",
     "atomic_write_json",
     "dumps_json",
+    "iter_json",
     "check_output_file",
     "check_output_dir",
     "is_inside",
@@ -121,6 +125,14 @@ def is_inside(child: str | os.PathLike, parent: str | os.PathLike) -> bool:
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically (temp file in the same folder + ``os.replace``)."""
+    return atomic_write_chunks(path, (data,))
+
+
+def atomic_write_chunks(path: str | os.PathLike, chunks: Iterable[bytes | str]) -> Path:
+    """Write the concatenation of ``chunks`` (bytes, or str written as UTF-8) to ``path``
+    atomically, holding one chunk at a time: a file larger than memory, e.g. the COCO JSON
+    of a 100,000-image export. An error while the chunks are made leaves the old file (or
+    none) and no temporary."""
     path = Path(path)
     try:
         st = os.stat(path)
@@ -132,8 +144,9 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual file mode
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
+        with os.fdopen(fd, "wb", buffering=1 << 20) as fh:
+            for chunk in chunks:
+                fh.write(chunk.encode("utf-8") if isinstance(chunk, str) else chunk)
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
@@ -160,6 +173,51 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
 def dumps_json(obj: Any) -> str:
     """Deterministic JSON text (sorted keys, 2-space indent, trailing newline)."""
     return json.dumps(obj, indent=2, sort_keys=True, allow_nan=False) + "\n"
+
+
+class StreamedList:
+    """A JSON list whose items come from an iterable, consumed once by :func:`iter_json` (so
+    the list is never held whole). Allowed as a value of a dict (at any depth of dicts) or
+    at the top level."""
+
+    __slots__ = ("items",)
+
+    def __init__(self, items: Iterable):
+        self.items = items
+
+
+def iter_json(obj: Any) -> Iterator[str]:
+    """The text of :func:`dumps_json` (``obj``) in chunks, with every :class:`StreamedList`
+    written item by item: the same characters, a bounded amount of memory. The values of a
+    dict are serialised in key order, one after the other, so a plain list that a streamed
+    one fills as it is consumed may follow it (under a later key)."""
+    yield from _json_chunks(obj, 0)
+    yield "\n"
+
+
+def _streams(obj: Any) -> bool:
+    return isinstance(obj, StreamedList) or (
+        isinstance(obj, dict) and any(_streams(v) for v in obj.values()))
+
+
+def _json_chunks(obj: Any, level: int) -> Iterator[str]:
+    """json.dumps(obj, indent=2, sort_keys=True) as it would print ``level`` deep."""
+    pad = "\n" + "  " * (level + 1)
+    if isinstance(obj, StreamedList):
+        first = True
+        for item in obj.items:
+            yield ("[" if first else ",") + pad
+            yield from _json_chunks(item, level + 1)
+            first = False
+        yield "[]" if first else "\n" + "  " * level + "]"
+    elif isinstance(obj, dict) and _streams(obj):
+        for j, (k, v) in enumerate(sorted(obj.items())):
+            yield ("{" if j == 0 else ",") + pad + json.dumps(k) + ": "
+            yield from _json_chunks(v, level + 1)
+        yield "\n" + "  " * level + "}"
+    else:
+        text = json.dumps(obj, indent=2, sort_keys=True, allow_nan=False)
+        yield text.replace("\n", "\n" + "  " * level) if level else text
 
 
 def atomic_write_json(path: str | os.PathLike, obj: Any) -> Path:

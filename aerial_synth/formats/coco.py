@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io_utils import atomic_write_text, dumps_json
+from ..io_utils import StreamedList, atomic_write_text, dumps_json, iter_json
 from ._common import CATEGORIES, LabelFormatError, read_json
 from .registry import DatasetInfo, LabelFormat
 
@@ -116,41 +116,46 @@ def object_from_annotation(annotation, image_id: int, rle: dict) -> CocoObject:
 
 def to_dict(images, objects, categories=CATEGORIES, info: dict | None = None) -> dict:
     """COCO instances dict; annotation ids 1.. in the given order, category ids 1.. in
-    ``categories`` order."""
+    ``categories`` order. Lists given as :class:`~aerial_synth.io_utils.StreamedList` stay
+    streamed (for :func:`~aerial_synth.io_utils.iter_json`)."""
     cat_id = {name: i + 1 for i, name in enumerate(categories)}
-    anns = []
-    for k, o in enumerate(objects, start=1):
-        if o.category not in cat_id:
-            raise LabelFormatError(f"COCO category: expected one of {', '.join(categories)}, got {o.category!r}")
-        anns.append(
-            {
-                "id": k,
-                "image_id": int(o.image_id),
-                "category_id": cat_id[o.category],
-                "bbox": [float(v) for v in o.bbox_xywh],
-                "area": int(o.area),
-                "iscrowd": int(o.iscrowd),
-                "segmentation": {"size": list(o.segmentation["size"]), "counts": o.segmentation["counts"]},
-                "obb_xyxyxyxy": [float(v) for v in o.obb_xyxyxyxy],
-                "heading_img_deg": float(o.heading_img_deg),
-                "difficult": int(o.difficult),
-                "orientation_unclear": int(o.orientation_unclear),
-                "vehicle_id": int(o.vehicle_id),
-                "visible_fraction": float(o.visible_fraction),
-                "truncated": int(o.truncated),
-            }
-        )
+    if isinstance(objects, StreamedList):
+        anns = StreamedList(_annotation(k, o, cat_id) for k, o in enumerate(objects.items, start=1))
+    else:
+        anns = [_annotation(k, o, cat_id) for k, o in enumerate(objects, start=1)]
     return {
         "info": dict(info or {"description": "aerial-synth"}),
         "licenses": [],
         "categories": [
             {"id": cat_id[n], "name": n, "supercategory": "vehicle"} for n in categories
         ],
-        "images": [
-            {"id": int(i.id), "file_name": i.file_name, "width": int(i.width), "height": int(i.height)}
-            for i in images
-        ],
+        "images": images if isinstance(images, StreamedList) else [_image(i) for i in images],
         "annotations": anns,
+    }
+
+
+def _image(i: CocoImage) -> dict:
+    return {"id": int(i.id), "file_name": i.file_name, "width": int(i.width), "height": int(i.height)}
+
+
+def _annotation(k: int, o: CocoObject, cat_id: dict) -> dict:
+    if o.category not in cat_id:
+        raise LabelFormatError(f"COCO category: expected one of {', '.join(cat_id)}, got {o.category!r}")
+    return {
+        "id": k,
+        "image_id": int(o.image_id),
+        "category_id": cat_id[o.category],
+        "bbox": [float(v) for v in o.bbox_xywh],
+        "area": int(o.area),
+        "iscrowd": int(o.iscrowd),
+        "segmentation": {"size": list(o.segmentation["size"]), "counts": o.segmentation["counts"]},
+        "obb_xyxyxyxy": [float(v) for v in o.obb_xyxyxyxy],
+        "heading_img_deg": float(o.heading_img_deg),
+        "difficult": int(o.difficult),
+        "orientation_unclear": int(o.orientation_unclear),
+        "vehicle_id": int(o.vehicle_id),
+        "visible_fraction": float(o.visible_fraction),
+        "truncated": int(o.truncated),
     }
 
 
@@ -200,24 +205,36 @@ class CocoFormat(LabelFormat):
     def image_path(self, split: str, file_name: str) -> str:
         return f"{self.folder}/images/{split}/{file_name}"
 
-    def aggregate_files(self, records, info: DatasetInfo) -> dict[str, str]:
+    def aggregate_files(self, records, info: DatasetInfo) -> dict:
+        """One ``instances_<split>.json`` per split with images, each streamed (its text
+        made record by record while it is written: a 100,000-image export's JSON is never
+        held in memory). ``records``: every image's record in index order (a list, or the
+        exporter's lazy sequence, whose ``of_split`` reads only that split's records)."""
         out = {}
         for sp in info.splits:
-            recs = [r for r in records if r.split == sp]
-            if not recs:
+            if not info.splits[sp]:
                 continue
-            images = [CocoImage(r.index + 1, r.file_name, r.width_px, r.height_px) for r in recs]
-            objs = [
-                object_from_annotation(a, r.index + 1, r.segmentations[a.vehicle_id])
-                for r in recs
-                for a in r.annotations
-                if a.kept and a.box is not None
-            ]
-            meta = {"description": f"aerial-synth {info.scene} {info.scenario} ({sp})",
-                    "version": info.tool_version, "seed": info.seed}
-            d = to_dict(images, objs, info.categories, meta)
-            out[f"{self.folder}/annotations/instances_{sp}.json"] = dumps_json(d)
+            out[f"{self.folder}/annotations/instances_{sp}.json"] = self._instances(records, sp, info)
         return out
+
+    def _instances(self, records, sp: str, info: DatasetInfo):
+        of_split = getattr(records, "of_split", None)
+        recs = of_split(sp) if of_split is not None else (r for r in records if r.split == sp)
+        images: list[CocoImage] = []  # filled while the annotations stream (written after them)
+
+        def objects():
+            for r in recs:
+                images.append(CocoImage(r.index + 1, r.file_name, r.width_px, r.height_px))
+                for a in r.annotations:
+                    if a.kept and a.box is not None:
+                        yield object_from_annotation(a, r.index + 1, r.segmentations[a.vehicle_id])
+
+        meta = {"description": f"aerial-synth {info.scene} {info.scenario} ({sp})",
+                "version": info.tool_version, "seed": info.seed}
+        d = to_dict(StreamedList(_image(i) for i in images), StreamedList(objects()), info.categories, meta)
+        if sorted(d).index("annotations") > sorted(d).index("images"):  # pragma: no cover
+            raise RuntimeError("COCO streaming: the images must be written after the annotations")
+        return iter_json(d)
 
 
 FORMAT = CocoFormat()

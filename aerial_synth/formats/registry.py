@@ -88,8 +88,12 @@ class LabelFormat:
         """Full text of the per-image label file for ``record`` (an ``ImageRecord``)."""
         return None
 
-    def aggregate_files(self, records, info: DatasetInfo) -> dict[str, str]:
-        """Per-dataset files: relative path -> text, from every image's record (index order)."""
+    def aggregate_files(self, records, info: DatasetInfo) -> dict:
+        """Per-dataset files: relative path -> text, or an iterable of text chunks for a file
+        too large to hold (written as they come, e.g. from
+        :func:`~aerial_synth.io_utils.iter_json`). ``records``: every image's record in
+        index order; the exporter passes a lazy sequence that reads them from disk on each
+        iteration (``len`` and ``[i]`` work too), so iterate it rather than keep a list."""
         return {}
 
     def __repr__(self) -> str:
