@@ -398,6 +398,7 @@ def sample_pose_targeted(
     jitter_frac: float = 0.25,
     within_xy=None,
     max_tries: int = 50,
+    clear=None,
 ) -> Camera:
     """A camera centred near a random placed vehicle (the thesis's sampler).
 
@@ -409,6 +410,11 @@ def sample_pose_targeted(
                offsets are redrawn (up to ``max_tries``) until the image's ground footprint
                lies inside, so frames do not show the void beyond the scene edge; if no
                draw fits, the last one is used.
+    clear     : optional ``clear(camera) -> bool``, a condition every draw must meet as well
+               (redrawn alike), e.g. nothing above the camera (not inside or under a
+               building). The first draw that meets every condition is the one a sampler
+               without them returns, so adding a condition changes only the poses that
+               fail it.
     A placement without vehicles raises :class:`CameraError`.
     """
     vehicles = list(getattr(placement, "vehicles", placement))
@@ -416,7 +422,8 @@ def sample_pose_targeted(
         raise CameraError("targeted camera pose: the placement has no vehicles to aim at")
     half = 0.5 * min(cfg.width_px, cfg.height_px) * cfg.nadir_gsd_m
     box = None if within_xy is None else np.asarray(within_xy, dtype=np.float64)[:, :2]
-    for _ in range(max(1, int(max_tries)) if box is not None else 1):
+    checked = box is not None or clear is not None
+    for _ in range(max(1, int(max_tries)) if checked else 1):
         v = vehicles[int(rng.integers(len(vehicles)))]
         off = rng.uniform(-1.0, 1.0, 2) * jitter_frac * half
         gz = float(v.z_m) if ground_z is None else float(ground_z)
@@ -425,10 +432,11 @@ def sample_pose_targeted(
             cfg, (v.x_m + off[0], v.y_m + off[1], gz), yaw_deg=yaw, tilt_deg=tilt,
             tilt_axis_deg=axis,
         )
-        if box is None:
-            break
-        fp = cam.ground_footprint_xy(gz)
-        if (fp >= box[0]).all() and (fp <= box[1]).all():
+        if box is not None:
+            fp = cam.ground_footprint_xy(gz)
+            if not ((fp >= box[0]).all() and (fp <= box[1]).all()):
+                continue
+        if clear is None or clear(cam):
             break
     return cam
 
