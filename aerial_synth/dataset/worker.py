@@ -129,7 +129,7 @@ class ImageWorker:
         self._rayscene = None
         self._placement = None
         self._cameras: dict = {}  # the current group's cameras not yet rendered
-        self._sky = None  # (RayScene, its static scene's highest z) of the cameras' open-sky test
+        self._sky = None  # the group's RayScene, for the cameras' open-sky test
         self._placement_warnings: list[str] = []
         self._writer: ImageWriter | None = None
 
@@ -186,7 +186,7 @@ class ImageWorker:
                 f"placement group {group}: scenario {self.cfg.scenario!r} placed no vehicles "
                 f"on scene {self.cfg.scene!r} (no road found?)"
             )
-        self._sky = (rs, float(rs.scene.bounds()[1, 2]))
+        self._sky = rs
         self._cameras = self._group_cameras(group, pl)
         add_placement(rs, self._visible_part(rs, pl), self.catalog,
                       simple_boxes=self.cfg.simple_vehicles)
@@ -211,21 +211,11 @@ class ImageWorker:
                                     within_xy=self.scene_xy_bounds, clear=self._open_sky)
 
     def _open_sky(self, cam) -> bool:
-        """Whether nothing solid is above ``cam``: a camera inside or under a building (a
-        low flight among towers) would render the building's inside, so it is redrawn
-        (:func:`~aerial_synth.camera.sample_pose_targeted`'s ``clear``). One upward ray
-        through the group's static scene (tree crowns and vehicles passed through, so the
-        answer does not depend on the vehicles added after the cameras are drawn), cast only
-        for a camera below the scene's highest point: never for the bundled scenes at the
-        default 60 m, whose poses are those of a sampler without the test."""
-        if self._sky is None:
-            return True
-        rs, top = self._sky
-        c = np.asarray(cam.center, dtype=np.float64)
-        if c[2] >= top:
-            return True
-        ray = np.array([[c[0], c[1], c[2], 0.0, 0.0, 1.0]], np.float32)
-        return not bool(rs.cast_rays(ray, ignore=rs.label_config.ignore | {"vehicle"}).hit[0])
+        """Whether nothing solid is above ``cam`` in the group's scene
+        (:meth:`~aerial_synth.scene.raycast.RayScene.open_above`): a camera inside or under a
+        building would render the building's inside, so it is redrawn. Never cast for the
+        bundled scenes at the default 60 m, whose poses are those of a sampler without it."""
+        return self._sky is None or self._sky.open_above(cam.center)
 
     def _visible_part(self, rs, pl):
         """``pl`` with only the vehicles some camera of the group (``self._cameras``) can
@@ -416,7 +406,7 @@ class TiledImageWorker(ImageWorker):
             self._window_cache = (rect, scene)
         rs = RayScene(scene, nthreads=self.nthreads)  # fresh: independent of history
         self._within = within  # the cameras' bounds (scene_xy_bounds)
-        self._sky = (rs, float(rs.scene.bounds()[1, 2]))
+        self._sky = rs
         self._cameras = self._group_cameras(group, pl)
         add_placement(rs, self._visible_part(rs, pl), self.catalog,
                       simple_boxes=self.cfg.simple_vehicles)

@@ -182,7 +182,8 @@ def run(args) -> int:
         if grid is not None:
             cam = grid[i % len(grid)]
         else:
-            cam = sample_pose_targeted(cam_cfg, placement, rng, within_xy=scene.bounds()[:, :2])
+            cam = sample_pose_targeted(cam_cfg, placement, rng, within_xy=scene.bounds()[:, :2],
+                                       clear=lambda c: rs.open_above(c.center))
         frame = render_frame(rs, cam, placement, rng, rcfg)
         write_frame(frame, out / f"{i:06d}", depth_format=args.depth_format, extra_meta={
             "seed": args.seed, "image_index": i, "scene": scene.name,

@@ -413,6 +413,21 @@ class RayScene:
         """Bring the per-face tables up to date after vehicle changes (normally lazy)."""
         self._rebuild_tables()
 
+    def open_above(self, xyz) -> bool:
+        """Whether nothing solid is straight above the point ``xyz`` (metres): no static
+        surface but the ignore-set's (tree crowns) and no vehicle. A camera for which this
+        is False sits inside or under a building. The ray is cast only below the static
+        scene's highest point (above it the answer is True at no cost), through the scene
+        without vehicles, so the answer does not change when vehicles are added."""
+        x, y, z = (float(v) for v in np.asarray(xyz, dtype=np.float64).reshape(3))
+        top = self.__dict__.get("_static_top")
+        if top is None:
+            top = self.__dict__["_static_top"] = float(self.scene.bounds()[1, 2])
+        if z >= top:
+            return True
+        ray = np.array([[x, y, z, 0.0, 0.0, 1.0]], np.float32)
+        return not bool(self.cast_rays(ray, ignore=self.label_config.ignore | {"vehicle"}).hit[0])
+
     def trace_down(self, xy: np.ndarray, ignore: Iterable[str] | None = None) -> TraceResult:
         """First surface straight below each point (a vertical line trace).
 
