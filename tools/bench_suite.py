@@ -107,8 +107,10 @@ def _stage_lines(out: str) -> list[str]:
 
 
 def bench_frame(a) -> dict:
-    # at least 7 frames: on a shared machine the median of 3 moved the ratio by +-0.2
-    cmd = [PY, "tools/bench_render.py", "--repeat", str(max(a.repeat, 7)), "--compare-presets"]
+    # at least 7 frames (but for --quick): on a shared machine the median of 3 moved the
+    # ratio by +-0.2
+    frames = a.repeat if a.quick else max(a.repeat, 7)
+    cmd = [PY, "tools/bench_render.py", "--repeat", str(frames), "--compare-presets"]
     out, wall = _run(cmd)
     return {
         "command": " ".join(cmd[1:]),
