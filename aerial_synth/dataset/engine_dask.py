@@ -52,6 +52,8 @@ __all__ = ["DaskEngine", "plan_tasks", "threads_per_worker", "limit_threads", "p
 CONNECT_TIMEOUT_S = 6.0
 #: How often one task is submitted again after the scheduler cancelled it (lost input data)
 MAX_RESUBMITS = 3
+#: How long an export waits for a scheduler without workers to get one
+WORKER_WAIT_S = 30.0
 #: Dask settings of a ``--dask local:K`` cluster (the engine's own; an external cluster keeps
 #: its configuration). Dask's defaults wake each worker's event loop every 10 ms to sample
 #: the task thread's stack (a profile nobody reads: there is no dashboard) and every 20 ms
@@ -225,6 +227,15 @@ def _cpu_count() -> int:
     return os.cpu_count() or 1
 
 
+def _sees(path: str, token: str) -> bool:
+    """Worker side of :meth:`DaskEngine.check_output`: whether this process reads ``token``
+    in the file ``path`` (the client's probe in the output folder)."""
+    try:
+        return Path(path).read_text(encoding="utf-8") == token
+    except (OSError, UnicodeDecodeError):
+        return False
+
+
 # ------------------------------------------------------------------ client side
 
 
@@ -332,6 +343,44 @@ class DaskEngine:
     def n_workers(self) -> int:
         return len(self.client.scheduler_info(n_workers=-1).get("workers", {}))
 
+    def wait_for_workers(self, timeout_s: float | None = None) -> None:
+        """Return once the cluster has a worker; one-line ExportError after ``timeout_s``
+        (default :data:`WORKER_WAIT_S`; a scheduler without workers would leave the export
+        waiting for ever)."""
+        if self.n_workers():
+            return
+        timeout_s = WORKER_WAIT_S if timeout_s is None else float(timeout_s)
+        try:
+            self.client.wait_for_workers(1, timeout=timeout_s)
+        except Exception:  # distributed raises TimeoutError (older: asyncio's)
+            raise ExportError(
+                f"--dask {self.address}: the scheduler has no workers (waited {timeout_s:g} s); "
+                f"start some with 'dask worker {self.address}' (docs/scale.md)"
+            ) from None
+
+    def check_output(self, build: Path) -> None:
+        """Every worker must write into the client's output folder at the same path (a
+        filesystem they share): one that does not see it would write the images onto its
+        own disk, where the export never finds them. The client writes a probe file there
+        and each worker reads it back; one-line ExportError naming the workers that cannot."""
+        from ..io_utils import atomic_write_text
+
+        token = f"{os.getpid()}-{time.time_ns()}"
+        probe = Path(build) / f".aerial-synth-probe-{token}.tmp"  # a stray temp if killed here
+        atomic_write_text(probe, token)
+        try:
+            seen = self.client.run(_sees, str(probe), token)
+        finally:
+            probe.unlink(missing_ok=True)
+        blind = sorted(a for a, ok in seen.items() if not ok)
+        if blind:
+            more = f" and {len(blind) - 3} more" if len(blind) > 3 else ""
+            raise ExportError(
+                f"--dask {self.address}: worker(s) {', '.join(blind[:3])}{more} cannot read the "
+                f"export's files under {Path(build).parent}; every worker must reach the output folder "
+                "at the same path, on a shared filesystem (docs/scale.md)"
+            )
+
     def run(self, cfg, build, indices, bar=None, scene=None, catalog=None) -> int:
         """Render ``indices`` of the export ``cfg`` into ``build``; returns images finished.
 
@@ -346,6 +395,8 @@ class DaskEngine:
         indices = list(indices)
         if not indices:
             return 0
+        self.wait_for_workers()
+        self.check_output(Path(build))
         nworkers = max(1, self.n_workers())
         tasks = plan_tasks(indices, cfg.images_per_placement, nworkers)
         threads = self.worker_threads()

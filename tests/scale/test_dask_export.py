@@ -413,3 +413,46 @@ def test_local_cluster_workers_are_quiet_forks_of_the_server(tmp_path):
         assert "profile" not in cb and "profile-cycle" not in cb
         assert cb["tick"] >= 1000 and cb["monitor"] >= 5000 and cb["memory_monitor"] >= 500
         assert "heartbeat" in cb  # a worker all the same
+
+
+class _FakeClient:
+    """Two workers; ``blind``: the second cannot read the client's files."""
+
+    def __init__(self, blind):
+        self.blind = blind
+
+    def run(self, fn, *args):
+        return {"tcp://10.0.0.1:4001": fn(*args), "tcp://10.0.0.2:4001": False if self.blind else fn(*args)}
+
+
+def test_a_worker_that_cannot_see_the_output_is_one_line(tmp_path):
+    """A worker on a machine without the shared filesystem would write its images onto its own
+    disk, where the export never finds them: refused before any task, naming the worker."""
+    from aerial_synth.dataset.engine_dask import DaskEngine
+
+    build = tmp_path / ".ds.aerial-synth-partial"
+    build.mkdir()
+    DaskEngine(_FakeClient(blind=False), None, "tcp://sched:8786").check_output(build)
+    with pytest.raises(ExportError, match=r"^--dask tcp://sched:8786: worker\(s\) tcp://10\.0\.0\.2:4001 cannot "
+                                          r"read the export's files under .*shared filesystem"):
+        DaskEngine(_FakeClient(blind=True), None, "tcp://sched:8786").check_output(build)
+    assert list(build.iterdir()) == []  # the probe is gone either way
+
+
+def test_a_scheduler_without_workers_is_one_line(cross_scene, tmp_path):
+    """An external scheduler with no worker: one line after the wait, nothing written (the
+    export used to wait for ever)."""
+    import logging
+
+    from aerial_synth.dataset import engine_dask
+
+    with distributed.LocalCluster(n_workers=0, processes=True, host="127.0.0.1", dashboard_address=None,
+                                  silence_logs=logging.ERROR) as c:
+        old, engine_dask.WORKER_WAIT_S = engine_dask.WORKER_WAIT_S, 1.0
+        try:
+            with pytest.raises(ExportError, match=r"the scheduler has no workers \(waited 1 s\); start some "
+                                                  r"with 'dask worker tcp://127\.0\.0\.1:\d+'"):
+                export_dataset(_cfg(cross_scene), tmp_path / "never", dask=c.scheduler_address, progress=False)
+        finally:
+            engine_dask.WORKER_WAIT_S = old
+    assert list(tmp_path.iterdir()) == []
