@@ -227,13 +227,22 @@ def _cpu_count() -> int:
     return os.cpu_count() or 1
 
 
-def _sees(path: str, token: str) -> bool:
-    """Worker side of :meth:`DaskEngine.check_output`: whether this process reads ``token``
-    in the file ``path`` (the client's probe in the output folder)."""
+def _sees(path: str, token: str) -> str:
+    """Worker side of :meth:`DaskEngine.check_output`: "ok" when this process reads ``token``
+    in the file ``path`` (the client's probe in the output folder) and can write a file
+    beside it, else "cannot read" or "cannot write"."""
     try:
-        return Path(path).read_text(encoding="utf-8") == token
+        if Path(path).read_text(encoding="utf-8") != token:
+            return "cannot read"
     except (OSError, UnicodeDecodeError):
-        return False
+        return "cannot read"
+    mine = Path(f"{path}.{os.getpid()}.tmp")
+    try:
+        mine.write_text(token, encoding="utf-8")
+        mine.unlink()
+    except OSError:
+        return "cannot write"
+    return "ok"
 
 
 # ------------------------------------------------------------------ client side
@@ -362,7 +371,8 @@ class DaskEngine:
         """Every worker must write into the client's output folder at the same path (a
         filesystem they share): one that does not see it would write the images onto its
         own disk, where the export never finds them. The client writes a probe file there
-        and each worker reads it back; one-line ExportError naming the workers that cannot."""
+        and each worker reads it back and writes a file beside it; one-line ExportError naming
+        the workers that cannot."""
         from ..io_utils import atomic_write_text
 
         token = f"{os.getpid()}-{time.time_ns()}"
@@ -372,13 +382,14 @@ class DaskEngine:
             seen = self.client.run(_sees, str(probe), token)
         finally:
             probe.unlink(missing_ok=True)
-        blind = sorted(a for a, ok in seen.items() if not ok)
-        if blind:
-            more = f" and {len(blind) - 3} more" if len(blind) > 3 else ""
+        bad = sorted((a, why) for a, why in seen.items() if why != "ok")
+        if bad:
+            more = f" and {len(bad) - 3} more" if len(bad) > 3 else ""
+            who = ", ".join(f"{a} ({why})" for a, why in bad[:3])
             raise ExportError(
-                f"--dask {self.address}: worker(s) {', '.join(blind[:3])}{more} cannot read the "
-                f"export's files under {Path(build).parent}; every worker must reach the output folder "
-                "at the same path, on a shared filesystem (docs/scale.md)"
+                f"--dask {self.address}: worker(s) {who}{more}: every worker must read and write the "
+                f"export's files under {Path(build).parent} at that path, on a shared filesystem "
+                "(docs/scale.md)"
             )
 
     def run(self, cfg, build, indices, bar=None, scene=None, catalog=None) -> int:

@@ -416,13 +416,15 @@ def test_local_cluster_workers_are_quiet_forks_of_the_server(tmp_path):
 
 
 class _FakeClient:
-    """Two workers; ``blind``: the second cannot read the client's files."""
+    """Two workers; ``blind``: the second cannot read the client's files (it looks for the
+    probe under another root, as a machine without the shared filesystem would)."""
 
-    def __init__(self, blind):
-        self.blind = blind
+    def __init__(self, blind, elsewhere=None):
+        self.blind, self.elsewhere = blind, elsewhere
 
-    def run(self, fn, *args):
-        return {"tcp://10.0.0.1:4001": fn(*args), "tcp://10.0.0.2:4001": False if self.blind else fn(*args)}
+    def run(self, fn, path, *args):
+        other = str(self.elsewhere / Path(path).name) if self.blind else path
+        return {"tcp://10.0.0.1:4001": fn(path, *args), "tcp://10.0.0.2:4001": fn(other, *args)}
 
 
 def test_a_worker_that_cannot_see_the_output_is_one_line(tmp_path):
@@ -433,10 +435,25 @@ def test_a_worker_that_cannot_see_the_output_is_one_line(tmp_path):
     build = tmp_path / ".ds.aerial-synth-partial"
     build.mkdir()
     DaskEngine(_FakeClient(blind=False), None, "tcp://sched:8786").check_output(build)
-    with pytest.raises(ExportError, match=r"^--dask tcp://sched:8786: worker\(s\) tcp://10\.0\.0\.2:4001 cannot "
-                                          r"read the export's files under .*shared filesystem"):
-        DaskEngine(_FakeClient(blind=True), None, "tcp://sched:8786").check_output(build)
+    with pytest.raises(ExportError, match=r"^--dask tcp://sched:8786: worker\(s\) tcp://10\.0\.0\.2:4001 "
+                                          r"\(cannot read\): every worker must read and write the export's "
+                                          r"files under .*shared filesystem"):
+        DaskEngine(_FakeClient(blind=True, elsewhere=tmp_path / "nowhere"), None,
+                   "tcp://sched:8786").check_output(build)
     assert list(build.iterdir()) == []  # the probe is gone either way
+
+
+def test_a_worker_that_cannot_write_the_output_is_one_line(tmp_path):
+    from aerial_synth.dataset.engine_dask import _sees
+
+    probe = tmp_path / "probe.tmp"
+    probe.write_text("tok")
+    assert _sees(str(probe), "tok") == "ok" and _sees(str(probe), "other") == "cannot read"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["probe.tmp"]
+    # the worker's own file cannot be written (a folder in its way: refused even to root,
+    # like a read-only mount)
+    (tmp_path / f"probe.tmp.{os.getpid()}.tmp").mkdir()
+    assert _sees(str(probe), "tok") == "cannot write"
 
 
 def test_a_scheduler_without_workers_is_one_line(cross_scene, tmp_path):
