@@ -33,12 +33,24 @@ print(json.dumps({"seconds": round(time.perf_counter() - t, 2),
 """
 
 
+def _positive(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return n
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--images", type=int, default=2000, help="images of the widened export")
-    ap.add_argument("--source", type=int, default=20, help="images actually rendered")
+    ap.add_argument("--images", type=_positive, default=2000, help="images of the widened export")
+    ap.add_argument("--source", type=_positive, default=20, help="images actually rendered")
     ap.add_argument("--keep", type=Path, default=None, help="build here and keep it")
     a = ap.parse_args(argv)
+    if a.source > a.images:
+        ap.error(f"--source {a.source}: at most --images ({a.images})")
 
     from aerial_synth.dataset.export import ExportConfig, export_dataset
     from aerial_synth.dataset.layout import meta_path
