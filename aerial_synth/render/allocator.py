@@ -21,6 +21,7 @@ are left alone. Only the allocation pattern changes: outputs are byte-identical.
 
 from __future__ import annotations
 
+import functools
 import os
 import sys
 
@@ -34,19 +35,16 @@ _M_TRIM_THRESHOLD = -1  # mallopt parameters, <malloc.h>
 _M_MMAP_THRESHOLD = -3
 _ENV = ("MALLOC_TRIM_THRESHOLD_", "MALLOC_MMAP_THRESHOLD_", "MALLOC_TOP_PAD_", "MALLOC_MMAP_MAX_")
 
-_state: dict = {}
-
 
 def _user_settings() -> bool:
     return "glibc.malloc." in os.environ.get("GLIBC_TUNABLES", "") or any(k in os.environ for k in _ENV)
 
 
+@functools.cache
 def tune_allocator() -> bool:
     """Set glibc's mmap and trim thresholds for this process (once; inherited by processes
     it forks). Returns whether they are set: False off Linux/glibc, where the user chose
     their own malloc settings, or where ``mallopt`` refuses."""
-    if "done" in _state:
-        return _state["done"]
     ok = False
     if sys.platform.startswith("linux") and not _user_settings():
         try:
@@ -62,5 +60,4 @@ def tune_allocator() -> bool:
             mallopt.restype = ctypes.c_int
             ok = (mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD) == 1
                   and mallopt(_M_TRIM_THRESHOLD, TRIM_THRESHOLD) == 1)
-    _state["done"] = ok
     return ok
