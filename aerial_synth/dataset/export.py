@@ -278,7 +278,8 @@ _WORKER_MODULES = (
     "aerial_synth.render._vis_kernels", "aerial_synth.render.smooth", "aerial_synth.render.world",
     "aerial_synth.camera_rays", "aerial_synth.scene.raycast", "aerial_synth.placement.traffic",
     "aerial_synth.annotate", "aerial_synth.formats.registry", "aerial_synth.formats.coco",
-    "aerial_synth.formats.dota", "aerial_synth.formats.meta", "open3d", "scipy.special",
+    "aerial_synth.formats.dota", "aerial_synth.formats.meta", "aerial_synth.png",
+    "isal.isal_zlib", "open3d", "scipy.special",
     "scipy.spatial", "scipy.ndimage", "cv2",
     "aerial_synth.dataset._server_warm",  # last: see that module
 )

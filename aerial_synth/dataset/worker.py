@@ -298,7 +298,7 @@ class ImageWorker:
         _check_parent()
         self._writer_error()  # a failed write stops the run before more rendering
         rec, rgb = self.record(index)
-        self.writer.submit(self.cfg, self.out, rec, _to_bgr(rgb))
+        self.writer.submit(self.cfg, self.out, rec, rgb)
         if wait:
             self.drain()
         return record_counts(rec)
@@ -467,8 +467,8 @@ class ImageWriter:
                 return
             try:
                 if not self._failed:
-                    cfg, out, rec, bgr = job
-                    _write_files(cfg, out, rec, encode_bgr(bgr, cfg.image_ext))
+                    cfg, out, rec, rgb = job
+                    _write_files(cfg, out, rec, encode_image(rgb, cfg.image_ext))
                     self.written += 1
             except BaseException as exc:  # kept for the submitting thread
                 self._failed = True
@@ -485,14 +485,14 @@ class ImageWriter:
             err, self._error = self._error, None
             raise err
 
-    def submit(self, cfg: ExportConfig, out: Path, record, bgr: np.ndarray) -> None:
-        """Queue one image (its BGR pixels, which the caller no longer changes)."""
+    def submit(self, cfg: ExportConfig, out: Path, record, rgb: np.ndarray) -> None:
+        """Queue one image (its RGB pixels, which the caller no longer changes)."""
         self.raise_error()
         if not self._thread.is_alive():
             raise ExportError("the image writer thread has stopped")
         with self._cv:
             self._pending += 1
-        self._q.put((cfg, Path(out), record, bgr))
+        self._q.put((cfg, Path(out), record, rgb))
 
     def drain(self, raise_error: bool = True) -> None:
         """Wait until every submitted image is written (or failed)."""
@@ -512,47 +512,17 @@ class ImageWriter:
             self._thread.join()
 
 
-def _to_bgr(rgb: np.ndarray) -> np.ndarray:
-    """A new C-contiguous (H, W, 3) uint8 BGR copy of ``rgb`` (OpenCV's channel order)."""
-    import cv2
-
-    a = np.asarray(rgb, dtype=np.uint8)
-    if a.ndim == 3 and a.shape[2] == 3:
-        return cv2.cvtColor(np.ascontiguousarray(a), cv2.COLOR_RGB2BGR)  # a fresh array
-    return np.ascontiguousarray(a[..., ::-1])
-
-
 def encode_image(rgb: np.ndarray, ext: str) -> bytes:
-    """(H, W, 3) uint8 RGB -> PNG (see :func:`png_params`) or JPEG (quality 95) bytes."""
-    return encode_bgr(_to_bgr(rgb), ext)
-
-
-@functools.lru_cache(maxsize=1)
-def png_params() -> tuple[int, ...]:
-    """OpenCV's PNG parameters for exported images: zlib level 1, the Average filter on every
-    row and Huffman-only coding. Lossless like any PNG. Measured on 12 exported city_park
-    frames (one core, five interleaved rounds): 31 ms and 1.80 MB a 1024 px frame, against
-    41 ms and 1.83 MB with the Paeth filter (this project's setting before), ~100 ms for
-    OpenCV's default level 3 with its adaptive filters (1.31 MB), and 46 ms / 1.53 MB for
-    full deflate at level 1 with the Average filter. The encoder runs on the worker's core
-    beside the next frame's render. An OpenCV without the filter option (< 4.10) keeps its
-    default filters."""
-    import cv2
-
-    p = [cv2.IMWRITE_PNG_COMPRESSION, 1, cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY]
-    if hasattr(cv2, "IMWRITE_PNG_FILTER") and hasattr(cv2, "IMWRITE_PNG_FILTER_AVG"):
-        p += [cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_AVG]
-    return tuple(int(v) for v in p)
-
-
-def encode_bgr(bgr: np.ndarray, ext: str) -> bytes:
-    """(H, W, 3) uint8 BGR -> PNG (see :func:`png_params`) or JPEG (quality 95) bytes."""
-    import cv2
-
+    """(H, W, 3) uint8 RGB -> PNG (:func:`aerial_synth.png.encode_png`, lossless) or JPEG
+    (OpenCV, quality 95) bytes."""
+    a = np.ascontiguousarray(rgb, dtype=np.uint8)
     if ext == "png":
-        ok, buf = cv2.imencode(".png", bgr, list(png_params()))
-    else:
-        ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, 95])
+        from ..png import encode_png
+
+        return encode_png(a)
+    import cv2
+
+    ok, buf = cv2.imencode(".jpg", cv2.cvtColor(a, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 95])
     if not ok:
         raise ExportError(f"could not encode an image as {ext}")
     return buf.tobytes()

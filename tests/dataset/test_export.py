@@ -565,23 +565,27 @@ def test_pool_workers_fork_from_a_preloading_server():
     assert _server_guard.GUARDED is False  # imported here, in no fork server: no prctl
 
 
-def test_png_encoding_is_lossless_and_fast_settings():
-    """Exported PNGs use the fast settings (zlib 1, Huffman only, the Average filter where
-    OpenCV has the option) and decode to the very pixels rendered."""
+def test_exported_png_is_the_rendered_pixels():
+    """encode_image (what the writer thread runs) gives PNGs that decode to the very pixels
+    rendered, through this package's encoder; JPEG stays OpenCV's."""
     import cv2
 
-    from aerial_synth.dataset.worker import encode_image, png_params
+    from aerial_synth.dataset.worker import encode_image
+    from aerial_synth.png import encode_png
 
     rng = np.random.default_rng(3)
     rgb = rng.integers(0, 256, (64, 80, 3), dtype=np.uint8)
     rgb[:, :40] = rgb[:, :40] // 16 * 16  # some smooth, some noisy
-    back = cv2.imdecode(np.frombuffer(encode_image(rgb, "png"), np.uint8), cv2.IMREAD_COLOR)
+    data = encode_image(rgb, "png")
+    assert data == encode_png(rgb)
+    back = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
     assert np.array_equal(back[:, :, ::-1], rgb)
-    p = dict(zip(png_params()[::2], png_params()[1::2]))
-    assert p[cv2.IMWRITE_PNG_COMPRESSION] == 1
-    assert p[cv2.IMWRITE_PNG_STRATEGY] == cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY
-    if hasattr(cv2, "IMWRITE_PNG_FILTER_AVG"):
-        assert p[cv2.IMWRITE_PNG_FILTER] == cv2.IMWRITE_PNG_FILTER_AVG
+    smooth = np.zeros((64, 80, 3), np.uint8)
+    smooth[..., 0] = np.arange(80, dtype=np.uint8) * 3  # red rises to the right
+    smooth[..., 2] = 180
+    jpg = cv2.imdecode(np.frombuffer(encode_image(smooth, "jpg"), np.uint8), cv2.IMREAD_COLOR)
+    assert jpg.shape == smooth.shape  # OpenCV's channel order: blue first
+    assert np.abs(jpg[:, :, ::-1].astype(int) - smooth).max() < 8
 
 
 def _server_state(_):
