@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..scene.model import LABELS
+from ..scene.raycast import VEHICLES_ONLY
 
 __all__ = [
     "VehicleVisibility",
@@ -36,9 +36,6 @@ __all__ = [
     "compute_visibility",
     "VEHICLES_ONLY",
 ]
-
-#: Ignore-set that leaves only vehicles in the RayScene.
-VEHICLES_ONLY: frozenset[str] = frozenset(n for n in LABELS if n != "vehicle")
 
 _PEEL_EPS_M = 1e-3
 _MAX_PEELS = 8

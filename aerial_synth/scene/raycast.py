@@ -7,13 +7,17 @@ disagree.
 Layout: all static scene triangles of one probe set form one Embree geometry, all vehicles
 another; per-triangle tables (label, object, instance id, material, albedo) are indexed by a
 global face index. open3d cannot remove geometry from a RaycastingScene, so adding or
-removing vehicles marks the Embree scenes stale and they are rebuilt lazily on the next cast.
+removing vehicles marks the Embree scenes that hold vehicles stale and they are rebuilt lazily
+on the next cast; scenes of static triangles only are kept (they do not depend on vehicles).
 The ignore-set of :meth:`RayScene.trace_down` is honoured by a cached Embree scene built
 without the ignored labels, so a trace through an ignored crown costs the same as any other.
+Any-hit tests (:meth:`RayScene.test_occlusions`) with vehicles in view need no such scene
+per ignore-set: they are the union of a static-only scene and the vehicles-only one.
 """
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from typing import Iterable
 
@@ -21,9 +25,13 @@ import numpy as np
 
 from .model import LABEL_IDS, LABELS, MATERIAL_IDS, LabelConfig, Scene
 
-__all__ = ["RayScene", "RayHits", "TraceResult"]
+__all__ = ["RayScene", "RayHits", "TraceResult", "VEHICLES_ONLY"]
 
 _VEHICLE_LABEL = LABEL_IDS["vehicle"]
+
+#: Ignore-set that leaves only vehicles in the RayScene (the renderer's amodal masks, and the
+#: vehicle half of :meth:`RayScene.test_occlusions`' union: one build serves both).
+VEHICLES_ONLY: frozenset[str] = frozenset(n for n in LABELS if n != "vehicle")
 
 
 def _o3d():
@@ -128,7 +136,14 @@ class RayScene:
             np.array([o.color for o in objs], dtype=np.float32).reshape(-1, 3), nf, axis=0
         )
         self._vehicles: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+        # Embree scenes by ignore-set: those holding vehicles are dropped when vehicles
+        # change; static-only ones (no vehicles yet, "vehicle" ignored, or the static half of
+        # an any-hit union) are kept, so placement's {"tree"} scene serves the renderer too
         self._built: dict[frozenset[str], _Built] = {}
+        self._static_built: dict[frozenset[str], _Built] = {}
+        # builds and table rebuilds happen lazily from whichever thread casts first (the
+        # renderer's visibility thread runs beside shading): one at a time, never twice
+        self._lock = threading.RLock()
         self._tables_dirty = True
         self._rebuild_tables()
         b = scene.bounds()
@@ -188,8 +203,9 @@ class RayScene:
         return sorted(self._vehicles)
 
     def _invalidate(self) -> None:
-        self._built.clear()
-        self._tables_dirty = True
+        with self._lock:
+            self._built.clear()  # static-only builds stay valid
+            self._tables_dirty = True
         self._veh_bounds = None
         self._render_box_cache = {}  # the renderer's per-vehicle boxes (render/raycast.py)
 
@@ -216,6 +232,11 @@ class RayScene:
     def _rebuild_tables(self) -> None:
         if not self._tables_dirty:
             return
+        with self._lock:
+            if self._tables_dirty:  # not rebuilt by another thread meanwhile
+                self._rebuild_tables_locked()
+
+    def _rebuild_tables_locked(self) -> None:
         ids = sorted(self._vehicles)
         vs = [self._vehicles[i] for i in ids]
         nfs = [len(x[1]) for x in vs]
@@ -252,10 +273,33 @@ class RayScene:
         self._tables_dirty = False
 
     def _get_built(self, ignore: frozenset[str]) -> _Built:
-        self._rebuild_tables()
-        built = self._built.get(ignore)
-        if built is not None:
+        """The Embree scene of every triangle but the static ones labelled in ``ignore`` (and
+        the vehicles if "vehicle" is in it), built on first use. A scene without vehicle
+        triangles in it is a static-only build (:meth:`_static_only`), kept across vehicle
+        changes; it is the same scene (triangles, order, face map) as before vehicles came."""
+        with self._lock:
+            self._rebuild_tables()
+            if "vehicle" in ignore or not len(self._veh_faces):
+                return self._static_only(ignore)
+            built = self._built.get(ignore)
+            if built is None:
+                built = self._built[ignore] = self._build(ignore, vehicles=True)
             return built
+
+    def _static_only(self, ignore: frozenset[str]) -> _Built:
+        """The Embree scene of the static triangles not labelled in ``ignore``, without any
+        vehicle whatever ``ignore`` says; cached for the RayScene's life (static geometry
+        never changes)."""
+        with self._lock:
+            built = self._static_built.get(ignore)
+            if built is None:
+                built = self._static_built[ignore] = self._build(ignore, vehicles=False)
+            return built
+
+    def _build(self, ignore: frozenset[str], vehicles: bool) -> _Built:
+        """A new Embree scene: geometry 0 the static faces not labelled in ``ignore`` (in
+        global face order; left out when none), then all vehicles (one geometry) if
+        ``vehicles``. Call with the lock held and the tables up to date."""
         o3d = _o3d()
         sc = o3d.t.geometry.RaycastingScene(nthreads=self.nthreads) if _accepts_nthreads() else (
             o3d.t.geometry.RaycastingScene()
@@ -272,15 +316,13 @@ class RayScene:
                 o3d.core.Tensor.from_numpy(np.ascontiguousarray(self._static_faces[face_idx])),
             )
             base[int(gid)] = face_idx.astype(np.int64)
-        if len(self._veh_faces) and "vehicle" not in ignore:
+        if vehicles and len(self._veh_faces):
             gid = sc.add_triangles(
                 o3d.core.Tensor.from_numpy(np.ascontiguousarray(self._veh_vertices)),
                 o3d.core.Tensor.from_numpy(np.ascontiguousarray(self._veh_faces)),
             )
             base[int(gid)] = np.arange(n_static, n_static + len(self._veh_faces), dtype=np.int64)
-        built = _Built(sc, base)
-        self._built[ignore] = built
-        return built
+        return _Built(sc, base)
 
     # ------------------------------------------------------------------ casting
     def _face_lut(self, built: _Built) -> tuple[np.ndarray, np.ndarray]:
@@ -382,9 +424,32 @@ class RayScene:
         rays : (n, 6) float, [origin, direction], metres, world; hits closer than ``tnear``
         (in units of the direction's length) are skipped (shadow-ray acne), hits beyond
         ``tfar`` too (short ambient-occlusion rays).
+
+        An ignore-set that keeps the vehicles and has no Embree scene yet is answered as a
+        union instead of building one: a ray hits the static triangles not ignored or the
+        vehicles (disjoint sets) iff it hits one of them, so the static-only scene
+        (:meth:`_static_only`, kept across vehicle changes: placement built {"tree"}'s) is
+        tested first and the vehicles-only scene (:data:`VEHICLES_ONLY`'s, which the
+        renderer's amodal masks build anyway) only for the rays it let through. This spares
+        an Embree build of every vehicle per ignore-set (the shader's crown-gap test).
         """
-        built = self._get_built(frozenset(ignore))
+        ign = frozenset(ignore)
         r = np.ascontiguousarray(np.asarray(rays, dtype=np.float32).reshape(-1, 6))
+        with self._lock:
+            self._rebuild_tables()
+            union = ("vehicle" not in ign and ign != VEHICLES_ONLY and len(self._veh_faces) > 0
+                     and ign not in self._built)
+        if not union:
+            return self._occluded(self._get_built(ign), r, tnear, tfar)
+        occ = self._occluded(self._static_only(ign), r, tnear, tfar)
+        rest = np.flatnonzero(~occ)
+        if len(rest):
+            occ[rest] = self._occluded(self._get_built(VEHICLES_ONLY), r[rest], tnear, tfar)
+        return occ
+
+    @staticmethod
+    def _occluded(built: _Built, r: np.ndarray, tnear: float, tfar: float) -> np.ndarray:
+        """Embree's any-hit answer of one build for rays ``r`` (n, 6) float32 C-contiguous."""
         o3d = _o3d()
         try:
             return built.scene.test_occlusions(o3d.core.Tensor.from_numpy(r), tnear=tnear,
@@ -392,7 +457,7 @@ class RayScene:
         except (AttributeError, TypeError):  # pragma: no cover - older open3d
             r = r.copy()
             r[:, :3] += tnear * r[:, 3:]
-            t = self.cast_rays(r, ignore=ignore).t
+            t = built.scene.cast_rays(o3d.core.Tensor.from_numpy(r))["t_hit"].numpy()
             return np.isfinite(t) & (t + tnear <= tfar)
 
     def mesh_arrays(self) -> tuple[np.ndarray, np.ndarray]:
