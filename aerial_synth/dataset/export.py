@@ -35,7 +35,7 @@ from pathlib import Path
 from .. import validators as v
 from ..errors import ExportError
 from ..io_utils import atomic_write_json
-from .aggregate import write_aggregates
+from .aggregate import aggregate_pool, write_aggregates
 from .config import IMAGE_EXTS, PLACEMENT_STREAM, SPLITS, ExportConfig, ExportResult
 from .layout import image_name, image_paths, is_done, label_paths, meta_path, split_of
 from .manifest import MANIFEST_FORMAT, is_dataset, manifest, read_manifest
@@ -130,6 +130,7 @@ def export_dataset(
     dask     : run on Dask instead: "tcp://HOST:PORT" or "local:K" (see .engine_dask)
     """
     t0 = time.perf_counter()
+    check_entry_point()
     workers = v.integer("--workers", workers, 1, error=ExportError)
     plan = plan_output(cfg, out_dir, resume, force)
     _check_dask(dask, workers)  # a bad or unreachable --dask is reported before the slow checks
@@ -137,6 +138,8 @@ def export_dataset(
         start_pool_server()  # imports the workers' modules while the scene loads here
     elif dask is not None and str(dask).strip().startswith("local:"):
         start_pool_server(dask=True)  # the LocalCluster's workers fork from it too
+    elif aggregate_pool(cfg):
+        start_pool_server()  # ready when the aggregate files are made, at the end
     starting = _start_dask(dask)  # --dask local:K: the cluster starts while the scene loads
     try:
         scene, catalog = validate_inputs(cfg)
@@ -308,6 +311,19 @@ def pool_context(dask: bool = False):
     ctx.set_forkserver_preload(list(_WORKER_MODULES) + list(
         FORK_SERVER_PRELOAD if dask else ("aerial_synth.dataset._server_freeze",)))
     return ctx
+
+
+def check_entry_point() -> None:
+    """Refuse to run while a worker process imports the main module: a script without an
+    ``if __name__ == '__main__'`` guard that exports (or writes aggregate files) would
+    otherwise start again in each of its worker processes. Here the worker stops at once
+    (its parent sees it die: the aggregate files are then made in the parent, see
+    :meth:`.aggregate.MetaRecords.map`)."""
+    import multiprocessing as mp
+
+    if getattr(mp.current_process(), "_inheriting", False):
+        raise ExportError("a worker process is importing the main module, which exports again: a "
+                          "script that exports must guard its entry point with if __name__ == '__main__'")
 
 
 def start_pool_server(dask: bool = False) -> None:

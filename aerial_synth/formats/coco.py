@@ -11,6 +11,7 @@ screen), ``heading_img_deg``, ``difficult``, ``orientation_unclear``, ``vehicle_
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from dataclasses import dataclass
@@ -122,20 +123,30 @@ def to_dict(images, objects, categories=CATEGORIES, info: dict | None = None) ->
     """COCO instances dict; annotation ids 1.. in the given order, category ids 1.. in
     ``categories`` order. Lists given as :class:`~aerial_synth.io_utils.StreamedList` stay
     streamed (for :func:`~aerial_synth.io_utils.iter_json`)."""
-    cat_id = {name: i + 1 for i, name in enumerate(categories)}
+    cat_id = _category_ids(categories)
     if isinstance(objects, StreamedList):  # pre-formatted items (see _annotation_json)
         anns = StreamedList(_annotation_json(_annotation(k, o, cat_id))
                             for k, o in enumerate(objects.items, start=1))
     else:
         anns = [_annotation(k, o, cat_id) for k, o in enumerate(objects, start=1)]
+    images = images if isinstance(images, StreamedList) else [_image(i) for i in images]
+    return _document(images, anns, categories, info)
+
+
+def _category_ids(categories) -> dict:
+    return {name: i + 1 for i, name in enumerate(categories)}
+
+
+def _document(images, annotations, categories, info: dict | None) -> dict:
+    cat_id = _category_ids(categories)
     return {
         "info": dict(info or {"description": "aerial-synth"}),
         "licenses": [],
         "categories": [
             {"id": cat_id[n], "name": n, "supercategory": "vehicle"} for n in categories
         ],
-        "images": images if isinstance(images, StreamedList) else [_image(i) for i in images],
-        "annotations": anns,
+        "images": images,
+        "annotations": annotations,
     }
 
 
@@ -191,6 +202,33 @@ def _annotation_json(d: dict) -> RawJson:
         ",", p1, '"visible_fraction": ', _frepr(d["visible_fraction"]),
         "\n}",
     )))
+
+
+_ID0 = '\n  "id": 0'  # the id line of an annotation numbered 0 (two spaces: top-level keys only)
+
+
+def _annotation_parts(o: CocoObject, cat_id: dict) -> tuple[str, str]:
+    """The JSON text of ``o``'s annotation around its id: ``head + str(k) + tail`` is
+    ``_annotation_json(_annotation(k, o, cat_id)).text`` for every id ``k``, so a process
+    can format an annotation before the one that numbers them has counted it."""
+    text = _annotation_json(_annotation(0, o, cat_id)).text
+    head, sep, tail = text.partition(_ID0)
+    if not sep or tail[:1] not in (",", "\n"):  # pragma: no cover - every shape has a top-level id
+        raise RuntimeError("COCO annotation text without its id line")
+    return head + _ID0[:-1], tail
+
+
+def _record_items(categories: tuple, record) -> tuple[tuple, list[tuple[str, str]]]:
+    """A record's share of its split's COCO file: its image (id, file_name, width, height)
+    and the text of each kept annotation around its id (:func:`_annotation_parts`), in
+    annotation order. Module-level: :meth:`CocoFormat._instances` runs it on the
+    aggregation's process pool (``records.map``), where most of a large export's COCO time
+    goes (decoding the RLE's bbox and area, formatting the text)."""
+    cat_id = _category_ids(categories)
+    image_id = record.index + 1
+    anns = [_annotation_parts(object_from_annotation(a, image_id, record.segmentations[a.vehicle_id]), cat_id)
+            for a in record.annotations if a.kept and a.box is not None]
+    return (image_id, record.file_name, record.width_px, record.height_px), anns
 
 
 def _image(i: CocoImage) -> dict:
@@ -268,7 +306,10 @@ class CocoFormat(LabelFormat):
         """One ``instances_<split>.json`` per split with images, each streamed (its text
         made record by record while it is written: a 100,000-image export's JSON is never
         held in memory). ``records``: every image's record in index order (a list, or the
-        exporter's lazy sequence, whose ``of_split`` reads only that split's records)."""
+        exporter's lazy sequence, :class:`~aerial_synth.dataset.aggregate.MetaRecords`,
+        whose ``map`` reads only that split's records and does the per-record work,
+        :func:`_record_items`, on a process pool for a large export; numbering the
+        annotations and writing the text stay in this process)."""
         out = {}
         for sp in info.splits:
             if not info.splits[sp]:
@@ -277,20 +318,28 @@ class CocoFormat(LabelFormat):
         return out
 
     def _instances(self, records, sp: str, info: DatasetInfo):
-        of_split = getattr(records, "of_split", None)
-        recs = of_split(sp) if of_split is not None else (r for r in records if r.split == sp)
+        categories = tuple(info.categories)
+        per_record = functools.partial(_record_items, categories)
+        mapper = getattr(records, "map", None)
+        if mapper is not None:  # the exporter's records: a large export's on a process pool
+            items = mapper(per_record, split=sp)
+        else:
+            of_split = getattr(records, "of_split", None)
+            recs = of_split(sp) if of_split is not None else (r for r in records if r.split == sp)
+            items = map(per_record, recs)
         images: list[CocoImage] = []  # filled while the annotations stream (written after them)
 
-        def objects():
-            for r in recs:
-                images.append(CocoImage(r.index + 1, r.file_name, r.width_px, r.height_px))
-                for a in r.annotations:
-                    if a.kept and a.box is not None:
-                        yield object_from_annotation(a, r.index + 1, r.segmentations[a.vehicle_id])
+        def annotations():
+            k = 0
+            for image, anns in items:
+                images.append(CocoImage(*image))
+                for head, tail in anns:  # ids 1.. in index order, numbered here
+                    k += 1
+                    yield RawJson(f"{head}{k}{tail}")
 
         meta = {"description": f"aerial-synth {info.scene} {info.scenario} ({sp})",
                 "version": info.tool_version, "seed": info.seed}
-        d = to_dict(StreamedList(_image(i) for i in images), StreamedList(objects()), info.categories, meta)
+        d = _document(StreamedList(_image(i) for i in images), StreamedList(annotations()), categories, meta)
         if sorted(d).index("annotations") > sorted(d).index("images"):  # pragma: no cover
             raise RuntimeError("COCO streaming: the images must be written after the annotations")
         return iter_json(d)

@@ -93,7 +93,11 @@ class LabelFormat:
         too large to hold (written as they come, e.g. from
         :func:`~aerial_synth.io_utils.iter_json`). ``records``: every image's record in
         index order; the exporter passes a lazy sequence that reads them from disk on each
-        iteration (``len`` and ``[i]`` work too), so iterate it rather than keep a list."""
+        iteration (``len`` and ``[i]`` work too), so iterate it rather than keep a list. Its
+        ``map(fn, split=None)`` yields ``fn(record)`` in index order, on a process pool for a
+        large export (``fn`` module-level, see
+        :meth:`~aerial_synth.dataset.aggregate.MetaRecords.map`); a plain list has no
+        ``map``, so check for it as COCO does."""
         return {}
 
     def __repr__(self) -> str:

@@ -50,3 +50,21 @@ def test_streamed_document_with_preformatted_items():
     doc = {"annotations": coco.StreamedList(coco._annotation_json(a) for a in anns), "info": {"x": 1}}
     assert "".join(iter_json(doc)) == json.dumps({"annotations": anns, "info": {"x": 1}}, indent=2,
                                                  sort_keys=True) + "\n"
+
+
+def test_annotation_text_around_its_id():
+    """A pool process formats an annotation before its id is known: head + id + tail."""
+    rng = random.Random(7)
+    cat_id = {"car": 1, "van": 2}
+    for j in range(300):
+        d = _annotation(rng)
+        size = d["segmentation"]["size"] if j % 3 else [float(v) for v in d["segmentation"]["size"]]
+        o = coco.CocoObject(image_id=d["image_id"], category=rng.choice(list(cat_id)), bbox_xywh=tuple(d["bbox"]),
+                            area=d["area"], segmentation={"size": size, "counts": d["segmentation"]["counts"]},
+                            obb_xyxyxyxy=tuple(d["obb_xyxyxyxy"]), heading_img_deg=d["heading_img_deg"],
+                            difficult=d["difficult"], orientation_unclear=d["orientation_unclear"],
+                            vehicle_id=d["vehicle_id"], visible_fraction=d["visible_fraction"],
+                            truncated=d["truncated"])
+        head, tail = coco._annotation_parts(o, cat_id)
+        for k in (1, 10, rng.randint(1, 10**9)):
+            assert head + str(k) + tail == coco._annotation_json(coco._annotation(k, o, cat_id)).text
