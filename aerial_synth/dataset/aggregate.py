@@ -209,7 +209,7 @@ class MetaRecords:
 
         In an export of :data:`POOL_MIN_RECORDS` images or more (``pool_min``), a pass over
         :data:`PASS_MIN_RECORDS` records or more is computed in chunks of up to
-        :data:`CHUNK_RECORDS` records on a process pool (:func:`.export.pool_context`, sized
+        :data:`CHUNK_RECORDS` records on a process pool (:func:`.pool.pool_context`, sized
         by :meth:`pool_size`; one pool per pass, shut down when the pass ends or stops), with
         at most :data:`WINDOW_PER_WORKER` chunks per process in flight, so memory holds a
         few chunks of results whatever the export's size; otherwise in this process, chunk
@@ -249,7 +249,7 @@ class MetaRecords:
         from concurrent.futures import ProcessPoolExecutor
         from concurrent.futures.process import BrokenProcessPool
 
-        from .export import check_entry_point, pool_context
+        from .pool import check_entry_point, pool_context
 
         check_entry_point()
         pool = ProcessPoolExecutor(workers, mp_context=pool_context(), initializer=_init_worker,
@@ -344,7 +344,7 @@ def write_aggregates(cfg: ExportConfig, out: Path, georeference: dict | None = N
     and a format's file given as chunks is written chunk by chunk, so memory does not grow
     with the export. The bytes do not depend on ``workers``."""
     from ..formats.registry import get
-    from .export import check_entry_point
+    from .pool import check_entry_point
 
     check_entry_point()
     out = Path(out)

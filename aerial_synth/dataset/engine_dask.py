@@ -70,7 +70,7 @@ LOCAL_CLUSTER_CONFIG = {
     "distributed.worker.memory.monitor-interval": "500ms",
 }
 #: What the export's fork server imports after the workers' modules when a ``--dask local:K``
-#: cluster's workers fork from it (:func:`.export.pool_context`): Dask distributed, then
+#: cluster's workers fork from it (:func:`.pool.pool_context`): Dask distributed, then
 #: :mod:`._server_freeze` (last: it freezes the server's objects so that a forked worker's
 #: garbage collections do not copy the server's heap: 0.1 s of CPU per worker on its first
 #: scene alone).
@@ -278,7 +278,7 @@ class DaskEngine:
                 # threshold: every large frame buffer then costs fresh page faults (~40 % per
                 # image measured); unset it for our workers.
                 # Worker processes fork from the export's fork server where there is one
-                # (export.pool_context: open3d, numba, the renderer and Dask already
+                # (pool.pool_context: open3d, numba, the renderer and Dask already
                 # imported); they then take the server's environment, which has no
                 # MALLOC_TRIM_THRESHOLD_, and set their thread counts when pinned.
                 import multiprocessing as mp

@@ -47,6 +47,7 @@ from .output import (
     prepare_build,
     remove_stray_temps,
 )
+from .pool import _WORKER_MODULES, check_entry_point, pool_context, start_pool_server  # noqa: F401 (re-exported)
 from .worker import (
     ImageWorker,
     encode_image,
@@ -270,71 +271,6 @@ def _run_pool(cfg: ExportConfig, build: Path, tasks, workers: int, bar, scene=No
         pool.close()  # workers exit normally (their exit handlers run: numba's named
         pool.join()  # lock is released) instead of being terminated by ``with``
     return done
-
-
-#: What a pool worker imports; the fork server imports it once, before it forks workers.
-_WORKER_MODULES = (
-    "aerial_synth.dataset._server_guard",  # first: see that module
-    "aerial_synth.dataset._server_open3d",  # before anything imports open3d
-    "aerial_synth.numba_setup", "aerial_synth.dataset.worker", "aerial_synth.render.frame",
-    "aerial_synth.render.shading", "aerial_synth.render._kernels", "aerial_synth.render._tone",
-    "aerial_synth.render._vis_kernels", "aerial_synth.render.smooth", "aerial_synth.render.world",
-    "aerial_synth.camera_rays", "aerial_synth.scene.raycast", "aerial_synth.placement.traffic",
-    "aerial_synth.annotate", "aerial_synth.formats.registry", "aerial_synth.formats.coco",
-    "aerial_synth.formats.dota", "aerial_synth.formats.meta", "aerial_synth.png",
-    "isal.isal_zlib", "open3d", "scipy.special",
-    "scipy.spatial", "scipy.ndimage", "cv2",
-    "aerial_synth.dataset._server_warm",  # last: see that module
-)
-
-
-def pool_context(dask: bool = False):
-    """The start method of the export's worker processes: a fork server where the platform
-    has one (Linux, macOS), else spawn.
-
-    A spawned worker starts a fresh interpreter and imports open3d, numba, scipy and the
-    renderer itself (~2 s of CPU each). The fork server does those imports once, in a
-    process that has started no threads (so forking it is safe, unlike forking the
-    exporter once open3d or numba run), and every worker is a fork of it: nothing to
-    import. Workers still get everything else through pickled arguments, as with spawn.
-    The server's objects are frozen last (:mod:`._server_freeze`: a worker's collections
-    then never copy the server's heap). ``dask``: Dask distributed is preloaded before
-    that (a ``--dask local:K`` cluster's workers are forked from the same server, see
-    :data:`.engine_dask.FORK_SERVER_PRELOAD`)."""
-    import multiprocessing as mp
-
-    if "forkserver" not in mp.get_all_start_methods():
-        return mp.get_context("spawn")
-    ctx = mp.get_context("forkserver")
-    from .engine_dask import FORK_SERVER_PRELOAD
-
-    ctx.set_forkserver_preload(list(_WORKER_MODULES) + list(
-        FORK_SERVER_PRELOAD if dask else ("aerial_synth.dataset._server_freeze",)))
-    return ctx
-
-
-def check_entry_point() -> None:
-    """Refuse to run while a worker process imports the main module: a script without an
-    ``if __name__ == '__main__'`` guard that exports (or writes aggregate files) would
-    otherwise start again in each of its worker processes. Here the worker stops at once
-    (its parent sees it die: the aggregate files are then made in the parent, see
-    :meth:`.aggregate.MetaRecords.map`)."""
-    import multiprocessing as mp
-
-    if getattr(mp.current_process(), "_inheriting", False):
-        raise ExportError("a worker process is importing the main module, which exports again: a "
-                          "script that exports must guard its entry point with if __name__ == '__main__'")
-
-
-def start_pool_server(dask: bool = False) -> None:
-    """Start the fork server now (it imports :data:`_WORKER_MODULES` in the background,
-    on another core, while this process loads the scene); a no-op with spawn. A server
-    already running is kept (its imports are the first caller's)."""
-    ctx = pool_context(dask)
-    if ctx.get_start_method() == "forkserver":
-        from multiprocessing import forkserver
-
-        forkserver.ensure_running()
 
 
 def _shareable(cfg: ExportConfig, scene, catalog) -> tuple:
