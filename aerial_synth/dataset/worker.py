@@ -50,8 +50,18 @@ def _watch_parent(parent_pid: int) -> None:
     """Die with the exporter ``parent_pid``: PR_SET_PDEATHSIG on Linux, and
     :func:`_check_parent` everywhere. A worker forked by the pool's fork server has that
     server as its parent; the server exits when the exporter does, so the death signal
-    still follows the exporter, and :func:`_check_parent` also asks after the exporter."""
+    still follows the exporter, and :func:`_check_parent` also asks after the exporter.
+
+    A worker's results go back through a pipe that only the exporter reads: a worker that
+    finishes a task in the milliseconds between the exporter's death and its own (the kill
+    chain runs through the fork server) would get a BrokenPipeError and print its traceback
+    on the user's terminal. SIGPIPE's default action is restored instead (Python ignores it),
+    so that write ends the worker silently, as the death signal would a moment later."""
+    import signal
+
     global _PARENT_PID, _EXPORTER_PID
+    if hasattr(signal, "SIGPIPE"):
+        signal.signal(signal.SIGPIPE, signal.SIG_DFL)
     _EXPORTER_PID = int(parent_pid)
     _PARENT_PID = os.getppid()
     if _PARENT_PID != _EXPORTER_PID and not _alive(_EXPORTER_PID):
@@ -59,7 +69,6 @@ def _watch_parent(parent_pid: int) -> None:
     if hasattr(os, "sched_getaffinity"):  # Linux
         try:
             import ctypes
-            import signal
 
             libc = ctypes.CDLL(None, use_errno=True)
             PR_SET_PDEATHSIG = 1

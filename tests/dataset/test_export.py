@@ -207,6 +207,33 @@ def test_kill_and_resume_identical(exported, tiny_scene, tmp_path):
     assert [k for k in a if a[k] != b[k]] == []
 
 
+_ORPHAN = r"""
+import os, sys
+from aerial_synth.dataset.worker import _watch_parent
+r, w = os.pipe()
+os.close(r)  # the reader (the exporter's result handler) is gone
+if sys.argv[1] == "watched":
+    _watch_parent(os.getppid())
+os.write(w, b"result")  # what a pool worker does with a finished task's result
+print("still running", file=sys.stderr)
+"""
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGPIPE"), reason="no SIGPIPE on this platform")
+def test_worker_whose_exporter_died_ends_silently_on_its_result_pipe():
+    """A pool worker that writes a result after the exporter died ends by SIGPIPE, without
+    the BrokenPipeError traceback Python's default (SIGPIPE ignored) would print; the same
+    child without the watcher shows what is avoided."""
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    plain = subprocess.run([sys.executable, "-c", _ORPHAN, "plain"], capture_output=True, text=True,
+                           env=env, timeout=120)
+    assert plain.returncode == 1 and "BrokenPipeError" in plain.stderr
+    watched = subprocess.run([sys.executable, "-c", _ORPHAN, "watched"], capture_output=True,
+                             text=True, env=env, timeout=120)
+    assert watched.returncode == -signal.SIGPIPE
+    assert watched.stderr == ""
+
+
 def test_kill_two_workers_force_keeps_old_and_workers_die(exported, tiny_scene, tmp_path):
     """kill -9 of an export --force --workers 2 over an existing dataset: the old dataset
     stays byte-identical, the orphaned workers stop at once (no file changes afterwards, no
