@@ -5,10 +5,10 @@ smaller.
 An export writes one 1024 x 1024 PNG per image on the worker's core, beside the next
 frame's render, so the encoder's time is taken from rendering. OpenCV's fastest useful
 settings (zlib level 1, Huffman-only, the Average filter; :func:`opencv_png_params`) take
-~29 ms a frame for ~1.7 MB. Here every row gets the Average filter (one compiled pass,
+29-50 ms a frame for ~1.7 MB. Here every row gets the Average filter (one compiled pass,
 ~2 ms) and the filtered rows are deflated by ISA-L at ``LEVEL`` (LZ77 matches and Huffman
-codes, hand-written SIMD: ~10 ms): ~12.5 ms and ~1.35 MB a frame, measured on exported
-city_park frames (`python tools/bench_png.py`).
+codes, hand-written SIMD: ~10 ms): 10-13 ms and 1.30-1.39 MB a frame, measured on rendered
+city_park frames (``python tools/bench_png.py``: one core, rounds interleaved, three runs).
 
 The file is a plain PNG (signature, IHDR, one IDAT, IEND; colour type 2, bit depth 8, no
 interlace), read back by OpenCV, Pillow, libpng and every training framework to the very
@@ -92,8 +92,8 @@ def encode_png(rgb: np.ndarray) -> bytes:
 @functools.lru_cache(maxsize=1)
 def opencv_png_params() -> tuple[int, ...]:
     """OpenCV's PNG parameters of the fallback: zlib level 1, the Average filter on every
-    row and Huffman-only coding (~29 ms and ~1.7 MB a 1024 px frame; the Paeth filter took
-    41 ms, OpenCV's default level 3 ~100 ms). An OpenCV without the filter option (< 4.10)
+    row and Huffman-only coding (29-50 ms and ~1.7 MB a 1024 px frame; OpenCV 4.12's
+    defaults 45-55 ms and ~1.75 MB). An OpenCV without the filter option (< 4.10)
     keeps its default filters."""
     import cv2
 
