@@ -92,7 +92,7 @@ def encode_png(rgb: np.ndarray) -> bytes:
 @functools.lru_cache(maxsize=1)
 def opencv_png_params() -> tuple[int, ...]:
     """OpenCV's PNG parameters of the fallback: zlib level 1, the Average filter on every
-    row and Huffman-only coding (29-50 ms and ~1.7 MB a 1024 px frame; OpenCV 4.12's
+    row and Huffman-only coding (29-50 ms and ~1.7 MB a 1024 px frame; OpenCV 5.0's
     defaults 45-55 ms and ~1.75 MB). An OpenCV without the filter option (< 4.10)
     keeps its default filters."""
     import cv2
