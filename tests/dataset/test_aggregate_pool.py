@@ -24,18 +24,14 @@ from aerial_synth.formats._common import LabelFormatError
 from aerial_synth.formats.registry import LabelFormat
 
 from ..helpers import REPO, tree_bytes
+from .conftest import small_export as make_small_export
 
 N = 24  # records of a widened export: several chunks per worker once the thresholds are lowered
 
 
 @pytest.fixture(scope="module")
 def small_export(tiny_scene, tmp_path_factory):
-    out = tmp_path_factory.mktemp("aggpool") / "ds"
-    cfg = ExportConfig(scene=tiny_scene, images=6, formats="dota,eagle,yolo-obb,coco", split=0.5, seed=5,
-                       images_per_placement=2, n_vehicles=10, width_px=128, height_px=128,
-                       simple_vehicles=True)
-    export_dataset(cfg, out, workers=1, progress=False)
-    return cfg, out
+    return make_small_export(tmp_path_factory, tiny_scene, "aggpool", 6, "dota,eagle,yolo-obb,coco", 5)
 
 
 @pytest.fixture

@@ -9,23 +9,20 @@ import pytest
 
 from aerial_synth.dataset import aggregate
 from aerial_synth.dataset.aggregate import MetaRecords, write_aggregates
-from aerial_synth.dataset.export import ExportConfig, export_dataset
+from aerial_synth.dataset.export import ExportConfig
 from aerial_synth.dataset.layout import meta_path
 from aerial_synth.errors import ExportError
 from aerial_synth.formats import coco
 from aerial_synth.io_utils import StreamedList, atomic_write_chunks, dumps_json, iter_json
+
+from .conftest import small_export as make_small_export
 
 N = 60  # records of the widened export
 
 
 @pytest.fixture(scope="module")
 def small_export(tiny_scene, tmp_path_factory):
-    out = tmp_path_factory.mktemp("agg") / "ds"
-    cfg = ExportConfig(scene=tiny_scene, images=4, formats="dota,coco,yolo-obb", split=0.5, seed=3,
-                       images_per_placement=2, n_vehicles=10, width_px=128, height_px=128,
-                       simple_vehicles=True)
-    export_dataset(cfg, out, workers=1, progress=False)
-    return cfg, out
+    return make_small_export(tmp_path_factory, tiny_scene, "agg", 4, "dota,coco,yolo-obb", 3)
 
 
 def _widen(cfg, out, dst, n=N):
