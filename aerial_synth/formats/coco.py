@@ -121,16 +121,10 @@ def object_from_annotation(annotation, image_id: int, rle: dict) -> CocoObject:
 
 def to_dict(images, objects, categories=CATEGORIES, info: dict | None = None) -> dict:
     """COCO instances dict; annotation ids 1.. in the given order, category ids 1.. in
-    ``categories`` order. Lists given as :class:`~aerial_synth.io_utils.StreamedList` stay
-    streamed (for :func:`~aerial_synth.io_utils.iter_json`)."""
+    ``categories`` order. (The exporter streams its files instead: :meth:`CocoFormat._instances`.)"""
     cat_id = _category_ids(categories)
-    if isinstance(objects, StreamedList):  # pre-formatted items (see _annotation_json)
-        anns = StreamedList(_annotation_json(_annotation(k, o, cat_id))
-                            for k, o in enumerate(objects.items, start=1))
-    else:
-        anns = [_annotation(k, o, cat_id) for k, o in enumerate(objects, start=1)]
-    images = images if isinstance(images, StreamedList) else [_image(i) for i in images]
-    return _document(images, anns, categories, info)
+    anns = [_annotation(k, o, cat_id) for k, o in enumerate(objects, start=1)]
+    return _document([_image(i) for i in images], anns, categories, info)
 
 
 def _category_ids(categories) -> dict:

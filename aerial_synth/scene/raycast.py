@@ -485,10 +485,7 @@ class RayScene:
         scene's highest point (above it the answer is True at no cost), through the scene
         without vehicles, so the answer does not change when vehicles are added."""
         x, y, z = (float(v) for v in np.asarray(xyz, dtype=np.float64).reshape(3))
-        top = self.__dict__.get("_static_top")
-        if top is None:
-            top = self.__dict__["_static_top"] = float(self.scene.bounds()[1, 2])
-        if z >= top:
+        if z >= float(self._scene_bounds[1, 2]):  # the static scene's bounds, from __init__
             return True
         ray = np.array([[x, y, z, 0.0, 0.0, 1.0]], np.float32)
         return not bool(self.cast_rays(ray, ignore=self.label_config.ignore | {"vehicle"}).hit[0])
