@@ -149,10 +149,21 @@ class AmodalMasks:
         return m, (x0, y0)
 
 
-def cast_buffers(rayscene, camera) -> Buffers:
-    """Cast one ray per pixel centre; return instance / semantic / depth and hit data.
+#: how :func:`cast_buffers` finds each pixel's first surface: "raster" (the z-buffer of
+#: :mod:`.raster`, exact ray-triangle tests organised by triangle, ~5x faster) or "embree"
+#: (one Embree ray per pixel centre)
+PRIMARY = "raster"
 
-    Embree's answer is read without copies and turned into faces, labels, depth and
+
+def cast_buffers(rayscene, camera, method: str | None = None) -> Buffers:
+    """The first surface at every pixel centre: instance / semantic / depth and hit data.
+
+    method : "raster" or "embree" (default :data:`PRIMARY`). Both answer the same question
+    (which triangle a ray from the camera centre through the pixel centre meets first) and
+    agree but for pixels where a ray grazes an edge (tests/render/test_raster.py); the
+    raster's answer is watertight.
+
+    With "embree", Embree's answer is read without copies and turned into faces, labels, depth and
     camera-facing normals, with the smooth shading normals of crown clumps
     (:mod:`.smooth`), in one compiled pass (:func:`.smooth.finish_smooth_buffers`); the
     result is the same as mapping :meth:`RayScene.cast_rays` hits and then
@@ -160,6 +171,15 @@ def cast_buffers(rayscene, camera) -> Buffers:
     from .smooth import corner_normals, finish_smooth_buffers
 
     h, w = camera.height_px, camera.width_px
+    method = PRIMARY if method is None else method
+    if method == "raster":
+        from .raster import raster_primary
+
+        o = raster_primary(rayscene, camera)
+        return Buffers(h, w, o["instance"].reshape(h, w), o["semantic"].reshape(h, w),
+                       o["depth"].reshape(h, w), o["face"], o["t"], o["normal"], o["rays"])
+    if method != "embree":
+        raise ValueError(f"cast_buffers: method must be 'raster' or 'embree', not {method!r}")
     n = h * w
     rays = camera._all_rays()
     ans = rayscene._cast_raw(rays)

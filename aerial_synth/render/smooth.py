@@ -64,13 +64,15 @@ def corner_normals(rayscene) -> tuple[np.ndarray, np.ndarray]:
 def _smooth_one(i, f, uv, rays, row, corners, normal):  # pragma: no cover - compiled
     """Pixel i (hit face f >= 0): its normal -> the interpolated vertex normal, if f is a
     smooth-material static face (see :func:`smooth_shading_normals`)."""
-    if f >= row.shape[0]:
+    if f >= row.shape[0] or row[f] < 0:
         return
-    k = row[f]
-    if k < 0:
-        return
-    u = uv[i, 0]
-    v = uv[i, 1]
+    smooth_at(i, row[f], uv[i, 0], uv[i, 1], rays, corners, normal)
+
+
+@njit(inline="always")
+def smooth_at(i, k, u, v, rays, corners, normal):  # pragma: no cover - compiled
+    """Pixel i, a hit at barycentric (u, v) (float32) on the face of row k of ``corners``:
+    its camera-facing normal -> the interpolated vertex normal (unless that faces away)."""
     w0 = np.float32(1.0) - u - v
     sx = w0 * corners[k, 0, 0] + u * corners[k, 1, 0] + v * corners[k, 2, 0]
     sy = w0 * corners[k, 0, 1] + u * corners[k, 1, 1] + v * corners[k, 2, 1]

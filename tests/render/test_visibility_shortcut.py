@@ -110,9 +110,10 @@ def test_a_hidden_vehicle_is_still_cast():
 
 @pytest.mark.parametrize("pose", CAMERAS[:2])
 def test_fused_buffers_equal_the_mapped_cast(pose):
+    # the Embree primary (the z-buffer's agreement with it: tests/render/test_raster.py)
     rs, pl = make_world(SPECS, building=True, crown_at=(8.5, -1.0))
     cam = Camera.look_at_ground(SMALL, (1.0, 1.0, 0.0), **pose)
-    buf = cast_buffers(rs, cam)
+    buf = cast_buffers(rs, cam, method="embree")
     hits = rs.cast_rays(cam.pixel_rays())
     np.testing.assert_array_equal(buf.face, hits.face)
     np.testing.assert_array_equal(buf.t, hits.t)
