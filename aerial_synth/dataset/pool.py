@@ -15,7 +15,8 @@ _WORKER_MODULES = (
     "aerial_synth.dataset._server_open3d",  # before anything imports open3d
     "aerial_synth.numba_setup", "aerial_synth.dataset.worker", "aerial_synth.render.frame",
     "aerial_synth.render.shading", "aerial_synth.render._kernels", "aerial_synth.render._tone",
-    "aerial_synth.render._vis_kernels", "aerial_synth.render.smooth", "aerial_synth.render.world",
+    "aerial_synth.render._vis_kernels", "aerial_synth.render.smooth", "aerial_synth.render.raster",
+    "aerial_synth.render.world",
     "aerial_synth.camera_rays", "aerial_synth.scene.raycast", "aerial_synth.placement.traffic",
     "aerial_synth.annotate", "aerial_synth.formats.registry", "aerial_synth.formats.coco",
     "aerial_synth.formats.dota", "aerial_synth.formats.meta", "aerial_synth.png",

@@ -50,6 +50,8 @@ BAND_ROWS = 8
 #: the near plane (metres of z-depth) that bounds the pixel range of a triangle reaching
 #: behind the camera; hits closer than this cannot occur in an aerial frame
 NEAR_M = 1e-3
+#: margin (pixels) of a triangle's box of pixel centres around its projected vertices
+_BOX_SLACK_PX = 1e-3
 
 
 @njit(inline="always")
@@ -97,8 +99,8 @@ def _grow_edge(a, b, near, fx, fy, cx, cy, u0, u1, v0, v1):  # pragma: no cover 
 @njit(parallel=True, **KERNEL_OPTIONS)
 def _bounds(sv, sf, vv, vf, Rt, c, fx, fy, cx, cy, w, h, near, rows):  # pragma: no cover
     """rows (n_tri, 4) int32 <- [first row, last row, first column, last column] of the
-    pixels whose centres each triangle can cover (first > last: none; a margin of one
-    pixel each side, the exact test is per pixel). The pixel range of a triangle that
+    pixels whose centres each triangle can cover (first > last: none; the exact test is
+    per pixel). The pixel range of a triangle that
     reaches behind the near plane is that of its part in front of it."""
     n = sf.shape[0] + vf.shape[0]
     for i in prange(n):
@@ -118,10 +120,13 @@ def _bounds(sv, sf, vv, vf, Rt, c, fx, fy, cx, cy, w, h, near, rows):  # pragma:
         v1 = min(v1, h + 2.0)
         if not (u0 <= u1 and v0 <= v1):
             continue
-        c0 = max(int(math.floor(u0 - 0.5)) - 1, 0)
-        c1 = min(int(math.ceil(u1 - 0.5)) + 1, w - 1)
-        r0 = max(int(math.floor(v0 - 0.5)) - 1, 0)
-        r1 = min(int(math.ceil(v1 - 0.5)) + 1, h - 1)
+        # the centres c + 0.5 in [u0, u1], with a margin far above the projection's
+        # round-off (the exact test is per pixel); most vehicle triangles are smaller
+        # than a pixel and cover no centre at all: they drop out here
+        c0 = max(int(math.ceil(u0 - 0.5 - _BOX_SLACK_PX)), 0)
+        c1 = min(int(math.floor(u1 - 0.5 + _BOX_SLACK_PX)), w - 1)
+        r0 = max(int(math.ceil(v0 - 0.5 - _BOX_SLACK_PX)), 0)
+        r1 = min(int(math.floor(v1 - 0.5 + _BOX_SLACK_PX)), h - 1)
         if c0 > c1 or r0 > r1:
             continue
         rows[i, 0] = r0
