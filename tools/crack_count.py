@@ -1,8 +1,10 @@
 """Count camera rays that hit nothing inside a procedural scene (cracks between surfaces).
 
 Usage: python tools/crack_count.py [SCENE ...] [--frames 6] [--tilt 0 15]
-Prints, per scene and tilt, the holes per 1024x1024 frame whose footprint lies inside the
-scene (every ray should hit something there) and what lies below each hole.
+       [--method raster embree]
+Prints, per scene, tilt and primary method (the renderer's z-buffer, render/raster.py, or
+one Embree ray per pixel), the holes per 1024x1024 frame whose footprint lies inside the
+scene (every ray should hit something there).
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from aerial_synth.render.raycast import cast_buffers  # noqa: E402
 from aerial_synth.scene import RayScene, load_scene  # noqa: E402
 
 
-def count(name: str, frames: int, tilts, seed: int = 0) -> list[dict]:
+def count(name: str, frames: int, tilts, seed: int = 0, method: str = "raster") -> list[dict]:
     scene = load_scene(name)
     rs = RayScene(scene)
     b = scene.bounds()
@@ -37,14 +39,15 @@ def count(name: str, frames: int, tilts, seed: int = 0) -> list[dict]:
             y = rng.uniform(b[0, 1] + half, b[1, 1] - half)
             cam = Camera.look_at_ground(cfg, (x, y, 0.0), yaw_deg=float(rng.uniform(0, 360)),
                                         tilt_deg=float(tilt), tilt_axis_deg=float(rng.uniform(0, 360)))
-            buf = cast_buffers(rs, cam)
+            buf = cast_buffers(rs, cam, method=method)
             # only rays that meet the ground plane inside the scene's box count
             rays = cam._all_rays().astype(np.float64)
             t = -rays[:, 2] / np.minimum(rays[:, 5], -1e-9)
             gx, gy = rays[:, 0] + t * rays[:, 3], rays[:, 1] + t * rays[:, 4]
             inside = ((gx > box[0] + 1) & (gx < box[2] - 1) & (gy > box[1] + 1) & (gy < box[3] - 1))
             holes.append(int(((buf.semantic.ravel() == 0) & inside).sum()))
-        out.append({"scene": name, "tilt_deg": tilt, "holes_per_frame": float(np.mean(holes)),
+        out.append({"scene": name, "tilt_deg": tilt, "method": method,
+                    "holes_per_frame": float(np.mean(holes)),
                     "max": int(np.max(holes))})
     return out
 
@@ -54,11 +57,14 @@ def main() -> None:
     ap.add_argument("scenes", nargs="*", default=["city_park", "suburb", "highway"])
     ap.add_argument("--frames", type=int, default=6)
     ap.add_argument("--tilt", type=float, nargs="*", default=[0.0, 15.0])
+    ap.add_argument("--method", nargs="*", choices=("raster", "embree"),
+                    default=["raster", "embree"])
     a = ap.parse_args()
     for name in a.scenes:
-        for r in count(name, a.frames, a.tilt):
-            print(f"{r['scene']:10s} tilt {r['tilt_deg']:4.0f} deg: {r['holes_per_frame']:7.1f} "
-                  f"holes per 1024^2 frame (max {r['max']})")
+        for m in a.method:
+            for r in count(name, a.frames, a.tilt, method=m):
+                print(f"{r['scene']:10s} {m:6s} tilt {r['tilt_deg']:4.0f} deg: "
+                      f"{r['holes_per_frame']:7.1f} holes per 1024^2 frame (max {r['max']})")
 
 
 if __name__ == "__main__":

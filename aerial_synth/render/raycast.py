@@ -1,6 +1,8 @@
 """Frame buffers and visibility from the RayScene (the one source of geometric truth).
 
-One primary ray per pixel centre (see :meth:`aerial_synth.camera.Camera.pixel_rays`) gives
+The first surface on the ray through each pixel centre (see
+:meth:`aerial_synth.camera.Camera.pixel_rays`; found by the z-buffer of :mod:`.raster`, or
+by one Embree ray per pixel with ``cast_buffers(method="embree")``) gives
 
 - ``instance`` (H, W) uint32: vehicle id of the first hit (placement ids; 0 = background),
 - ``semantic`` (H, W) uint8: semantic id (:data:`aerial_synth.scene.model.LABEL_IDS`; 0 =
@@ -98,7 +100,7 @@ class VehicleVisibility:
 
 @dataclass
 class Buffers:
-    """Per-pixel results of the primary cast (row-major flat arrays of n = H * W).
+    """Per-pixel first surfaces (row-major flat arrays of n = H * W).
 
     face   : (n,) int64 global face index (-1 = miss)
     t      : (n,) float32 z-depth, metres (inf = miss)

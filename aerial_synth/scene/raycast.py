@@ -339,7 +339,8 @@ class RayScene:
         """Embree's answer for ``rays`` (n, 6) float32 C-contiguous, without any mapping:
         {"t_hit", "geometry_ids", "primitive_ids", "primitive_normals", ...} as numpy
         arrays (no copies), plus "lut" (see :meth:`_face_lut`). For callers that map faces
-        in their own fused pass (the renderer's primary cast); tables are up to date."""
+        in their own fused pass (the renderer's Embree primary,
+        ``cast_buffers(method="embree")``); tables are up to date."""
         built = self._get_built(ignore)
         o3d = _o3d()
         ans = built.scene.cast_rays(o3d.core.Tensor.from_numpy(rays))
