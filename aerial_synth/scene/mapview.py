@@ -120,23 +120,21 @@ def render_map(
         [origin[0] + (jj.ravel() + 0.5) * m_per_px, origin[1] - (ii.ravel() + 0.5) * m_per_px]
     )
     pal = _palette()
-    top = rayscene.trace_down(xy, ignore=())
-    img = pal[top.label_id]
+    top, top_hit = rayscene.trace_hits(xy, ignore=())
+    img = pal[top]
     ign = tuple(sorted(rayscene.label_config.ignore))
     if ign:
-        under = rayscene.trace_down(xy, ignore=ign)
-        over = np.isin(top.label_id, [LABEL_IDS[n] for n in ign])
-        below = pal[under.label_id[over]]
-        below[~np.isfinite(under.z[over])] = _NOTHING_BGR
-        img[over] = _TREE_ALPHA * pal[top.label_id[over]] + (1 - _TREE_ALPHA) * below
-    miss = top.label_id == 0
-    miss &= ~np.isfinite(top.z)
-    img[miss] = _NOTHING_BGR
+        over = np.isin(top, [LABEL_IDS[n] for n in ign])
+        under, under_hit = rayscene.trace_hits(xy[over], ignore=ign)
+        below = pal[under]
+        below[~under_hit] = _NOTHING_BGR
+        img[over] = _TREE_ALPHA * pal[top[over]] + (1 - _TREE_ALPHA) * below
+    img[~top_hit] = _NOTHING_BGR
     image = np.clip(img, 0, 255).astype(np.uint8).reshape(H, W, 3)
     view = MapView(image=image, origin_xy=origin, m_per_px=m_per_px)
     if legend:
         _draw_scale_bar(view)
-        _draw_legend(view, {LABELS[i] for i in np.unique(top.label_id) if i > 0})
+        _draw_legend(view, {LABELS[i] for i in np.unique(top) if i > 0})
     if (scene.meta or {}).get("attribution"):  # OSM scenes: the data licence asks for it
         draw_attribution(view.image, str(scene.meta["attribution"]))
     return view

@@ -35,9 +35,9 @@ VEHICLES_ONLY: frozenset[str] = frozenset(n for n in LABELS if n != "vehicle")
 
 
 def _o3d():
-    import open3d as o3d  # heavy: imported only when a RayScene is built
+    from .._open3d import import_open3d  # heavy: imported only when a RayScene is built
 
-    return o3d
+    return import_open3d()
 
 
 @dataclass(frozen=True)
@@ -508,6 +508,17 @@ class RayScene:
             object_index=self._face_object_s[face],
             instance_id=self._face_instance_s[face],
         )
+
+    def trace_hits(self, xy: np.ndarray, ignore: Iterable[str] | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
+        """(label_id (n,) int16, hit (n,) bool) of the first surface straight below each
+        point: :meth:`trace_down` without the heights (a map needs only these).
+        xy : (n, 2) metres; ignore : as :meth:`trace_down`."""
+        ign = self.label_config.ignore if ignore is None else frozenset(ignore)
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        _, face = self._cast_faces(self._down_rays(xy), frozenset(ign))
+        self._rebuild_tables()
+        return self._face_label_s[face], face >= 0
 
     def trace_labels_z(self, xy: np.ndarray, z_at: np.ndarray,
                        ignore: Iterable[str] | None = None) -> tuple[np.ndarray, np.ndarray]:

@@ -53,6 +53,21 @@ def test_miss_outside_scene():
     assert tr.label_id[0] == 0 and np.isnan(tr.z[0])
 
 
+@pytest.mark.parametrize("ignore", [None, (), ("tree",)])
+def test_trace_hits_are_trace_down_without_heights(ignore):
+    # the map's trace: the same labels as trace_down, and hit = a finite height, on a grid
+    # over the crown, the trunk, the road edges and past the scene (misses)
+    rs = RayScene(_strip_scene(with_crown=True))
+    g = np.linspace(-60, 60, 97)
+    xy = np.column_stack([np.repeat(g, 97), np.tile(np.linspace(-35, 35, 97), 97)])
+    xy = np.vstack([xy, [[0.0, 7.0], [0.0, 4.0]]])
+    tr = rs.trace_down(xy, ignore=ignore)
+    label, hit = rs.trace_hits(xy, ignore=ignore)
+    np.testing.assert_array_equal(label, tr.label_id)
+    np.testing.assert_array_equal(hit, np.isfinite(tr.z))
+    assert (~hit).sum() > 100 and hit.sum() > 1000
+
+
 @pytest.mark.parametrize("m_per_px", [0.5, 1.0])
 def test_map_view_geometry(m_per_px):
     from aerial_synth.scene import render_map
