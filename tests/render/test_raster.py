@@ -20,16 +20,10 @@ from aerial_synth.render.raycast import cast_buffers
 from aerial_synth.scene.model import LABEL_IDS, Scene, SceneObject
 from aerial_synth.scene.raycast import RayScene
 
-from .worlds import make_world, with_threads
+from .worlds import MIXED_SPECS, make_world, with_threads
 
 SMALL = CameraConfig(width_px=320, height_px=256, gsd_m=0.1)
-SPECS = [
-    (1, 0.0, 0.0, 0.0, 9.0, 2.5, 3.5),
-    (2, 0.0, 2.9, 0.3, 4.5, 1.8, 1.4),
-    (3, 8.0, -2.0, 0.4, 4.5, 1.8, 1.5),
-    (4, -9.0, -1.5, 2.0, 4.2, 1.8, 1.45),
-    (5, 6.0, 6.0, 0.0, 4.5, 1.8, 1.5),
-]
+SPECS = MIXED_SPECS
 POSES = [
     dict(),
     dict(yaw_deg=33.0, tilt_deg=15.0, tilt_axis_deg=70.0),

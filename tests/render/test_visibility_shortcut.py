@@ -14,22 +14,11 @@ import pytest
 from aerial_synth.camera import Camera, CameraConfig
 from aerial_synth.render.raycast import VEHICLES_ONLY, cast_buffers, compute_visibility
 
-from .worlds import make_world
+from .worlds import MIXED_SPECS, make_world
 
 SMALL = CameraConfig(width_px=256, height_px=256, gsd_m=0.12)
 
-# a truck beside a car (the truck hides part of the car when tilted), a car under a crown,
-# free cars, two cars nose to tail (boxes overlap with the 2 px margin) and one at the
-# image border
-SPECS = [
-    (1, 0.0, 0.0, 0.0, 9.0, 2.5, 3.5),
-    (2, 0.0, 2.9, 0.0, 4.5, 1.8, 1.4),
-    (3, 8.0, -2.0, 0.4, 4.5, 1.8, 1.5),
-    (4, -9.0, -1.5, 2.0, 4.2, 1.8, 1.45),
-    (5, -9.0, 3.2, 2.0, 4.2, 1.8, 1.45),
-    (6, 14.5, 2.0, 1.2, 4.5, 1.8, 1.5),
-    (7, 6.0, 6.0, 0.0, 4.5, 1.8, 1.5),
-]
+SPECS = MIXED_SPECS
 
 
 def _counting(rs):

@@ -10,6 +10,19 @@ from aerial_synth.scene import build
 from aerial_synth.scene.model import Scene, SceneObject
 from aerial_synth.scene.raycast import RayScene
 
+# a truck beside a car (the truck hides part of the car when tilted), a car under a crown
+# (with ``crown_at=(8.5, -1.0)``), free cars, two cars nose to tail (boxes overlap with a
+# 2 px margin) and one near the border of a 256 px view of (1, 1)
+MIXED_SPECS = [
+    (1, 0.0, 0.0, 0.0, 9.0, 2.5, 3.5),
+    (2, 0.0, 2.9, 0.0, 4.5, 1.8, 1.4),
+    (3, 8.0, -2.0, 0.4, 4.5, 1.8, 1.5),
+    (4, -9.0, -1.5, 2.0, 4.2, 1.8, 1.45),
+    (5, -9.0, 3.2, 2.0, 4.2, 1.8, 1.45),
+    (6, 14.5, 2.0, 1.2, 4.5, 1.8, 1.5),
+    (7, 6.0, 6.0, 0.0, 4.5, 1.8, 1.5),
+]
+
 
 def make_scene(crown_at=None, plateau_z=None, building=True) -> Scene:
     objs = [
