@@ -21,7 +21,7 @@ ray-triangle test, only organised by triangle:
 * Watertight: two triangles that share an edge compute its ``a_k`` from the same float64
   vertices in opposite order, so their ``e_k`` are exact negatives at every pixel; a pixel
   centre on the edge (``e_k = 0``) is inside both. No pixel falls through a closed mesh
-  (Embree's fast traversal is not watertight: ``tools/crack_count.py``).
+  (Embree's traversal is not built robust; ``tools/crack_count.py`` counts holes of both).
 * Nearest hit: smallest ``t``; on an exact tie the lower global face index (deterministic,
   whatever the number of threads).
 
@@ -213,8 +213,8 @@ def _edges(vis, sv, sf, vv, vf, Rt, c, coef):  # pragma: no cover - compiled
 
 @njit(inline="always")
 def _span(ax, off, lo, hi):  # pragma: no cover - compiled
-    """Narrow [lo, hi] to the x where ax * x + b >= 0 (with a little slack: the exact test
-    is per pixel)."""
+    """Narrow [lo, hi] to the x where ax * x + off >= 0, widened by a relative 1e-9 (far
+    above the round-off of the root; the exact test is per pixel)."""
     if ax > 0:
         x = -off / ax
         x -= 1e-9 * (abs(x) + 1.0)
