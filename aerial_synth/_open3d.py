@@ -4,8 +4,8 @@
 ``open3d.visualization.draw_plotly``, which imports Dash and Plotly for a notebook viewer
 aerial-synth never uses. The export pool's fork server (:mod:`.dataset._server_open3d`) and
 the ``aerial-synth`` command (:func:`aerial_synth.cli.console_main`) put a stub module in
-its place before open3d is imported: ``scene``, ``place`` and ``export`` start ~0.5 s
-sooner. A library user's process is left alone (``aerial_synth.cli.main`` called as a
+its place before open3d is imported: ``scene``, ``place`` and ``export`` start ~0.4 s
+sooner (open3d's import: 0.72 -> 0.32 s). A library user's process is left alone (``aerial_synth.cli.main`` called as a
 function installs nothing). The stub is put in place only when the installed open3d's
 ``visualization/__init__.py`` (read from disk, not imported) takes nothing from the viewer
 but the three names the stub has: an open3d that failed halfway through its import could

@@ -96,7 +96,7 @@ def _one_line_warning(message, category, filename, lineno, line=None) -> str:
 
 def console_main(argv: list[str] | None = None) -> int:
     """The ``aerial-synth`` command: :func:`main` in a process of its own, which imports
-    open3d without its plotly viewer (:mod:`aerial_synth._open3d`: ~0.5 s less start-up
+    open3d without its plotly viewer (:mod:`aerial_synth._open3d`: ~0.4 s less start-up
     for every command that casts rays)."""
     from ._open3d import stub_viewer
 

@@ -20,14 +20,15 @@ from ._server_guard import _in_fork_server
 
 
 def _import() -> bool:
+    """In the fork server: import open3d, without its viewer where the stub fits; returns
+    whether the stub is in place."""
     if not _in_fork_server() or "open3d" in sys.modules:
         return False
-    if not stub_viewer():
-        return False
+    stubbed = stub_viewer()
     import_open3d()
     from .._open3d import VIEWER, is_stub
 
-    return is_stub(sys.modules.get(VIEWER))
+    return stubbed and is_stub(sys.modules.get(VIEWER))
 
 
 STUBBED = _import()
