@@ -5,9 +5,9 @@ against the bare ``RayScene`` calls: ``cast_rays`` of one ray per pixel centre, 
 primary cast (the target: a frame <= 1.5x of it, both presets; the frame's own primary
 stage is a z-buffer, render/raster.py, unless ``--primary embree``), and every batch the
 frame casts (amodal silhouettes, shadow and ambient-occlusion any-hit tests, and the
-primary rays with ``--primary embree``), recorded from the same frame and replayed. After a warm-up frame (Embree scenes are built
-once per placement and reported separately; the first frame also loads the compiled
-shading kernels). Prints the median of every stage of the frame, in ms and as a multiple
+primary rays with ``--primary embree``), recorded from the same frame and replayed.
+After a warm-up frame (Embree scenes are built once per placement and reported
+separately; the first frame also loads the compiled shading kernels). Prints the median of every stage of the frame, in ms and as a multiple
 of the bare primary cast, for both presets with ``--compare-presets``.
 
     .venv/bin/python tools/bench_render.py [--scene city_park] [--vehicles 400] [--repeat 5]
