@@ -196,3 +196,22 @@ def test_unknown_method_is_refused():
     cam = Camera.look_at_ground(SMALL, (0.0, 0.0, 0.0))
     with pytest.raises(ValueError, match="raster"):
         cast_buffers(rs, cam, method="optix")
+
+
+@pytest.mark.parametrize("size", [(1, 1), (1, 7), (3, 1), (2048, 3)])
+def test_odd_image_sizes_agree_with_the_cast(size):
+    rs, _ = make_world(SPECS[:2], building=True)
+    cam = Camera.look_at_ground(CameraConfig(width_px=size[0], height_px=size[1], gsd_m=0.1),
+                                (0.0, 0.0, 0.0), tilt_deg=10.0)
+    r, e = _both(rs, cam)
+    assert r.instance.shape == (size[1], size[0])
+    np.testing.assert_array_equal(r.face, e.face)
+
+
+def test_an_empty_scene_and_a_degenerate_triangle_are_all_misses():
+    cam = Camera.look_at_ground(CameraConfig(width_px=16, height_px=8, gsd_m=0.1), (0.0, 0.0, 0.0))
+    line = _flat("d", "road", [[0, 0, 0], [1, 1, 0], [2, 2, 0]], [[0, 1, 2]])  # zero area
+    for scene in (Scene("empty", []), Scene("degenerate", [line])):
+        r = cast_buffers(RayScene(scene), cam, method="raster")
+        assert (r.face == -1).all() and np.isinf(r.t).all() and (r.depth == 0).all()
+        assert (r.semantic == 0).all() and (r.instance == 0).all()
