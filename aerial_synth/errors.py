@@ -53,6 +53,12 @@ class ExportError(AerialSynthError):
     """A dataset export cannot run (unknown format, bad output folder, ...)."""
 
 
+class EntryPointError(ExportError):
+    """A worker process, importing the main module of a script without an ``if __name__ ==
+    '__main__'`` guard, was about to export again (see
+    :func:`aerial_synth.dataset.pool.check_entry_point`)."""
+
+
 class OutputError(AerialSynthError):
     """An output path cannot be written (not a regular file, parent is a file, read-only, ...)."""
 

@@ -7,6 +7,9 @@ server itself would only exit once its last worker has. So here, in the server, 
 request is made about the exporter: a killed exporter takes the server with it, which takes
 the workers at once, mid-write or not (their temporary files never become the image's).
 Linux only (``prctl``); elsewhere the workers' own checks of the exporter apply.
+
+It also makes a worker forked from the server leave quietly (:func:`_quiet_main_fixup`)
+when it would run an unguarded script's export again.
 """
 
 from __future__ import annotations
@@ -38,3 +41,39 @@ def _guard() -> bool:
 
 
 GUARDED = _guard()
+
+#: exit status of a worker that stopped in :func:`.pool.check_entry_point`
+ENTRY_POINT_EXIT = 3
+
+
+def _quiet_main_fixup() -> bool:
+    """Workers forked from this server run the parent's main module first (multiprocessing's
+    ``spawn.prepare``). A script without an ``if __name__ == '__main__'`` guard exports
+    again there and :func:`.pool.check_entry_point` stops it: the worker then exits with
+    :data:`ENTRY_POINT_EXIT` instead of printing a traceback, and its parent reports the
+    missing guard in one line."""
+    if not _in_fork_server():
+        return False
+    import multiprocessing.spawn as spawn
+
+    from ..errors import EntryPointError
+
+    def quiet(fixup):
+        def run(*args, **kwargs):
+            try:
+                return fixup(*args, **kwargs)
+            except EntryPointError:
+                sys.stderr.flush()
+                os._exit(ENTRY_POINT_EXIT)
+        return run
+
+    done = False
+    for name in ("_fixup_main_from_path", "_fixup_main_from_name"):
+        fixup = getattr(spawn, name, None)
+        if callable(fixup):
+            setattr(spawn, name, quiet(fixup))
+            done = True
+    return done
+
+
+QUIET_MAIN = _quiet_main_fixup()

@@ -4,7 +4,7 @@ workers (:mod:`.engine_dask`) and the aggregate files' readers (:mod:`.aggregate
 
 from __future__ import annotations
 
-from ..errors import ExportError
+from ..errors import EntryPointError
 
 __all__ = ["pool_context", "start_pool_server", "check_entry_point"]
 
@@ -54,13 +54,14 @@ def pool_context(dask: bool = False):
 def check_entry_point() -> None:
     """Refuse to run while a worker process imports the main module: a script without an
     ``if __name__ == '__main__'`` guard that exports (or writes aggregate files) would
-    otherwise start again in each of its worker processes. Here the worker stops at once
-    (its parent sees it die: the aggregate files are then made in the parent, see
-    :meth:`.aggregate.MetaRecords.map`)."""
+    otherwise start again in each of its worker processes. Here the worker stops at once,
+    without a traceback where it was forked from the export's fork server
+    (:mod:`._server_guard`); its parent sees it die and says so in one line (the aggregate
+    files are then made in the parent, see :meth:`.aggregate.MetaRecords.map`)."""
     import multiprocessing as mp
 
     if getattr(mp.current_process(), "_inheriting", False):
-        raise ExportError("a worker process is importing the main module, which exports again: a "
+        raise EntryPointError("a worker process is importing the main module, which exports again: a "
                           "script that exports must guard its entry point with if __name__ == '__main__'")
 
 

@@ -268,7 +268,36 @@ def test_a_script_without_a_main_guard_still_gets_its_files(small_export, tmp_pa
     assert res.returncode == 0, res.stderr[-2000:]
     assert res.stdout.strip() == "written in __main__"
     assert "a worker process died" in res.stderr and "must guard its entry point" in res.stderr
+    assert "Traceback" not in res.stderr  # the stopped pool processes leave quietly
     assert _aggregates(tmp_path / "script") == _aggregates(tmp_path / "ref")
+
+
+_UNGUARDED_EXPORT = """
+import sys
+from aerial_synth.dataset.export import ExportConfig, export_dataset
+from aerial_synth.errors import ExportError
+cfg = ExportConfig(scene="city_park", scenario="jam", images=4, formats="dota", width_px=64,
+                   height_px=64)
+try:
+    export_dataset(cfg, sys.argv[1], workers=2, force=True, progress=False)
+except ExportError as exc:
+    if __name__ != "__main__":  # a worker running this script again: no handler of its own
+        raise
+    print("refused:", exc)
+    sys.exit(2)
+"""
+
+
+def test_an_unguarded_script_exporting_on_workers_is_refused_without_worker_tracebacks(tmp_path):
+    script = tmp_path / "export_script.py"
+    script.write_text(_UNGUARDED_EXPORT)
+    env = {"PYTHONPATH": str(REPO), "PATH": "/usr/bin:/bin"}
+    res = subprocess.run([sys.executable, str(script), str(tmp_path / "out")], capture_output=True,
+                         text=True, timeout=180, env=env)
+    assert res.returncode == 2, res.stderr[-2000:]
+    assert res.stdout.count("refused:") == 1 and "must guard its entry point" in res.stdout
+    assert "Traceback" not in res.stderr, res.stderr[-2000:]
+    assert not (tmp_path / "out").exists()
 
 
 def test_an_export_aggregating_on_the_pool_is_the_same_export(small_export, tmp_path, pool_for_all, monkeypatch):
