@@ -41,6 +41,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..numba_setup import KERNEL_OPTIONS
+from ..scene.zgrid import bin_rows, edge_weights, row_columns, store_box
 from .smooth import smooth_at
 
 __all__ = ["raster_primary", "BAND_ROWS", "NEAR_M"]
@@ -50,8 +51,6 @@ BAND_ROWS = 8
 #: the near plane (metres of z-depth) that bounds the pixel range of a triangle reaching
 #: behind the camera; hits closer than this cannot occur in an aerial frame
 NEAR_M = 1e-3
-#: margin (pixels) of a triangle's box of pixel centres around its projected vertices
-_BOX_SLACK_PX = 1e-3
 
 
 @njit(inline="always")
@@ -100,8 +99,8 @@ def _grow_edge(a, b, near, fx, fy, cx, cy, u0, u1, v0, v1):  # pragma: no cover 
 def _bounds(sv, sf, vv, vf, Rt, c, fx, fy, cx, cy, w, h, near, rows):  # pragma: no cover
     """rows (n_tri, 4) int32 <- [first row, last row, first column, last column] of the
     pixels whose centres each triangle can cover (first > last: none; the exact test is
-    per pixel). The pixel range of a triangle that
-    reaches behind the near plane is that of its part in front of it."""
+    per pixel). The pixel range of a triangle that reaches behind the near plane is that
+    of its part in front of it."""
     n = sf.shape[0] + vf.shape[0]
     for i in prange(n):
         rows[i, 0] = 1
@@ -113,56 +112,9 @@ def _bounds(sv, sf, vv, vf, Rt, c, fx, fy, cx, cy, w, h, near, rows):  # pragma:
         u0, u1, v0, v1 = _grow_edge(p0, p1, near, fx, fy, cx, cy, u0, u1, v0, v1)
         u0, u1, v0, v1 = _grow_edge(p1, p2, near, fx, fy, cx, cy, u0, u1, v0, v1)
         u0, u1, v0, v1 = _grow_edge(p2, p0, near, fx, fy, cx, cy, u0, u1, v0, v1)
-        # pixel c spans x in [c, c + 1), its centre at c + 0.5
-        u0 = max(u0, -2.0)
-        u1 = min(u1, w + 2.0)
-        v0 = max(v0, -2.0)
-        v1 = min(v1, h + 2.0)
-        if not (u0 <= u1 and v0 <= v1):
-            continue
-        # the centres c + 0.5 in [u0, u1], with a margin far above the projection's
-        # round-off (the exact test is per pixel); most vehicle triangles are smaller
-        # than a pixel and cover no centre at all: they drop out here
-        c0 = max(int(math.ceil(u0 - 0.5 - _BOX_SLACK_PX)), 0)
-        c1 = min(int(math.floor(u1 - 0.5 + _BOX_SLACK_PX)), w - 1)
-        r0 = max(int(math.ceil(v0 - 0.5 - _BOX_SLACK_PX)), 0)
-        r1 = min(int(math.floor(v1 - 0.5 + _BOX_SLACK_PX)), h - 1)
-        if c0 > c1 or r0 > r1:
-            continue
-        rows[i, 0] = r0
-        rows[i, 1] = r1
-        rows[i, 2] = c0
-        rows[i, 3] = c1
-
-
-@njit(**KERNEL_OPTIONS)
-def _bin(rows, band, nb):  # pragma: no cover - compiled
-    """(start (nb + 1,) int64, index (m,) int64, vis (k,) int64): the face index of every
-    triangle that can cover a pixel (``vis``, in face order) and, for each band of ``band``
-    rows, the positions in ``vis`` of those that overlap it (``index[start[b]:start[b+1]]``,
-    ascending)."""
-    n = rows.shape[0]
-    count = np.zeros(nb + 1, np.int64)
-    nvis = 0
-    for i in range(n):
-        if rows[i, 0] <= rows[i, 1]:
-            nvis += 1
-            for b in range(rows[i, 0] // band, rows[i, 1] // band + 1):
-                count[b + 1] += 1
-    for b in range(nb):
-        count[b + 1] += count[b]
-    fill = count[:-1].copy()
-    index = np.empty(count[nb], np.int64)
-    vis = np.empty(nvis, np.int64)
-    k = 0
-    for i in range(n):
-        if rows[i, 0] <= rows[i, 1]:
-            for b in range(rows[i, 0] // band, rows[i, 1] // band + 1):
-                index[fill[b]] = k
-                fill[b] += 1
-            vis[k] = i
-            k += 1
-    return count, index, vis
+        # pixel c spans x in [c, c + 1), its centre at c + 0.5; most vehicle triangles are
+        # smaller than a pixel and hold no centre: they drop out here
+        store_box(rows, i, u0 - 0.5, u1 - 0.5, v0 - 0.5, v1 - 0.5, w, h)
 
 
 @njit(parallel=True, **KERNEL_OPTIONS)
@@ -211,25 +163,6 @@ def _edges(vis, sv, sf, vv, vf, Rt, c, coef):  # pragma: no cover - compiled
         coef[j, 12] = wz
 
 
-@njit(inline="always")
-def _span(ax, off, lo, hi):  # pragma: no cover - compiled
-    """Narrow [lo, hi] to the x where ax * x + off >= 0, widened by a relative 1e-9 (far
-    above the round-off of the root; the exact test is per pixel)."""
-    if ax > 0:
-        x = -off / ax
-        x -= 1e-9 * (abs(x) + 1.0)
-        if x > lo:
-            lo = x
-    elif ax < 0:
-        x = -off / ax
-        x += 1e-9 * (abs(x) + 1.0)
-        if x < hi:
-            hi = x
-    elif off < 0:
-        hi = -np.inf
-    return lo, hi
-
-
 @njit(parallel=True, **KERNEL_OPTIONS)
 def _raster(xs, ys, fx, cx, band, stride, start, index, vis, rows, coef, zbuf,
             fbuf):  # pragma: no cover - compiled
@@ -264,31 +197,10 @@ def _raster(xs, ys, fx, cx, band, stride, start, index, vis, rows, coef, zbuf,
                 b0 = a0y * y + a0z
                 b1 = a1y * y + a1z
                 b2 = a2y * y + a2z
-                lo, hi = -np.inf, np.inf
-                lo, hi = _span(a0x, b0, lo, hi)
-                lo, hi = _span(a1x, b1, lo, hi)
-                lo, hi = _span(a2x, b2, lo, hi)
-                if not lo <= hi:
-                    continue
-                c0 = c_first
-                if lo > -np.inf:
-                    v = lo * fx + cx - 0.5
-                    if v > c0:
-                        c0 = int(min(v, c_last + 1.0))
-                c1 = c_last
-                if hi < np.inf:
-                    v = hi * fx + cx - 0.5
-                    if v < c1:
-                        c1 = int(max(math.ceil(v), c_first - 1.0))
+                c0, c1 = row_columns(a0x, a1x, a2x, b0, b1, b2, fx, cx - 0.5, c_first, c_last)
                 row = r * w
                 for col in range(c0, c1 + 1):
-                    x = np.float64(xs[col])
-                    e0 = a0x * x + b0
-                    e1 = a1x * x + b1
-                    e2 = a2x * x + b2
-                    if e0 < 0 or e1 < 0 or e2 < 0:
-                        continue
-                    s = e0 + e1 + e2
+                    _, _, _, s = edge_weights(a0x, a1x, a2x, b0, b1, b2, np.float64(xs[col]))
                     if not s > 0:
                         continue
                     t = det / s
@@ -374,7 +286,7 @@ def raster_faces(rayscene, camera, face: np.ndarray, band: int = BAND_ROWS):
     _bounds(sv, sf, vv, vf, Rt, c, float(K[0, 0]), float(K[1, 1]), float(K[0, 2]),
             float(K[1, 2]), w, h, NEAR_M, rows)
     nb = -(-h // band)
-    start, index, vis = _bin(rows, band, nb)
+    start, index, vis = bin_rows(rows, band, nb)
     coef = np.empty((len(vis), 13), np.float64)
     _edges(vis, sv, sf, vv, vf, Rt, c, coef)
     xs, ys = image_coords(camera)

@@ -115,17 +115,14 @@ def render_map(
 
         rayscene = RayScene(scene)
     origin = np.array([x0, y1], dtype=np.float64)
-    jj, ii = np.meshgrid(np.arange(W), np.arange(H))
-    xy = np.column_stack(
-        [origin[0] + (jj.ravel() + 0.5) * m_per_px, origin[1] - (ii.ravel() + 0.5) * m_per_px]
-    )
     pal = _palette()
-    top, top_hit = rayscene.trace_hits(xy, ignore=())
+    top, top_hit = (a.ravel() for a in rayscene.trace_grid(origin, m_per_px, W, H, ignore=()))
     img = pal[top]
     ign = tuple(sorted(rayscene.label_config.ignore))
     if ign:
         over = np.isin(top, [LABEL_IDS[n] for n in ign])
-        under, under_hit = rayscene.trace_hits(xy[over], ignore=ign)
+        under, under_hit = (a.ravel()[over] for a in
+                            rayscene.trace_grid(origin, m_per_px, W, H, ignore=ign))
         below = pal[under]
         below[~under_hit] = _NOTHING_BGR
         img[over] = _TREE_ALPHA * pal[top[over]] + (1 - _TREE_ALPHA) * below

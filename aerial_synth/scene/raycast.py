@@ -509,15 +509,18 @@ class RayScene:
             instance_id=self._face_instance_s[face],
         )
 
-    def trace_hits(self, xy: np.ndarray, ignore: Iterable[str] | None = None
-                   ) -> tuple[np.ndarray, np.ndarray]:
-        """(label_id (n,) int16, hit (n,) bool) of the first surface straight below each
-        point: :meth:`trace_down` without the heights (a map needs only these).
-        xy : (n, 2) metres; ignore : as :meth:`trace_down`."""
+    def trace_grid(self, origin_xy, m_per_px: float, width: int, height: int,
+                   ignore: Iterable[str] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(label_id (height, width) int16, 0 on a miss; hit (height, width) bool) of the
+        first surface straight below the centre of every pixel of a north-up grid whose
+        top-left corner is ``origin_xy`` (pixel (r, c) centred on ``origin_xy + ((c + 0.5)
+        m, -(r + 0.5) m)``): :meth:`trace_down` over a grid, answered by a top-down z-buffer
+        (:mod:`.zgrid`, ~10x faster; the same labels but where a trace grazes an edge).
+        ignore : as :meth:`trace_down`."""
+        from .zgrid import trace_grid
+
         ign = self.label_config.ignore if ignore is None else frozenset(ignore)
-        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-        _, face = self._cast_faces(self._down_rays(xy), frozenset(ign))
-        self._rebuild_tables()
+        face, _ = trace_grid(self, origin_xy, m_per_px, width, height, ign)
         return self._face_label_s[face], face >= 0
 
     def trace_labels_z(self, xy: np.ndarray, z_at: np.ndarray,

@@ -53,19 +53,45 @@ def test_miss_outside_scene():
     assert tr.label_id[0] == 0 and np.isnan(tr.z[0])
 
 
-@pytest.mark.parametrize("ignore", [None, (), ("tree",)])
-def test_trace_hits_are_trace_down_without_heights(ignore):
-    # the map's trace: the same labels as trace_down, and hit = a finite height, on a grid
-    # over the crown, the trunk, the road edges and past the scene (misses)
+@pytest.mark.parametrize("ignore", [None, (), ("tree",), ("tree", "road")])
+def test_trace_grid_is_trace_down_over_a_grid(ignore):
+    # the map's z-buffer against one Embree trace per pixel centre: the same labels and
+    # hits (misses past the scene), heights within float32 round-off; over the crown, the
+    # trunk, the road edges; a grid whose centres fall exactly on the strip's edges too
+    from aerial_synth.scene.zgrid import trace_grid
+
     rs = RayScene(_strip_scene(with_crown=True))
-    g = np.linspace(-60, 60, 97)
-    xy = np.column_stack([np.repeat(g, 97), np.tile(np.linspace(-35, 35, 97), 97)])
-    xy = np.vstack([xy, [[0.0, 7.0], [0.0, 4.0]]])
-    tr = rs.trace_down(xy, ignore=ignore)
-    label, hit = rs.trace_hits(xy, ignore=ignore)
-    np.testing.assert_array_equal(label, tr.label_id)
-    np.testing.assert_array_equal(hit, np.isfinite(tr.z))
-    assert (~hit).sum() > 100 and hit.sum() > 1000
+    for origin, m, w, h in (((-61.3, 37.9), 0.7, 180, 110), ((-60.0, 40.0), 0.1, 300, 120)):
+        jj, ii = np.meshgrid(np.arange(w), np.arange(h))
+        xy = np.column_stack([origin[0] + (jj.ravel() + 0.5) * m, origin[1] - (ii.ravel() + 0.5) * m])
+        tr = rs.trace_down(xy, ignore=ignore)
+        label, hit = rs.trace_grid(origin, m, w, h, ignore=ignore)
+        assert label.shape == (h, w)
+        np.testing.assert_array_equal(hit.ravel(), np.isfinite(tr.z))
+        np.testing.assert_array_equal(label.ravel(), tr.label_id)
+        ign = rs.label_config.ignore if ignore is None else frozenset(ignore)
+        _, z = trace_grid(rs, origin, m, w, h, ign)
+        np.testing.assert_allclose(z.ravel()[hit.ravel()], tr.z[hit.ravel()], atol=1e-4)
+        assert (~hit).sum() > 100 and hit.sum() > 1000
+
+
+def test_trace_grid_is_watertight_on_pixel_centre_edges():
+    # a ground of 0.5 m squares whose edges pass through rows and columns of pixel centres
+    # (0.25 m pixels, corner at (0, 0)): every centre is on the ground
+    from aerial_synth.scene.build import flat_polygon
+
+    v, f = [], []
+    for i in range(20):
+        for j in range(20):
+            vv, ff = flat_polygon(shapely.box(0.125 + 0.5 * i, -0.125 - 0.5 * (j + 1),
+                                              0.125 + 0.5 * (i + 1), -0.125 - 0.5 * j), 0.0)
+            f.append(ff + sum(len(x) for x in v))
+            v.append(vv)
+    g = SceneObject("g", "ground", np.concatenate(v), np.concatenate(f))
+    rs = RayScene(Scene("grid", [g]))
+    label, hit = rs.trace_grid((0.0, 0.0), 0.25, 40, 40)
+    inner = hit[1:-1, 1:-1]
+    assert inner.all()
 
 
 @pytest.mark.parametrize("m_per_px", [0.5, 1.0])
