@@ -18,7 +18,7 @@ import re
 import sys
 import types
 
-__all__ = ["VIEWER", "import_open3d", "is_stub", "stub_fits", "stub_viewer"]
+__all__ = ["VIEWER", "stub_fits", "stub_viewer"]
 
 VIEWER = "open3d.visualization.draw_plotly"
 _NAMES = ("get_plotly_fig", "draw_plotly", "draw_plotly_server")
@@ -70,14 +70,3 @@ def stub_viewer() -> bool:
         setattr(stub, name, _absent)
     sys.modules[VIEWER] = stub
     return True
-
-
-def is_stub(module) -> bool:
-    return module is not None and (getattr(module, "__doc__", None) or "") == _DOC
-
-
-def import_open3d():
-    """``import open3d`` (the one place aerial-synth imports it)."""
-    import open3d
-
-    return open3d

@@ -61,8 +61,9 @@ def check_entry_point() -> None:
     import multiprocessing as mp
 
     if getattr(mp.current_process(), "_inheriting", False):
-        raise EntryPointError("a worker process is importing the main module, which exports again: a "
-                          "script that exports must guard its entry point with if __name__ == '__main__'")
+        raise EntryPointError("a worker process is importing the main module, which exports again: "
+                              "a script that exports must guard its entry point with if __name__ == "
+                              "'__main__'")
 
 
 def start_pool_server(dask: bool = False) -> None:

@@ -267,9 +267,10 @@ def image_coords(camera) -> tuple[np.ndarray, np.ndarray]:
     return x, y
 
 
-def raster_faces(rayscene, camera, face: np.ndarray, band: int = BAND_ROWS):
+def raster_faces(rayscene, camera, xs, ys, face: np.ndarray, band: int = BAND_ROWS):
     """(zbuf (n,) float64 z-depth, vis (k,) int64, coef (k, 13)): the nearest triangle of
-    ``rayscene`` (every triangle, vehicles included) at each pixel centre of ``camera``,
+    ``rayscene`` (every triangle, vehicles included) at each pixel centre of ``camera``
+    (``xs``, ``ys``: :func:`image_coords`),
     row-major: its position in ``vis`` (the faces that can cover a pixel) is written into
     ``face`` (n,) int64 (-1 = none), with its z-depth and the coefficients :func:`_finish`
     reads."""
@@ -289,7 +290,6 @@ def raster_faces(rayscene, camera, face: np.ndarray, band: int = BAND_ROWS):
     start, index, vis = bin_rows(rows, band, nb)
     coef = np.empty((len(vis), 13), np.float64)
     _edges(vis, sv, sf, vv, vf, Rt, c, coef)
-    xs, ys = image_coords(camera)
     zbuf = np.empty(h * w, np.float64)
     stride = next(s for s in (37, 31, 29, 23, 19, 17, 13, 11, 7, 5, 3, 1) if math.gcd(s, nb) == 1)
     _raster(xs, ys, float(K[0, 0]), float(K[0, 2]), band, stride, start, index, vis, rows,
@@ -307,13 +307,13 @@ def raster_primary(rayscene, camera) -> dict:
 
     n = camera.height_px * camera.width_px
     face = np.empty(n, np.int64)
-    zbuf, vis, coef = raster_faces(rayscene, camera, face)
+    xs, ys = image_coords(camera)
+    zbuf, vis, coef = raster_faces(rayscene, camera, xs, ys, face)
     rays = camera._all_rays()
     out = dict(face=face, t=np.empty(n, np.float32), depth=np.empty(n, np.float32),
                normal=np.empty((n, 3), np.float32), semantic=np.empty(n, np.uint8),
                instance=np.empty(n, np.uint32), rays=rays)
     row, corners = corner_normals(rayscene)
-    xs, ys = image_coords(camera)
     _finish(xs, ys, rays, zbuf, face, vis, coef, rayscene.face_label, rayscene.face_instance, row,
             corners, out["t"], out["depth"], out["normal"], out["semantic"], out["instance"])
     return out

@@ -170,8 +170,6 @@ def cast_buffers(rayscene, camera, method: str | None = None) -> Buffers:
     (:mod:`.smooth`), in one compiled pass (:func:`.smooth.finish_smooth_buffers`); the
     result is the same as mapping :meth:`RayScene.cast_rays` hits and then
     :func:`.smooth.smooth_shading_normals` (tests/render/test_smooth_normals.py)."""
-    from .smooth import corner_normals, finish_smooth_buffers
-
     h, w = camera.height_px, camera.width_px
     method = PRIMARY if method is None else method
     if method == "raster":
@@ -182,6 +180,8 @@ def cast_buffers(rayscene, camera, method: str | None = None) -> Buffers:
                        o["depth"].reshape(h, w), o["face"], o["t"], o["normal"], o["rays"])
     if method != "embree":
         raise ValueError(f"cast_buffers: method must be 'raster' or 'embree', not {method!r}")
+    from .smooth import corner_normals, finish_smooth_buffers
+
     n = h * w
     rays = camera._all_rays()
     ans = rayscene._cast_raw(rays)

@@ -35,9 +35,9 @@ VEHICLES_ONLY: frozenset[str] = frozenset(n for n in LABELS if n != "vehicle")
 
 
 def _o3d():
-    from .._open3d import import_open3d  # heavy: imported only when a RayScene is built
+    import open3d as o3d  # heavy: imported only when a RayScene is built
 
-    return import_open3d()
+    return o3d
 
 
 @dataclass(frozen=True)
