@@ -9,12 +9,16 @@ Sections (each also records its command and wall time):
 * ``frame``      tools/bench_render.py: frame time, frame / bare primary cast;
 * ``export``     city_park jam exports at 1 and 2 local workers: images/s, speed-up; and
                  1 worker pinned to one core, for the per-worker scaling efficiency
-                 (2 workers / (2 x one worker on one core)); ``--export-presets full,fast``
+                 (2 workers / (2 x one worker on one core)); ``--rounds`` (3) interleaved
+                 rounds of these runs (and of the dask section's), each ratio taken within
+                 a round, then the median (``*_spread``: median, min, max, every round);
+                 ``speedup_2_over_1_ceiling``: 2 cores over the cores one worker alone
+                 keeps busy, the most 2 workers can gain on it; ``--export-presets full,fast``
                  adds the same readings for the fast preset; ``workers_2_long``: 2 workers
                  on ``--long-images`` (120) images, the start-up spread over more images,
                  with ``workers_1_one_core_long`` and ``per_worker_efficiency_2_long``;
 * ``dask``       the same export on a 2-process Dask LocalCluster: images/s (and its
-                 ratios to the 1-worker runs of this suite), and ``local_2_long`` on
+                 ratios to the 1-worker runs of its round), and ``local_2_long`` on
                  ``--long-images`` images with its efficiency;
 * ``tiles``      tiled placement of ``city_2km`` (4 km^2) in a child process per grid:
                  peak RSS for 1 tile and for 16 tiles, vehicles, seconds; an export
@@ -208,7 +212,7 @@ def _export(a, *engine: str, preset: str = "full", images: int | None = None) ->
            "--target-s", "1e9", *engine]
     out, wall = _run(cmd)
     d = json.loads(out.strip().splitlines()[-1])
-    return {"images": d["images"], "seconds": round(d["seconds"], 1), "images_per_s": d["images_per_s"],
+    return {"images": d["images"], "seconds": round(d["seconds"], 2), "images_per_s": d["images_per_s"],
             "cpu_s_per_image": d.get("cpu_s_per_image"),
             "command": " ".join(cmd[1:]), "load_avg_before": d["load_avg_before"],
             "load_avg_after": d["load_avg_after"]}
@@ -226,26 +230,83 @@ def _warm(a) -> None:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
-def _export_readings(a, preset: str) -> dict:
-    one = _export(a, "--workers", "1", preset=preset)
-    core = _export(a, "--workers", "1", "--pin-one-core", preset=preset)
-    two = _export(a, "--workers", "2", preset=preset)
-    return {
-        "workers_1": one, "workers_2": two, "workers_1_one_core": core,
+#: the export runs of the export and dask sections: name -> tools/bench_export.py options
+ENGINES = {
+    "workers_1_one_core": ("--workers", "1", "--pin-one-core"),
+    "workers_2": ("--workers", "2"),
+    "dask_local_2": ("--dask", "local:2"),
+    "workers_1": ("--workers", "1"),
+}
+
+
+def _rounds(a, keys: list[str], preset: str = "full") -> dict[str, list[dict]]:
+    """``a.rounds`` rounds of one export per engine in ``keys``, interleaved (the order
+    rotates each round), so that every ratio is taken between runs minutes apart at most:
+    the shared machine's speed drifts by 20-25 % within an hour."""
+    runs: dict[str, list[dict]] = {k: [] for k in keys}
+    for r in range(max(1, a.rounds)):
+        for k in keys[r % len(keys):] + keys[:r % len(keys)]:
+            runs[k].append(_export(a, *ENGINES[k], preset=preset))
+    return runs
+
+
+def _median_run(runs: list[dict]) -> dict:
+    """The run with the median images/s (the lower middle one of an even count)."""
+    return sorted(runs, key=lambda r: r["images_per_s"])[(len(runs) - 1) // 2]
+
+
+def _ratios(num: list[dict], den: list[dict], factor: float = 1.0) -> list[float]:
+    """Per-round ratios num / (factor x den) of images/s."""
+    return [round(n["images_per_s"] / (factor * d["images_per_s"]), 3) for n, d in zip(num, den)]
+
+
+def _spread(xs: list[float]) -> dict:
+    return {"median": round(statistics.median(xs), 3), "min": min(xs), "max": max(xs), "rounds": xs}
+
+
+def _cores_busy(run: dict) -> float:
+    """Cores one export kept busy on average: CPU seconds over wall seconds."""
+    return run["cpu_s_per_image"] * run["images"] / max(run["seconds"], 1e-9)
+
+
+def _export_readings(a, preset: str, dask: bool = False) -> dict:
+    """Interleaved rounds (:func:`_rounds`) of 1 worker, 1 worker pinned to one core, 2
+    workers (and, with ``dask``, a 2-process LocalCluster); each figure is the median of
+    its per-round values, the runs' keys hold the median run."""
+    keys = ["workers_1_one_core", "workers_2", "workers_1"] + (["dask_local_2"] if dask else [])
+    runs = _rounds(a, keys, preset)
+    one, core, two = runs["workers_1"], runs["workers_1_one_core"], runs["workers_2"]
+    eff = _ratios(two, core, 2.0)
+    busy = [round(_cores_busy(r), 3) for r in one]
+    cores = min(2, os.cpu_count() or 2)
+    res = {
+        **{k: _median_run(v) for k, v in runs.items() if k != "dask_local_2"},
+        "rounds": max(1, a.rounds),
+        "runs": runs,
         # (a) what a user sees: 2 workers against 1 worker that has every core
-        "speedup_2_over_1": round(two["images_per_s"] / one["images_per_s"], 3),
+        "speedup_2_over_1": _spread(_ratios(two, one))["median"],
+        "speedup_2_over_1_rounds": _ratios(two, one),
+        # what (a) can be at most: 2 workers can keep at most 2 cores busy, and one worker
+        # alone already keeps this many busy (its threads), for about the same CPU per image
+        "cores_busy_workers_1": statistics.median(busy),
+        "speedup_2_over_1_ceiling": round(cores / statistics.median(busy), 3),
         # (b) per-worker scaling: 2 workers (a core each) against 1 worker on one core
-        "speedup_2_over_1_one_core": round(two["images_per_s"] / core["images_per_s"], 3),
-        "per_worker_efficiency_2": round(two["images_per_s"] / (2 * core["images_per_s"]), 3),
+        "speedup_2_over_1_one_core": _spread(_ratios(two, core))["median"],
+        "per_worker_efficiency_2": _spread(eff)["median"],
+        "per_worker_efficiency_2_spread": _spread(eff),
     }
+    if dask:
+        a.dask_rounds = {"local_2": runs["dask_local_2"], "workers_1": one, "workers_1_one_core": core}
+    return res
 
 
 def bench_export(a) -> dict:
     _warm(a)
     res = {
-        "command": "tools/bench_export.py --images N --workers K [--pin-one-core] (a fresh process per run; "
-                   f"city_park jam, images_per_placement={a.images_per_placement}, format dota)",
-        **_export_readings(a, "full"),
+        "command": "tools/bench_export.py --images N --workers K [--pin-one-core] | --dask local:2 (a fresh "
+                   f"process per run; city_park jam, images_per_placement={a.images_per_placement}, format "
+                   f"dota; {max(1, a.rounds)} interleaved rounds)",
+        **_export_readings(a, "full", dask="dask" in a.sections),
         "target_speedup_2": 1.7,
         "target_per_worker_efficiency": 0.85,
         "target_images_per_s_2_cores": 3.0,
@@ -270,16 +331,23 @@ def bench_export(a) -> dict:
 
 
 def bench_dask(a, export_res: dict | None) -> dict:
-    d = _export(a, "--dask", "local:2")
+    """The LocalCluster's runs: taken in the export section's rounds where it ran in this
+    suite (its ratios are then per round, between neighbouring runs), else rounds of its own
+    beside 1 worker and 1 worker on one core."""
+    rounds = getattr(a, "dask_rounds", None)
+    if rounds is None:
+        runs = _rounds(a, ["workers_1_one_core", "dask_local_2", "workers_1"])
+        rounds = {"local_2": runs["dask_local_2"], "workers_1": runs["workers_1"],
+                  "workers_1_one_core": runs["workers_1_one_core"]}
+    d = dict(_median_run(rounds["local_2"]))
     d["seconds_including_cluster_start"] = d["seconds"]
     res = {"command": "tools/bench_export.py --dask local:2 (LocalCluster, 2 processes, loopback; "
-                      "cluster start included)", "local_2": d}
-    if export_res and "workers_1" in export_res:
-        res["speedup_over_workers_1"] = round(d["images_per_s"] / export_res["workers_1"]["images_per_s"], 3)
-        if "workers_1_one_core" in export_res:
-            core = export_res["workers_1_one_core"]["images_per_s"]
-            res["speedup_over_workers_1_one_core"] = round(d["images_per_s"] / core, 3)
-            res["per_worker_efficiency_2"] = round(d["images_per_s"] / (2 * core), 3)
+                      f"cluster start included; {len(rounds['local_2'])} rounds interleaved with the 1-worker runs)",
+           "local_2": d, "runs": rounds["local_2"],
+           "speedup_over_workers_1": _spread(_ratios(rounds["local_2"], rounds["workers_1"]))["median"],
+           "speedup_over_workers_1_one_core": _spread(_ratios(rounds["local_2"], rounds["workers_1_one_core"]))["median"],
+           "per_worker_efficiency_2": _spread(_ratios(rounds["local_2"], rounds["workers_1_one_core"], 2.0))["median"],
+           "per_worker_efficiency_2_spread": _spread(_ratios(rounds["local_2"], rounds["workers_1_one_core"], 2.0))}
     if a.long_images > 0:  # the cluster's start spread over more images, as in the export section
         d2 = _export(a, "--dask", "local:2", images=a.long_images)
         res["local_2_long"] = d2
@@ -296,6 +364,8 @@ def main(argv=None) -> int:
     ap.add_argument("--images-per-placement", type=int, default=10)
     ap.add_argument("--scene", default="city_park")
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--rounds", type=int, default=3,
+                    help="interleaved rounds of the 40-image export runs (ratios are per round, then the median)")
     ap.add_argument("--export-presets", default="full", help="export readings for these presets (full,fast)")
     ap.add_argument("--long-images", type=int, default=120,
                     help="also a 2-worker export of this many images per preset (0: none)")
@@ -310,7 +380,7 @@ def main(argv=None) -> int:
                     "one_tile_of_50km_world, export, world); with --merge the others are kept")
     a = ap.parse_args(argv)
     if a.quick:
-        a.images, a.repeat, a.place_vehicles, a.tile_vehicles = 8, 1, 300, 3000
+        a.images, a.repeat, a.place_vehicles, a.tile_vehicles, a.rounds = 8, 1, 300, 3000, 1
         a.world_vehicles = 3000
         a.images_per_placement = 4
         a.long_images = min(a.long_images, 12)
@@ -319,6 +389,7 @@ def main(argv=None) -> int:
     if bad:
         print(f"--only: expected names from {', '.join(SECTIONS)}, got {bad[0]!r}", file=sys.stderr)
         return 2
+    a.sections = only
     sys.path.insert(0, str(ROOT))
     try:
         commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
