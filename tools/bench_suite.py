@@ -269,6 +269,17 @@ def _cores_busy(run: dict) -> float:
     return run["cpu_s_per_image"] * run["images"] / max(run["seconds"], 1e-9)
 
 
+def _busy_shares(runs: list[dict], core: list[dict], cores: int = 2) -> list[float]:
+    """Per round: the share of ``cores`` cores ``runs`` kept busy over the cores the pinned
+    run kept busy (one factor of the per-worker efficiency, see :func:`_export_readings`)."""
+    return [round(_cores_busy(r) / cores / _cores_busy(c), 3) for r, c in zip(runs, core)]
+
+
+def _cpu_ratios(runs: list[dict], core: list[dict]) -> list[float]:
+    """Per round: the pinned run's CPU seconds per image over ``runs``' (the other factor)."""
+    return [round(c["cpu_s_per_image"] / r["cpu_s_per_image"], 3) for r, c in zip(runs, core)]
+
+
 def _export_readings(a, preset: str, dask: bool = False) -> dict:
     """Interleaved rounds (:func:`_rounds`) of 1 worker, 1 worker pinned to one core, 2
     workers (and, with ``dask``, a 2-process LocalCluster); each figure is the median of
@@ -294,6 +305,12 @@ def _export_readings(a, preset: str, dask: bool = False) -> dict:
         "speedup_2_over_1_one_core": _spread(_ratios(two, core))["median"],
         "per_worker_efficiency_2": _spread(eff)["median"],
         "per_worker_efficiency_2_spread": _spread(eff),
+        # the efficiency, round by round, is exactly (the share of 2 cores the 2 workers
+        # kept busy / the cores the pinned worker kept busy: what the software controls,
+        # its start, idle workers, its tail) x (the pinned worker's CPU s per image / the 2
+        # workers': the machine's speed per core with one core busy against both)
+        "per_worker_efficiency_2_busy_share": _spread(_busy_shares(two, core)),
+        "per_worker_efficiency_2_cpu_ratio": _spread(_cpu_ratios(two, core)),
     }
     if dask:
         a.dask_rounds = {"local_2": runs["dask_local_2"], "workers_1": one, "workers_1_one_core": core}
@@ -347,7 +364,9 @@ def bench_dask(a, export_res: dict | None) -> dict:
            "speedup_over_workers_1": _spread(_ratios(rounds["local_2"], rounds["workers_1"]))["median"],
            "speedup_over_workers_1_one_core": _spread(_ratios(rounds["local_2"], rounds["workers_1_one_core"]))["median"],
            "per_worker_efficiency_2": _spread(_ratios(rounds["local_2"], rounds["workers_1_one_core"], 2.0))["median"],
-           "per_worker_efficiency_2_spread": _spread(_ratios(rounds["local_2"], rounds["workers_1_one_core"], 2.0))}
+           "per_worker_efficiency_2_spread": _spread(_ratios(rounds["local_2"], rounds["workers_1_one_core"], 2.0)),
+           "per_worker_efficiency_2_busy_share": _spread(_busy_shares(rounds["local_2"], rounds["workers_1_one_core"])),
+           "per_worker_efficiency_2_cpu_ratio": _spread(_cpu_ratios(rounds["local_2"], rounds["workers_1_one_core"]))}
     if a.long_images > 0:  # the cluster's start spread over more images, as in the export section
         d2 = _export(a, "--dask", "local:2", images=a.long_images)
         res["local_2_long"] = d2
