@@ -135,6 +135,7 @@ def export_dataset(
     workers = v.integer("--workers", workers, 1, error=ExportError)
     plan = plan_output(cfg, out_dir, resume, force)
     _check_dask(dask, workers)  # a bad or unreachable --dask is reported before the slow checks
+    _check_frame_memory(cfg, dask, workers)
     if dask is None and workers > 1:
         start_pool_server()  # imports the workers' modules while the scene loads here
     elif dask is not None and str(dask).strip().startswith("local:"):
@@ -218,6 +219,23 @@ def _check_dask(dask, workers):
     from .engine_dask import probe_scheduler
 
     probe_scheduler(dask)
+
+
+def _check_frame_memory(cfg: ExportConfig, dask, workers: int) -> None:
+    """Refuse images whose frames cannot fit in this machine's memory, one per local worker
+    (a ``tcp://`` cluster's workers run elsewhere: not checked here)."""
+    from ..render.budget import check_frame_memory
+
+    processes = int(workers)
+    if dask is not None:
+        from .engine_dask import parse_dask_address
+
+        kind, arg = parse_dask_address(dask)
+        if kind != "local":
+            return
+        processes = int(arg)
+    check_frame_memory(cfg.width_px, cfg.height_px, max(1, min(processes, int(cfg.images))),
+                       error=ExportError)
 
 
 def _start_dask(dask):

@@ -124,6 +124,7 @@ def run(args) -> int:
     from ..placement import place
     from ..scene.cli import scene_from_args
     from ..scene.raycast import RayScene
+    from .budget import check_frame_memory
     from .frame import render_frame
     from .io import write_frame
     from .shading import RenderConfig
@@ -136,6 +137,7 @@ def run(args) -> int:
     if args.jpeg_probability is not None:
         kw["jpeg_probability"] = args.jpeg_probability
     rcfg = RenderConfig.preset(args.preset, **kw)
+    check_frame_memory(cam_cfg.width_px, cam_cfg.height_px)  # before a 30 GB frame is OOM-killed
     _check_args(args)
     out = check_output_dir(args.out, "--out")
     if args.backend == "pyrender":

@@ -61,3 +61,51 @@ def test_good_addresses():
     assert parse_dask_address("local:2") == ("local", 2)
     assert parse_dask_address("tcp://10.0.0.5:8786") == ("tcp", "tcp://10.0.0.5:8786")
     assert parse_dask_address("tcp://sched") == ("tcp", "tcp://sched:8786")
+
+
+def test_killed_worker_is_one_line(monkeypatch, tmp_path):
+    """Dask gives up on a task whose workers all died (KilledWorker, e.g. a frame too large
+    for them): the export stops with one ExportError naming the images and --resume, and
+    cancels the other tasks, instead of Dask's traceback."""
+    distributed = pytest.importorskip("distributed")
+    from aerial_synth.dataset import engine_dask
+    from aerial_synth.dataset.config import ExportConfig
+
+    cancelled = []
+
+    class Future:
+        def __init__(self, key):
+            self.key = key
+
+        def result(self):
+            raise distributed.KilledWorker(self.key, None, 3)
+
+        def cancel(self):
+            cancelled.append(self.key)
+
+    class Client:
+        def scheduler_info(self, n_workers=-1):
+            return {"workers": {}}
+
+        def submit(self, fn, *args, key=None, pure=None):
+            return Future(key)
+
+    class Pending(list):
+        def add(self, f):
+            self.append(f)
+
+    monkeypatch.setattr(distributed, "as_completed", lambda fs: Pending(fs))
+    for name, value in (("wait_for_workers", lambda self: None), ("check_output", lambda self, b: None),
+                        ("n_workers", lambda self: 2), ("worker_threads", lambda self: {}),
+                        ("_scatter", lambda self, s, c: (None, None))):
+        monkeypatch.setattr(engine_dask.DaskEngine, name, value)
+    eng = engine_dask.DaskEngine(Client())
+    cfg = ExportConfig(scene="city_park", images=20, images_per_placement=10, width_px=8192, height_px=8192)
+    with pytest.raises(ExportError) as e:
+        eng.run(cfg, tmp_path, range(20))
+    msg = str(e.value)
+    first = plan_tasks(range(20), 10, 2)[0]  # the task that failed first
+    assert "\n" not in msg and f"images {first[0]}..{first[-1]}" in msg
+    assert "--resume" in msg and "8192 x 8192" in msg
+    assert "7.5 GB" in msg  # 112 B/px x 8192^2
+    assert len(cancelled) == len(plan_tasks(range(20), 10, 2))  # every task
