@@ -255,6 +255,11 @@ def _dask_engine(dask, workers, starting=None):
     return engine if engine is not None else DaskEngine.connect(dask)
 
 
+#: How often the local pool is started again after one of its workers died (killed by the
+#: OOM killer, say) before the export gives up, as Dask gives up on a task after 3 deaths.
+MAX_POOL_RESTARTS = 3
+
+
 def _run_pool(cfg: ExportConfig, build: Path, tasks, workers: int, bar, scene=None, catalog=None) -> int:
     """Run the placement-group tasks on a process pool (:func:`pool_context`); returns
     images finished.
@@ -262,33 +267,141 @@ def _run_pool(cfg: ExportConfig, build: Path, tasks, workers: int, bar, scene=No
     Worker k of the pool pins itself to the k-th share of the cores (see
     :func:`.worker.init_pool_worker`). An untiled export hands its loaded scene and
     catalog to the workers (pickled: milliseconds, against seconds to load the scene
-    again in every worker); a tiled one lets each worker build its own tiles."""
+    again in every worker); a tiled one lets each worker build its own tiles.
+
+    A worker that dies (SIGKILL from the OOM killer, a crash) breaks the pool: the tasks
+    not yet returned are run again on a new pool, less the images already on disk (an
+    image's bytes do not depend on who renders it), up to :data:`MAX_POOL_RESTARTS` times;
+    then one ExportError. (``multiprocessing.Pool``, used before, waited forever for the
+    task of a killed worker.)"""
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
+
     from ..formats.registry import BUILTIN, get
 
     extra = [get(n) for n in cfg.formats if n not in BUILTIN]  # run-time formats travel along
     from .affinity import allowed_cores
 
-    size = min(int(workers), len(tasks))
-    nthreads = max(1, len(allowed_cores()) // size)
     ctx = pool_context()
-    slots = ctx.Value("i", 0)  # worker k of the pool takes the k-th share of the cores
+    shared = _shareable(cfg, scene, catalog)
+    remaining = [list(t) for t in tasks]
     done = 0
-    try:
-        pool = ctx.Pool(size, initializer=init_pool_worker,
-                        initargs=(cfg, str(build), nthreads, os.getpid(), extra, slots, size,
-                                  *_shareable(cfg, scene, catalog)))
-    except (BrokenPipeError, EOFError, RuntimeError) as exc:  # a child died while starting
-        raise ExportError(
-            f"--workers {workers}: the worker processes did not start ({type(exc).__name__}); a "
-            "script that exports must guard its entry point with if __name__ == '__main__'"
-        ) from None
-    with pool:
-        for res in pool.imap_unordered(run_group, tasks):
-            done += len(res)
-            bar.update(len(res))
-        pool.close()  # workers exit normally (their exit handlers run: numba's named
-        pool.join()  # lock is released) instead of being terminated by ``with``
+    restarts = 0
+    while remaining:
+        size = min(int(workers), len(remaining))
+        nthreads = max(1, len(allowed_cores()) // size)
+        slots = ctx.Value("i", 0)  # worker k of the pool takes the k-th share of the cores
+        pool = ProcessPoolExecutor(size, mp_context=ctx, initializer=init_pool_worker,
+                                   initargs=(cfg, str(build), nthreads, os.getpid(), extra, slots, size,
+                                             *shared))
+        broken = None
+        pending = {}
+        try:
+            try:
+                for t in remaining:  # (the pool starts its processes here)
+                    pending[pool.submit(run_group, t)] = t
+            except BrokenProcessPool as exc:  # a worker died while the tasks were handed out
+                broken = exc
+            except (BrokenPipeError, EOFError) as exc:  # a child died while it was starting
+                raise ExportError(
+                    f"--workers {workers}: the worker processes did not start ({type(exc).__name__}); a "
+                    "script that exports must guard its entry point with if __name__ == '__main__'"
+                ) from None
+            while pending:
+                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for fut in finished:
+                    t = pending.pop(fut)
+                    try:
+                        res = fut.result()
+                    except BrokenProcessPool as exc:
+                        broken = exc
+                        continue
+                    remaining.remove(t)
+                    done += len(res)
+                    bar.update(len(res))
+                if broken is not None:
+                    break
+        except BaseException:
+            _stop_pool(pool)  # Ctrl-C, an error in a task: the workers stop now
+            raise
+        if broken is None:
+            pool.shutdown(wait=True)  # workers exit normally (their exit handlers run)
+            break
+        codes = _stop_pool(pool)
+        from ._server_guard import ENTRY_POINT_EXIT
+
+        if ENTRY_POINT_EXIT in codes:  # a worker ran an unguarded script again and stopped
+            raise ExportError(
+                f"--workers {workers}: the worker processes did not start; a script that exports must "
+                "guard its entry point with if __name__ == '__main__'"
+            )
+        restarts += 1
+        remove_stray_temps(build)  # the dead worker's temporaries
+        before = sum(len(t) for t in remaining)
+        remaining = [r for r in ([i for i in t if not is_done(cfg, build, i)] for t in remaining) if r]
+        written = before - sum(len(t) for t in remaining)  # finished before the pool broke
+        done += written
+        bar.update(written)
+        how = _death(codes)
+        if restarts > MAX_POOL_RESTARTS:
+            raise ExportError(
+                f"--workers {workers}: a worker process died {restarts} times ({how}; out of memory? one "
+                f"{cfg.width_px} x {cfg.height_px} px frame needs about {_frame_gb(cfg):.1f} GB per "
+                "worker); the images done are kept: rerun with --resume, with fewer workers or smaller "
+                "images"
+            )
+        if remaining:
+            warnings.warn(f"a worker process died ({how}); its pool's {sum(len(t) for t in remaining)} "
+                          f"unfinished images (the first: image {remaining[0][0]}) are rendered again on a "
+                          f"new pool (restart {restarts} of at most {MAX_POOL_RESTARTS})", RuntimeWarning,
+                          stacklevel=2)
     return done
+
+
+def _frame_gb(cfg: ExportConfig) -> float:
+    from ..render.budget import frame_bytes
+
+    return frame_bytes(cfg.width_px, cfg.height_px) / 1e9
+
+
+def _stop_pool(pool) -> list:
+    """Stop a ProcessPoolExecutor's workers now: cancel what has not started, terminate the
+    workers (SIGTERM: they exit normally, see :func:`.worker.init_pool_worker`), reap them;
+    returns their exit codes (None: unknown). Python 3.14 has ``terminate_workers()``;
+    before it the processes are only in the executor's ``_processes``, which a broken pool
+    keeps: the first death's code is there, the others were terminated by the pool."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    codes = [getattr(p, "exitcode", None) for p in procs]  # before this terminates the rest
+    for p in procs:
+        try:
+            if p.exitcode is None:
+                p.terminate()
+        except (OSError, AttributeError, ValueError):
+            pass
+    pool.shutdown(wait=True, cancel_futures=True)
+    for k, p in enumerate(procs):
+        try:
+            p.join(timeout=5)
+            codes[k] = codes[k] if codes[k] is not None else p.exitcode
+        except (OSError, AttributeError, ValueError, AssertionError):
+            pass
+    return codes
+
+
+def _death(codes) -> str:
+    """How the first dead worker of a broken pool ended, in words."""
+    import signal
+
+    for c in codes:
+        if c is not None and c < 0 and -c != signal.SIGTERM:
+            try:
+                return f"killed by {signal.Signals(-c).name}"
+            except ValueError:
+                return f"killed by signal {-c}"
+    for c in codes:
+        if c not in (None, 0, 128 + signal.SIGTERM, -signal.SIGTERM):
+            return f"exit status {c}"
+    return "ended abruptly"
 
 
 def _shareable(cfg: ExportConfig, scene, catalog) -> tuple:

@@ -1,0 +1,115 @@
+"""A local pool worker killed mid-export (what the OOM killer does): its images are
+rendered again on a new pool and the export ends byte-identical to one worker; a worker
+that dies every time ends the export in one line after MAX_POOL_RESTARTS restarts. (The
+export used to wait forever for the task of a killed worker.)"""
+
+import os
+import signal
+import sys
+import threading
+import time
+import warnings
+
+import pytest
+
+from aerial_synth.dataset.export import MAX_POOL_RESTARTS, ExportConfig, export_dataset
+from aerial_synth.errors import ExportError
+
+from .conftest import tree_bytes
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+
+
+def _cfg(scene: str, images: int = 24) -> ExportConfig:
+    return ExportConfig(scene=scene, images=images, formats="dota", split=0.5, seed=3,
+                        images_per_placement=2, n_vehicles=10, width_px=128, height_px=128,
+                        simple_vehicles=True)
+
+
+def _pool_workers() -> set[int]:
+    """The processes the export's fork server forked (the pool's workers)."""
+    from multiprocessing import forkserver
+
+    server = getattr(forkserver._forkserver, "_forkserver_pid", None)
+    kids = set()
+    if not server:
+        return kids
+    for d in os.listdir("/proc"):
+        if not d.isdigit():
+            continue
+        try:
+            with open(f"/proc/{d}/stat") as f:
+                ppid = int(f.read().rsplit(")", 1)[1].split()[1])
+        except (OSError, ValueError, IndexError):
+            continue
+        if ppid == server:
+            kids.add(int(d))
+    return kids
+
+
+def test_a_killed_pool_worker_has_its_images_rendered_again(tiny_scene, tmp_path):
+    ref = tmp_path / "ref"
+    export_dataset(_cfg(tiny_scene), ref, workers=1, progress=False)
+    out = tmp_path / "ds"
+    meta = out.parent / f".{out.name}.aerial-synth-partial" / "meta"
+    killed = []
+
+    def killer():
+        deadline = time.monotonic() + 240
+        while not killed and time.monotonic() < deadline:
+            if meta.is_dir() and len(list(meta.glob("*.json"))) >= 2:
+                kids = _pool_workers()
+                if kids:
+                    os.kill(min(kids), signal.SIGKILL)
+                    killed.append(min(kids))
+            time.sleep(0.005)
+
+    th = threading.Thread(target=killer)
+    th.start()
+    try:
+        with pytest.warns(RuntimeWarning, match=r"a worker process died \(killed by SIGKILL\)"):
+            res = export_dataset(_cfg(tiny_scene), out, workers=2, progress=False)
+    finally:
+        th.join()
+    assert killed, "the export finished before a worker could be killed"
+    assert res.rendered == 24
+    a, b = tree_bytes(ref), tree_bytes(out)
+    assert a.keys() == b.keys()
+    assert [k for k in a if a[k] != b[k]] == []
+    assert not _pool_workers()  # no worker left behind
+
+
+def test_a_worker_that_dies_every_time_ends_the_export_in_one_line(tiny_scene, tmp_path):
+    stop = threading.Event()
+    killed = []
+
+    def killer():  # every pool worker, 0.2 s after it appears (once it has started)
+        seen = {}
+        while not stop.is_set():
+            now = time.monotonic()
+            for pid in _pool_workers():
+                if now - seen.setdefault(pid, now) > 0.2 and pid not in killed:
+                    try:
+                        os.kill(pid, signal.SIGKILL)
+                        killed.append(pid)
+                    except ProcessLookupError:
+                        pass
+            time.sleep(0.005)
+
+    th = threading.Thread(target=killer, daemon=True)
+    th.start()
+    try:
+        with warnings.catch_warnings(record=True) as caught, pytest.raises(ExportError) as e:
+            warnings.simplefilter("always")
+            export_dataset(_cfg(tiny_scene, images=200), tmp_path / "ds", workers=2, progress=False)
+    finally:
+        stop.set()
+        th.join()
+    msg = str(e.value)
+    assert "\n" not in msg
+    assert f"died {MAX_POOL_RESTARTS + 1} times" in msg and "killed by SIGKILL" in msg
+    assert "--resume" in msg and "128 x 128 px" in msg
+    restarts = [w for w in caught if "a worker process died" in str(w.message)]
+    assert len(restarts) == MAX_POOL_RESTARTS
+    assert len(killed) >= MAX_POOL_RESTARTS + 1
+    assert not _pool_workers()
