@@ -600,9 +600,12 @@ def record_counts(record) -> dict:
 # --------------------------------------------------------------- pool glue
 
 _POOL_WORKER: ImageWorker | None = None
+_STOPPING = False  # SIGTERM came: no further task starts
 
 
 def _exit_on_sigterm(signum, frame):
+    global _STOPPING
+    _STOPPING = True
     raise SystemExit(128 + signum)
 
 
@@ -623,7 +626,10 @@ def init_pool_worker(cfg: ExportConfig, out: str, nthreads: int, parent_pid: int
     interrupted export prints no worker tracebacks. The pool then stops its workers with
     SIGTERM, which a worker turns into a normal exit: its exit handlers release what it
     registered with multiprocessing's resource tracker (numba's lock of its threading
-    layer), which would otherwise report leaked semaphores after "interrupted"."""
+    layer), which would otherwise report leaked semaphores after "interrupted". A
+    ``ProcessPoolExecutor`` worker catches the SystemExit of its task and reads the next
+    one from its queue: :func:`run_group` then ends at once, so the few tasks queued
+    ahead do not run after Ctrl-C."""
     import signal
 
     from .affinity import limit_threads, pin_share
@@ -654,4 +660,6 @@ def run_group(indices: list[int]) -> list[tuple[int, dict]]:
     """Pool task: the images of one run of a placement group, in order; returns once every
     one of their files is on disk."""
     assert _POOL_WORKER is not None
+    if _STOPPING:
+        raise SystemExit(128 + 15)
     return _POOL_WORKER.render_run(indices)

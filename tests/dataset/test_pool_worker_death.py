@@ -113,3 +113,30 @@ def test_a_worker_that_dies_every_time_ends_the_export_in_one_line(tiny_scene, t
     assert len(restarts) == MAX_POOL_RESTARTS
     assert len(killed) >= MAX_POOL_RESTARTS + 1
     assert not _pool_workers()
+
+
+def test_ctrl_c_starts_no_further_task(tiny_scene, tmp_path):
+    """SIGINT to an export on 2 workers: the pool's workers stop at once. A
+    ProcessPoolExecutor worker survives the SystemExit of its task and reads the next task
+    from its queue; those queued tasks (10 images each here) must not run after Ctrl-C."""
+    import subprocess
+
+    from .conftest import REPO
+
+    out = tmp_path / "ds"
+    meta = tmp_path / ".ds.aerial-synth-partial" / "meta"
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    p = subprocess.Popen([sys.executable, "-m", "aerial_synth.cli", "export", "--scene", tiny_scene,
+                          "--images", "80", "--images-per-placement", "20", "--size", "128", "--vehicles",
+                          "8", "--simple-vehicles", "--workers", "2", "--no-progress", "--out", str(out)],
+                         env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    t0 = time.monotonic()
+    while not (meta.is_dir() and list(meta.glob("*.json"))) and p.poll() is None and time.monotonic() - t0 < 300:
+        time.sleep(0.01)
+    at_signal = len(list(meta.glob("*.json")))
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=120)
+    after = len(list(meta.glob("*.json")))
+    assert p.returncode == 130 and err.decode().strip() == "aerial-synth: interrupted"
+    assert after < 80 and after - at_signal <= 4, (at_signal, after)  # the in-flight writes only
+    assert not out.exists()
