@@ -270,14 +270,38 @@ def _pool_init(nthreads: int) -> None:
     numba.set_num_threads(max(1, min(nthreads, numba.config.NUMBA_NUM_THREADS)))
 
 
+#: How often the tiles' pool is started again after one of its workers died.
+MAX_POOL_RESTARTS = 3
+
+
 def _pool_map(jobs, workers: int):
-    """Tiles on a spawn process pool, results in tile order (streamed)."""
+    """Tiles on a spawn process pool, results in tile order (streamed).
+
+    A worker that dies (the OOM killer's SIGKILL, say) breaks the pool: the tiles not yet
+    returned are placed again on a new pool (a tile's result depends only on its job), up
+    to :data:`MAX_POOL_RESTARTS` times, then one PlacementError."""
     import multiprocessing as mp
     import os
     from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures.process import BrokenProcessPool
 
     n = max(1, (os.cpu_count() or 1) // int(workers))
     jobs = [j[:7] + (n,) + j[8:] for j in jobs]
-    with ProcessPoolExecutor(int(workers), mp_context=mp.get_context("spawn"), initializer=_pool_init,
-                             initargs=(n,)) as ex:
-        yield from ex.map(_place_tile, jobs)
+    start, restarts = 0, 0
+    while start < len(jobs):
+        try:
+            with ProcessPoolExecutor(int(workers), mp_context=mp.get_context("spawn"), initializer=_pool_init,
+                                     initargs=(n,)) as ex:
+                for res in ex.map(_place_tile, jobs[start:]):
+                    start += 1
+                    yield res
+        except BrokenProcessPool:
+            restarts += 1
+            if restarts > MAX_POOL_RESTARTS:
+                raise PlacementError(
+                    f"--workers {workers}: a worker process died {restarts} times (out of memory? each "
+                    "worker builds one tile's window at a time: a smaller --tile-m needs less)"
+                ) from None
+            warnings.warn(f"a worker process died; the tiles from tile {start + 1} of {len(jobs)} on are "
+                          f"placed again on a new pool (restart {restarts} of at most {MAX_POOL_RESTARTS})",
+                          RuntimeWarning, stacklevel=2)

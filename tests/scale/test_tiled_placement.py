@@ -228,3 +228,61 @@ def test_cli_bad_dask(tmp_path, extra, field):
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and field in lines[0]
     assert not out.exists()
+
+
+def _spawned_children() -> set[int]:
+    """This process's children started by multiprocessing's spawn (the tiles' pool)."""
+    import os
+
+    me, kids = os.getpid(), set()
+    for d in os.listdir("/proc"):
+        if not d.isdigit():
+            continue
+        try:
+            with open(f"/proc/{d}/stat") as f:
+                ppid = int(f.read().rsplit(")", 1)[1].split()[1])
+            if ppid == me:
+                with open(f"/proc/{d}/cmdline", "rb") as f:
+                    if b"multiprocessing.spawn" in f.read():
+                        kids.add(int(d))
+        except (OSError, ValueError, IndexError):
+            continue
+    return kids
+
+
+@pytest.mark.skipif(not __import__("sys").platform.startswith("linux"), reason="reads /proc")
+def test_a_killed_worker_has_its_tiles_placed_again(world, tiled):
+    """A tiles' worker killed (SIGKILL, as the OOM killer does): the tiles not returned are
+    placed again on a new pool, with a warning, and the result is the same; it used to end
+    in BrokenProcessPool's traceback."""
+    import os
+    import signal
+    import threading
+    import time
+
+    g, pl = tiled
+    killed, stop = [], threading.Event()
+
+    def killer():  # the first worker, 1 s after it appears (while it imports)
+        seen = {}
+        while not killed and not stop.is_set():
+            now = time.monotonic()
+            for pid in _spawned_children():
+                if now - seen.setdefault(pid, now) > 1.0:
+                    os.kill(pid, signal.SIGKILL)
+                    killed.append(pid)
+                    break
+            time.sleep(0.01)
+
+    th = threading.Thread(target=killer, daemon=True)
+    th.start()
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            par = place_tiled(world, g, "jam", seed=7, n_vehicles=N, workers=2)
+    finally:
+        stop.set()
+        th.join()
+    assert killed
+    assert any("a worker process died" in str(w.message) for w in caught)
+    assert _dicts(par) == _dicts(pl)
