@@ -140,6 +140,8 @@ def _main(argv: list[str] | None) -> int:
         # A file-system refusal on an output or input path is the user's to fix: one line.
         if exc.errno in _USER_ERRNOS:
             where = exc.filename if exc.filename is not None else ""
+            if not where and getattr(args, "out", None) is not None:
+                where = f"--out {args.out}"  # a failed write names no file (a full disk)
             print(f"aerial-synth: error: {where}: {exc.strerror or exc}".replace(": : ", ": "),
                   file=sys.stderr)
             return 2

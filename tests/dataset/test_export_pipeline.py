@@ -186,3 +186,19 @@ def test_group_builds_only_the_vehicles_its_cameras_can_see(tmp_path, monkeypatc
         assert differ < 5e-4, differ  # a missing shadow or reflection would be far more
     rec, _ = w.record(0)  # uses the group's camera (no second draw), then forgets it
     assert 0 not in w._cameras and rec.camera == cams[0].to_dict()
+
+
+def test_cli_full_disk_is_one_line_naming_out(tiny_scene, tmp_path, monkeypatch, capsys):
+    """A full disk (ENOSPC from a write names no file): one line that names --out, exit 2."""
+    from aerial_synth.cli import main
+
+    def full(*a, **k):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(W, "_write_files", full)
+    out = tmp_path / "ds"
+    code = main(["export", "--scene", tiny_scene, "--images", "2", "--size", "64", "--simple-vehicles",
+                 "--no-progress", "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert code == 2
+    assert err == f"aerial-synth: error: --out {out}: No space left on device"
