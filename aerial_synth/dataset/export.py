@@ -368,23 +368,25 @@ def _stop_pool(pool) -> list:
     """Stop a ProcessPoolExecutor's workers now: cancel what has not started, terminate the
     workers (SIGTERM: they exit normally, see :func:`.worker.init_pool_worker`), reap them;
     returns their exit codes (None: unknown). Python 3.14 has ``terminate_workers()``;
-    before it the processes are only in the executor's ``_processes``, which a broken pool
-    keeps: the first death's code is there, the others were terminated by the pool."""
+    before it the processes are only in the executor's ``_processes`` (which ``shutdown``
+    drops, and which a broken pool keeps: the first death's code is there, the others
+    were terminated by the pool). Exit codes are read only once the pool's manager thread
+    has ended: a fork-server process's code can be read once, and a second reader at the
+    same time gets 255."""
     procs = list((getattr(pool, "_processes", None) or {}).values())
-    codes = [getattr(p, "exitcode", None) for p in procs]  # before this terminates the rest
     for p in procs:
         try:
-            if p.exitcode is None:
-                p.terminate()
+            p.terminate()  # sends SIGTERM unless the code is known (does not read it)
         except (OSError, AttributeError, ValueError):
             pass
     pool.shutdown(wait=True, cancel_futures=True)
-    for k, p in enumerate(procs):
+    codes = []
+    for p in procs:
         try:
             p.join(timeout=5)
-            codes[k] = codes[k] if codes[k] is not None else p.exitcode
+            codes.append(p.exitcode)
         except (OSError, AttributeError, ValueError, AssertionError):
-            pass
+            codes.append(None)
     return codes
 
 
