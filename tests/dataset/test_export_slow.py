@@ -41,7 +41,8 @@ def test_ctrl_c_with_workers_one_line_and_resumable(tiny_scene, tmp_path):
     p = subprocess.Popen([sys.executable, "-m", "aerial_synth.cli", "export", "--scene", tiny_scene,
                           "--images", "6", "--images-per-placement", "2", "--size", "128", "--vehicles", "8",
                           "--simple-vehicles", "--workers", "2", "--no-progress", "--out", str(out)],
-                         env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+                         env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # even under nohup
     t0 = time.time()
     while not list((part / "meta").glob("*.json")) and p.poll() is None and time.time() - t0 < 300:
         time.sleep(0.05)

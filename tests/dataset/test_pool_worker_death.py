@@ -117,6 +117,12 @@ def test_a_worker_that_dies_every_time_ends_the_export_in_one_line(tiny_scene, t
     assert not _pool_workers() - before
 
 
+def _default_sigint():
+    """In the child: SIGINT's default action, so that Python turns it into Ctrl-C even when
+    this test runs where SIGINT is ignored (a background job: make test &, nohup)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ctrl_c_starts_no_further_task(tiny_scene, tmp_path):
     """SIGINT to an export on 2 workers: the pool's workers stop at once. A
     ProcessPoolExecutor worker survives the SystemExit of its task and reads the next task
@@ -131,7 +137,8 @@ def test_ctrl_c_starts_no_further_task(tiny_scene, tmp_path):
     p = subprocess.Popen([sys.executable, "-m", "aerial_synth.cli", "export", "--scene", tiny_scene,
                           "--images", "80", "--images-per-placement", "20", "--size", "128", "--vehicles",
                           "8", "--simple-vehicles", "--workers", "2", "--no-progress", "--out", str(out)],
-                         env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+                         env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                         preexec_fn=_default_sigint)
     t0 = time.monotonic()
     while not (meta.is_dir() and list(meta.glob("*.json"))) and p.poll() is None and time.monotonic() - t0 < 300:
         time.sleep(0.01)
