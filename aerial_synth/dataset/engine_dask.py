@@ -457,14 +457,13 @@ class DaskEngine:
         except KilledWorker as exc:  # the scheduler gave up on a task after its workers died
             for f in futures:
                 f.cancel()
-            from ..render.budget import frame_bytes
+            from ..render.budget import frame_gb
 
             t = task_of.get(getattr(exc, "task", None), (indices, 0))[0]
             raise ExportError(
                 f"--dask: every worker that ran images {t[0]}..{t[-1]} died (out of memory? one "
                 f"{cfg.width_px} x {cfg.height_px} px frame needs about "
-                f"{frame_bytes(cfg.width_px, cfg.height_px) / 1e9:.1f} GB); the images done are kept: "
-                "rerun with --resume"
+                f"{frame_gb(cfg.width_px, cfg.height_px):.1f} GB); the images done are kept: rerun with --resume"
             ) from None
         except Exception:
             for f in futures:

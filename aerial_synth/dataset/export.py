@@ -344,9 +344,11 @@ def _run_pool(cfg: ExportConfig, build: Path, tasks, workers: int, bar, scene=No
         bar.update(written)
         how = _death(codes)
         if restarts > MAX_POOL_RESTARTS:
+            from ..render.budget import frame_gb
+
             raise ExportError(
                 f"--workers {workers}: a worker process died {restarts} times ({how}; out of memory? one "
-                f"{cfg.width_px} x {cfg.height_px} px frame needs about {_frame_gb(cfg):.1f} GB per "
+                f"{cfg.width_px} x {cfg.height_px} px frame needs about {frame_gb(cfg.width_px, cfg.height_px):.1f} GB per "
                 "worker); the images done are kept: rerun with --resume, with fewer workers or smaller "
                 "images"
             )
@@ -356,12 +358,6 @@ def _run_pool(cfg: ExportConfig, build: Path, tasks, workers: int, bar, scene=No
                           f"new pool (restart {restarts} of at most {MAX_POOL_RESTARTS})", RuntimeWarning,
                           stacklevel=2)
     return done
-
-
-def _frame_gb(cfg: ExportConfig) -> float:
-    from ..render.budget import frame_bytes
-
-    return frame_bytes(cfg.width_px, cfg.height_px) / 1e9
 
 
 def _stop_pool(pool) -> list:

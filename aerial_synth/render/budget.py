@@ -12,7 +12,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-__all__ = ["FRAME_BYTES_PER_PX", "frame_bytes", "available_memory_bytes", "check_frame_memory"]
+__all__ = ["FRAME_BYTES_PER_PX", "frame_bytes", "frame_gb", "available_memory_bytes", "check_frame_memory"]
 
 #: Peak resident memory a frame adds per pixel: 112 B measured for ``aerial-synth render``
 #: (peak RSS 0.97 GB at 2048 x 2048 px, 2.35 GB at 4096 x 4096), 102 B for one export
@@ -23,6 +23,11 @@ FRAME_BYTES_PER_PX = 112
 def frame_bytes(width_px: int, height_px: int) -> int:
     """Memory one frame of ``width_px`` x ``height_px`` adds to its process (bytes)."""
     return FRAME_BYTES_PER_PX * int(width_px) * int(height_px)
+
+
+def frame_gb(width_px: int, height_px: int) -> float:
+    """:func:`frame_bytes` in GB (10^9 bytes), as the error messages give it."""
+    return frame_bytes(width_px, height_px) / 1e9
 
 
 def _read_int(path: Path) -> int | None:
