@@ -40,3 +40,26 @@ def run_cli(*args, timeout=120, **kw):
     env = dict(os.environ, PYTHONPATH=str(REPO))
     return subprocess.run([sys.executable, "-m", "aerial_synth.cli", *map(str, args)],
                           capture_output=True, text=True, timeout=timeout, env=env, **kw)
+
+
+def children(pid: int, cmdline: bytes | None = None) -> set[int]:
+    """The live processes whose parent is ``pid`` (from /proc; Linux), those whose command
+    line contains ``cmdline`` only, if given."""
+    out = set()
+    for d in os.listdir("/proc"):
+        if not d.isdigit():
+            continue
+        try:
+            with open(f"/proc/{d}/stat") as fh:
+                ppid = int(fh.read().rsplit(")", 1)[1].split()[1])
+            if ppid != pid:
+                continue
+            if cmdline is not None:
+                with open(f"/proc/{d}/cmdline", "rb") as fh:
+                    if cmdline not in fh.read():
+                        continue
+        except (OSError, IndexError, ValueError):
+            continue
+        out.add(int(d))
+    return out
+

@@ -15,6 +15,7 @@ import pytest
 from aerial_synth.dataset.export import MAX_POOL_RESTARTS, ExportConfig, export_dataset
 from aerial_synth.errors import ExportError
 
+from ..helpers import children
 from .conftest import tree_bytes
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
@@ -31,20 +32,7 @@ def _pool_workers() -> set[int]:
     from multiprocessing import forkserver
 
     server = getattr(forkserver._forkserver, "_forkserver_pid", None)
-    kids = set()
-    if not server:
-        return kids
-    for d in os.listdir("/proc"):
-        if not d.isdigit():
-            continue
-        try:
-            with open(f"/proc/{d}/stat") as f:
-                ppid = int(f.read().rsplit(")", 1)[1].split()[1])
-        except (OSError, ValueError, IndexError):
-            continue
-        if ppid == server:
-            kids.add(int(d))
-    return kids
+    return children(server) if server else set()
 
 
 def test_a_killed_pool_worker_has_its_images_rendered_again(tiny_scene, tmp_path):

@@ -234,20 +234,9 @@ def _spawned_children() -> set[int]:
     """This process's children started by multiprocessing's spawn (the tiles' pool)."""
     import os
 
-    me, kids = os.getpid(), set()
-    for d in os.listdir("/proc"):
-        if not d.isdigit():
-            continue
-        try:
-            with open(f"/proc/{d}/stat") as f:
-                ppid = int(f.read().rsplit(")", 1)[1].split()[1])
-            if ppid == me:
-                with open(f"/proc/{d}/cmdline", "rb") as f:
-                    if b"multiprocessing.spawn" in f.read():
-                        kids.add(int(d))
-        except (OSError, ValueError, IndexError):
-            continue
-    return kids
+    from ..helpers import children
+
+    return children(os.getpid(), b"multiprocessing.spawn")
 
 
 @pytest.mark.skipif(not __import__("sys").platform.startswith("linux"), reason="reads /proc")
