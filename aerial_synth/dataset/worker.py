@@ -601,6 +601,7 @@ def record_counts(record) -> dict:
 
 _POOL_WORKER: ImageWorker | None = None
 _STOPPING = False  # SIGTERM came: no further task starts
+_SIGTERM_EXIT = 128 + 15  # the shell's status of a process ended by SIGTERM (15 on every POSIX)
 
 
 def _exit_on_sigterm(signum, frame):
@@ -661,5 +662,5 @@ def run_group(indices: list[int]) -> list[tuple[int, dict]]:
     one of their files is on disk."""
     assert _POOL_WORKER is not None
     if _STOPPING:
-        raise SystemExit(128 + 15)
+        raise SystemExit(_SIGTERM_EXIT)
     return _POOL_WORKER.render_run(indices)
