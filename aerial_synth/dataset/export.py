@@ -303,10 +303,7 @@ def _run_pool(cfg: ExportConfig, build: Path, tasks, workers: int, bar, scene=No
             except BrokenProcessPool as exc:  # a worker died while the tasks were handed out
                 broken = exc
             except (BrokenPipeError, EOFError) as exc:  # a child died while it was starting
-                raise ExportError(
-                    f"--workers {workers}: the worker processes did not start ({type(exc).__name__}); a "
-                    "script that exports must guard its entry point with if __name__ == '__main__'"
-                ) from None
+                raise _not_started(workers, f" ({type(exc).__name__})") from None
             while pending:
                 finished, _ = wait(pending, return_when=FIRST_COMPLETED)
                 for fut in finished:
@@ -331,10 +328,7 @@ def _run_pool(cfg: ExportConfig, build: Path, tasks, workers: int, bar, scene=No
         from ._server_guard import ENTRY_POINT_EXIT
 
         if ENTRY_POINT_EXIT in codes:  # a worker ran an unguarded script again and stopped
-            raise ExportError(
-                f"--workers {workers}: the worker processes did not start; a script that exports must "
-                "guard its entry point with if __name__ == '__main__'"
-            )
+            raise _not_started(workers)
         restarts += 1
         remove_stray_temps(build)  # the dead worker's temporaries
         before = sum(len(t) for t in remaining)
@@ -358,6 +352,11 @@ def _run_pool(cfg: ExportConfig, build: Path, tasks, workers: int, bar, scene=No
                           f"new pool (restart {restarts} of at most {MAX_POOL_RESTARTS})", RuntimeWarning,
                           stacklevel=2)
     return done
+
+
+def _not_started(workers, why: str = "") -> ExportError:
+    return ExportError(f"--workers {workers}: the worker processes did not start{why}; a script that "
+                       "exports must guard its entry point with if __name__ == '__main__'")
 
 
 def _stop_pool(pool) -> list:
