@@ -463,8 +463,6 @@ class ImageWriter:
         self._q: queue.Queue = queue.Queue(maxsize=max(1, int(depth)))
         self._error: BaseException | None = None  # to raise in the submitting thread
         self._failed = False  # a write failed: skip the queued images until drained
-        self._pending = 0
-        self._cv = threading.Condition()
         self.written = 0
         self._thread = threading.Thread(target=self._loop, name="aerial-synth-writer", daemon=True)
         self._thread.start()
@@ -473,6 +471,7 @@ class ImageWriter:
         while True:
             job = self._q.get()
             if job is None:
+                self._q.task_done()
                 return
             try:
                 if not self._failed:
@@ -484,9 +483,7 @@ class ImageWriter:
                 if self._error is None:
                     self._error = exc
             finally:
-                with self._cv:
-                    self._pending -= 1
-                    self._cv.notify_all()
+                self._q.task_done()
 
     def raise_error(self) -> None:
         """Raise the first write error, once (the writer writes again after a drain)."""
@@ -499,16 +496,19 @@ class ImageWriter:
         self.raise_error()
         if not self._thread.is_alive():
             raise ExportError("the image writer thread has stopped")
-        with self._cv:
-            self._pending += 1
+        # The queue counts the image as unfinished in the same step that queues it: a put
+        # cut short (SIGTERM's SystemExit or Ctrl-C while the queue is full) counts nothing,
+        # where a count of our own, raised before the put, stayed up and drain() waited
+        # forever (an interrupted export hung).
         self._q.put((cfg, Path(out), record, rgb))
 
     def drain(self, raise_error: bool = True) -> None:
         """Wait until every submitted image is written (or failed)."""
-        with self._cv:
-            while self._pending > 0 and self._thread.is_alive():
-                self._cv.wait(0.5)
-            if self._pending == 0:
+        done = self._q.all_tasks_done  # queue.Queue's condition for its unfinished_tasks
+        with done:
+            while self._q.unfinished_tasks > 0 and self._thread.is_alive():
+                done.wait(0.5)
+            if self._q.unfinished_tasks == 0:
                 self._failed = False  # the images after a failure were all skipped
         if raise_error:
             self.raise_error()

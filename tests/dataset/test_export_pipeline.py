@@ -202,3 +202,48 @@ def test_cli_full_disk_is_one_line_naming_out(tiny_scene, tmp_path, monkeypatch,
     err = capsys.readouterr().err.strip()
     assert code == 2
     assert err == f"aerial-synth: error: --out {out}: No space left on device"
+
+
+@pytest.mark.skipif(not hasattr(__import__("signal"), "setitimer"), reason="needs setitimer")
+def test_writer_drains_after_a_submit_cut_short(monkeypatch, tmp_path):
+    """Ctrl-C (or a pool worker's SIGTERM) while submit() waits for room in the queue: the
+    image is not queued, and drain() returns once the image being written is done. It used
+    to wait forever (a count raised before the put stayed up): an interrupted export hung."""
+    import signal
+    import threading
+    import time
+
+    import numpy as np
+
+    writing = threading.Event()
+
+    def slow(*a, **k):
+        writing.set()
+        time.sleep(0.5)
+
+    monkeypatch.setattr(W, "_write_files", slow)
+    monkeypatch.setattr(W, "encode_image", lambda rgb, ext: b"")
+    cfg = _cfg("city_park")
+    w = W.ImageWriter(depth=1)
+    rgb = np.zeros((2, 2, 3), np.uint8)
+    w.submit(cfg, tmp_path, None, rgb)  # being written
+    assert writing.wait(10)
+    w.submit(cfg, tmp_path, None, rgb)  # waits in the queue
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGALRM, interrupt)
+    try:
+        signal.setitimer(signal.ITIMER_REAL, 0.1)
+        with pytest.raises(KeyboardInterrupt):
+            w.submit(cfg, tmp_path, None, rgb)  # the queue is full: cut short while waiting
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+    t = threading.Thread(target=w.drain, daemon=True)
+    t.start()
+    t.join(10)
+    assert not t.is_alive(), "drain() waits for an image that was never queued"
+    assert w.written == 2  # the two queued images, not the one cut short
+    w.close()
