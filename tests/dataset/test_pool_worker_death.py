@@ -132,7 +132,12 @@ def test_ctrl_c_starts_no_further_task(tiny_scene, tmp_path):
         time.sleep(0.01)
     at_signal = len(list(meta.glob("*.json")))
     p.send_signal(signal.SIGINT)
-    _, err = p.communicate(timeout=120)
+    try:
+        _, err = p.communicate(timeout=120)
+    finally:
+        if p.poll() is None:  # hung: leave no export (and its workers) behind
+            p.kill()
+            p.wait()
     after = len(list(meta.glob("*.json")))
     assert p.returncode == 130 and err.decode().strip() == "aerial-synth: interrupted"
     assert after < 80 and after - at_signal <= 4, (at_signal, after)  # the in-flight writes only
