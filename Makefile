@@ -1,11 +1,21 @@
 # The two set-up commands of the README: `make demo` and `make test`.
-PYTHON ?= python3
+# What they install comes from the committed PEP 751 locks (pylock.toml, pylock.test.toml),
+# read by uv (itself pinned, with hashes, in requirements/uv.txt); `make lock` regenerates them.
+PYTHON ?= $(shell command -v python3.11 2>/dev/null || echo python3)
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
 PIP    := $(PY) -m pip
 BIN    := $(VENV)/bin
+UV     := $(BIN)/uv
+# The locks hold Linux x86-64 wheels for CPython 3.11.
+LOCK_PLATFORM := x86_64-manylinux_2_28
+# `make lock` takes the newest versions published before this moment (so a rerun gives the
+# same lock); `make lock LOCK_DATE=...` moves it on. Review the diff, then `make test`.
+LOCK_DATE ?= 2026-11-27T00:00:00Z
+LOCK_ARGS := --python-version 3.11 --python-platform $(LOCK_PLATFORM) --generate-hashes \
+	--format pylock.toml --exclude-newer $(LOCK_DATE) --quiet
 
-.PHONY: demo test lint test-all sysdeps sysdeps-egl venv install install-test clean bench
+.PHONY: pycheck demo test lint test-all test-latest lock sysdeps sysdeps-egl venv install install-test clean bench
 
 # open3d's Linux wheel links against libusb-1.0; pip cannot provide it.
 sysdeps:
@@ -33,20 +43,57 @@ sysdeps-egl:
 	  echo "note: no Mesa EGL (sudo apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri); the pyrender backend test will be skipped"; \
 	fi
 
-$(VENV)/.created:
+# The locks are for CPython 3.11: say so in one line instead of failing inside the installer.
+pycheck:
+	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info[:2] == (3, 11) else 1)' 2>/dev/null || \
+	{ echo "aerial-synth's locks (pylock.toml) are for Python 3.11; '$(PYTHON)' is $$($(PYTHON) -V 2>&1)."; \
+	  echo "Install python3.11 (with venv) or run: make PYTHON=/path/to/python3.11"; exit 1; }
+
+$(VENV)/.created: | pycheck
 	$(PYTHON) -m venv $(VENV)
-	$(PIP) install -q --upgrade pip
+	$(PIP) install -q --disable-pip-version-check --require-hashes --no-deps -r requirements/uv.txt
 	touch $@
 
 venv: $(VENV)/.created
 
-$(VENV)/.installed: $(VENV)/.created pyproject.toml
-	$(PIP) install -q -e .
+# Runtime from pylock.toml, the package itself editable, built by the locked setuptools.
+$(VENV)/.installed: $(VENV)/.created pylock.toml pyproject.toml
+	$(UV) pip install -q --python $(PY) -r pylock.toml
+	$(UV) pip install -q --python $(PY) --no-deps --no-build-isolation -e .
 	touch $@
 
-$(VENV)/.installed-test: $(VENV)/.installed
-	$(PIP) install -q -e '.[test,pyrender]'
+# Runtime + test + pyrender extras from pylock.test.toml (the same versions as pylock.toml).
+$(VENV)/.installed-test: $(VENV)/.installed pylock.test.toml
+	$(UV) pip install -q --python $(PY) -r pylock.test.toml
 	touch $@
+
+# Regenerate both locks from pyproject.toml's ranges (newest before LOCK_DATE). The runtime
+# lock is constrained by the test lock, so the two never disagree on a version.
+lock: $(VENV)/.created
+	$(UV) pip compile pyproject.toml --extra test --extra pyrender requirements/build.in \
+	  $(LOCK_ARGS) -o pylock.test.toml
+	$(UV) pip compile pyproject.toml --extra test --extra pyrender requirements/build.in \
+	  --python-version 3.11 --python-platform $(LOCK_PLATFORM) --exclude-newer $(LOCK_DATE) \
+	  --quiet --no-header --no-annotate -o $(VENV)/lock-constraints.txt
+	$(UV) pip compile pyproject.toml requirements/build.in -c $(VENV)/lock-constraints.txt \
+	  $(LOCK_ARGS) -o pylock.toml
+	@echo "pylock.toml and pylock.test.toml regenerated (newest before $(LOCK_DATE)); review git diff, then make test"
+
+# Drift check: the newest versions pyproject.toml allows, in a separate venv, no lock.
+# Tests marked lock_exact (pinned scene hashes, byte-identical golden outputs) are exact by
+# design and hold only under the lock: their result is printed as information. Everything
+# else must hold on any allowed version; its status is this target's status.
+LATEST := .venv-latest
+test-latest: sysdeps | pycheck
+	rm -rf $(LATEST)
+	$(PYTHON) -m venv $(LATEST)
+	$(LATEST)/bin/python -m pip install -q --disable-pip-version-check --require-hashes --no-deps -r requirements/uv.txt
+	$(LATEST)/bin/uv pip install -q --python $(LATEST)/bin/python --resolution highest --upgrade -e '.[test,pyrender]'
+	@$(LATEST)/bin/uv pip freeze --python $(LATEST)/bin/python | grep -iE '^(numpy|scipy|shapely|open3d|trimesh|opencv-python-headless|numba|pyproj|osmium)==' | tr '\n' ' '; echo
+	@echo "== lock_exact tests (information: they hold only under the lock) =="
+	-$(LATEST)/bin/python -m pytest -q -p no:cacheprovider -m 'lock_exact and not slow' --no-header -rf 2>&1 | tail -n 15
+	@echo "== every other test (must hold on any allowed version) =="
+	$(LATEST)/bin/python -m pytest -q -p no:cacheprovider -m 'not lock_exact and not slow'
 
 install: sysdeps $(VENV)/.installed
 install-test: sysdeps sysdeps-egl $(VENV)/.installed-test
@@ -70,4 +117,4 @@ bench: install-test
 	$(BIN)/python tools/bench_suite.py --out bench.json --export-presets full,fast
 
 clean:
-	rm -rf $(VENV) out .pytest_cache
+	rm -rf $(VENV) $(LATEST) out .pytest_cache build dist *.egg-info

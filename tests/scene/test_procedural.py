@@ -43,13 +43,16 @@ def test_bundled_list():
 #: faces are written out (same 20 triangles, another order), poles are written-out capped
 #: octagonal prisms instead of trimesh's, and markings/tracks are one buffer of their
 #: centre lines, gathered instead of unioned again (every object's area unchanged to 0.01 m^2): a faster scene build.
+#: These hashes hold only under the committed lock (pylock.test.toml): city_park and highway
+#: changed with the dependency versions (see CHANGELOG.md), so the test is marked lock_exact.
 BUNDLED_HASHES = {
-    "city_park": "7c7447bee393030ab700c8eb53766fc49f19faab621517953ceb44011e1cdae6",
+    "city_park": "719d60fb9c42cb11641c7a9ef9da01f0ae04c122ff8a48952efb93dfb6c2f18e",
     "suburb": "9ea0c708f820a4b285186a91a8a69bd9691225eb7f6c398fed4134f0694535cd",
-    "highway": "ef474b9617bf2392b6f377149bf2d1c19d73021ceb449f3e813e83ae0709407c",
+    "highway": "9e2854f6d5a42c4dfc36336192317615ffe3e0a5e52b65ad4beaa4a3c3e19845",
 }
 
 
+@pytest.mark.lock_exact
 @pytest.mark.parametrize("name", BUNDLED)
 def test_bundled_vertex_hashes(name):
     assert _scene(name).vertex_hash() == BUNDLED_HASHES[name]
