@@ -1,6 +1,7 @@
 """``manifest.json``: marks a folder as an aerial-synth dataset and records every parameter.
 
-Keys: ``format`` ("aerial-synth-dataset"), ``version``, ``tool``, ``tool_version``, ``status``
+Keys: ``format`` ("aerial-synth-dataset"), ``version``, ``tool``, ``tool_version``, ``versions``
+(aerial-synth and the numeric libraries that produced the output), ``status``
 ("incomplete" while exporting, "complete" at the end), ``parameters`` (``ExportConfig``),
 ``seeding`` and ``georeference`` (the scene's float64 origin and CRS).
 """
@@ -11,6 +12,7 @@ import json
 from pathlib import Path
 
 from .. import __version__
+from ..versions import versions
 from .config import PLACEMENT_STREAM, ExportConfig
 
 __all__ = ["MANIFEST_FORMAT", "MANIFEST_VERSION", "read_manifest", "is_dataset", "manifest"]
@@ -42,6 +44,7 @@ def manifest(cfg: ExportConfig, status: str, georeference: dict | None = None) -
         "version": MANIFEST_VERSION,
         "tool": "aerial-synth",
         "tool_version": __version__,
+        "versions": versions(),
         "status": status,
         "parameters": cfg.to_dict(),
         "seeding": {

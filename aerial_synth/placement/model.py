@@ -9,6 +9,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from ..versions import versions
+
 __all__ = ["PlacedVehicle", "Placement", "footprint_corners_xy", "with_lonlat"]
 
 
@@ -163,7 +165,8 @@ class Placement:
         }
 
     def to_json(self) -> str:
-        return json.dumps(self.to_dict(), indent=2, sort_keys=True) + "\n"
+        """``placement.json``: :meth:`to_dict` plus the versions that produced it."""
+        return json.dumps({**self.to_dict(), "versions": versions()}, indent=2, sort_keys=True) + "\n"
 
     @classmethod
     def from_dict(cls, d: dict) -> "Placement":

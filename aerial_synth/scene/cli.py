@@ -115,17 +115,19 @@ def _warn_unmatched(scene) -> None:
 def _cmd_list(args: argparse.Namespace) -> int:
     import yaml
 
+    from ..errors import SceneError
     from .io import SCENES_DIR, list_scenes
+    from .procedural import checked_spec
 
     for name in list_scenes():
-        desc = ""
-        try:
-            data = yaml.safe_load((SCENES_DIR / f"{name}.yaml").read_text(encoding="utf-8"))
-            size = data.get("size_m")
-            desc = f"{data.get('generator', '?')}, {size[0]:g} m x {size[1]:g} m, seed {data.get('seed')}"
-        except Exception:  # a broken bundled spec still gets listed
-            desc = "(unreadable spec)"
-        print(f"{name:12s} {desc}")
+        path = SCENES_DIR / f"{name}.yaml"
+        try:  # the checks `scene show` applies (size_km -> size_m included), not a raw read
+            spec, seed = checked_spec(yaml.safe_load(path.read_text(encoding="utf-8")), path.name)
+            w, h = spec["size_m"]
+            desc = f"{spec['generator']}, {w:g} m x {h:g} m, seed {seed}"
+        except (OSError, yaml.YAMLError, SceneError) as exc:  # a broken bundled spec still gets listed
+            desc = f"(invalid spec: {str(exc).splitlines()[0][:80]})"
+        print(f"{name:14s} {desc}")
     return 0
 
 

@@ -39,6 +39,10 @@ def test_end_to_end_layout_and_formats(exported):
     man = json.loads((out / "manifest.json").read_text())
     assert man["format"] == "aerial-synth-dataset" and man["status"] == "complete"
     assert man["tool_version"] and man["parameters"]["seed"] == 3
+    import numpy
+
+    assert man["versions"]["numpy"] == numpy.__version__
+    assert man["versions"]["aerial-synth"] == man["tool_version"]
     assert "workers" not in man["parameters"]
     from aerial_synth.scene import load_scene
 

@@ -38,6 +38,16 @@ def test_place_writes_json_png_and_summary(straight_glb, tmp_path, capsys):
     assert "vehicles" in text and "spacing m: mean" in text and "overlaps 0" in text
     assert "footprint on drivable 100.0 %" in text
     assert d["stats"]["validation"]["footprint_drivable"] == 1.0
+    # the versions that produced it, read from the installed distributions
+    import numpy
+    import shapely
+
+    from aerial_synth import __version__
+
+    v = d["versions"]
+    assert v["aerial-synth"] == __version__ and v["numpy"] == numpy.__version__
+    assert v["shapely"] == shapely.__version__
+    assert set(v) >= {"open3d", "opencv-python-headless", "trimesh"}
     assert d["georeference"] == {"origin": [0.0, 0.0, 0.0], "crs": None}
     assert all(v["x_orig_m"] == v["x_m"] and v["y_orig_m"] == v["y_m"] for v in d["vehicles"])
     # the same seed again: byte-identical placement.json

@@ -50,7 +50,8 @@ def test_foliage_normals_follow_the_sphere_and_other_faces_keep_theirs():
     assert hit.sum() > 1000
     n = geo.copy()
     smooth_shading_normals(rs, face, uv, rays, n)
-    p = rays[:, :3] + t[:, None] * rays[:, 3:]
+    # misses have t = inf (inf * a zero direction component is nan): their points are not used
+    p = rays[:, :3] + np.where(hit, t, 0.0)[:, None] * rays[:, 3:]
     radial = p - (0.0, 0.0, 8.0)
     radial /= np.linalg.norm(radial, axis=1, keepdims=True)
     crown = hit & (rs.face_material[np.maximum(face, 0)] == 10)  # foliage id

@@ -87,7 +87,8 @@ def test_avenue_lanes_mark_the_lanes(small_city_spec):
         for o in sc.objects:
             if o.label == "lane_marking":
                 t = o.vertices[o.faces][:, :, :2]
-                area += 0.5 * np.abs(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])).sum()
+                a, b = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+                area += 0.5 * np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).sum()
         return area
 
     assert marking_area(3) > marking_area(2) > marking_area(1)

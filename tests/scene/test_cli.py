@@ -18,6 +18,15 @@ def test_list(cli_main, capsys):
     assert cli_main(["scene", "list"]) == 0
     out = capsys.readouterr().out
     assert "city_park" in out and "highway" in out and "suburb" in out
+    # every bundled spec is listed with its generator and size: none reads as invalid
+    # (city_dense_2km, sized by size_km, used to read "(unreadable spec)")
+    from aerial_synth.scene import list_scenes
+
+    lines = out.splitlines()
+    assert len(lines) == len(list_scenes())
+    assert not [ln for ln in lines if "invalid" in ln or "unreadable" in ln], out
+    dense = next(ln for ln in lines if ln.startswith("city_dense_2km "))
+    assert "city, 2000 m x 2000 m, seed 11" in dense
 
 
 def test_show_and_export(cli_main, tmp_path, capsys):

@@ -32,12 +32,20 @@ from .parking import generate_depot
 from .spec import check_spec
 from .suburb import generate_suburb
 
-__all__ = ["generate", "GENERATORS", "Z_GROUND", "Z_ROAD", "Z_MARKING", "Z_SIDEWALK"]
+__all__ = ["generate", "checked_spec", "GENERATORS", "Z_GROUND", "Z_ROAD", "Z_MARKING", "Z_SIDEWALK"]
 
 #: generator name -> function(builder, spec) that fills the builder. Adding a generator is
 #: one module plus one line here.
 GENERATORS = {"city_park": generate_city_park, "suburb": generate_suburb, "highway": generate_highway,
               "city": generate_city, "depot": generate_depot}
+
+
+def checked_spec(spec: Mapping, where: str, seed: int | None = None) -> tuple[dict, int]:
+    """``(normalised spec, seed)`` as :func:`generate` sees it (``size_km`` turned into
+    ``size_m``, every field checked), without building anything. Raises SceneError."""
+    if not isinstance(spec, Mapping):
+        raise SceneError(f"{where}: expected a mapping, got {type(spec).__name__}")
+    return check_spec(with_size_m(spec, where), where, seed)
 
 
 def generate(spec: Mapping, seed: int | None = None, source: str = "") -> Scene:
@@ -52,8 +60,7 @@ def generate(spec: Mapping, seed: int | None = None, source: str = "") -> Scene:
     if not isinstance(spec, Mapping):
         raise SceneError(f"{where}: expected a mapping, got {type(spec).__name__}")
     kind = spec.get("generator")
-    spec = with_size_m(spec, where)  # size_km (the city generator) -> size_m
-    spec, s = check_spec(spec, where, seed)
+    spec, s = checked_spec(spec, where, seed)
     size = spec["size_m"]
     from shapely.errors import ShapelyError
 
