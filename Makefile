@@ -7,15 +7,17 @@ PY     := $(VENV)/bin/python
 PIP    := $(PY) -m pip
 BIN    := $(VENV)/bin
 UV     := $(BIN)/uv
-# The locks hold Linux x86-64 wheels for CPython 3.11.
-LOCK_PLATFORM := x86_64-manylinux_2_28
+# The locks hold Linux x86-64 wheels for CPython 3.11 on glibc >= 2.35 (Debian 12, Ubuntu 22.04
+# and newer): open3d 0.19+ ships manylinux_2_35 wheels only (with 2_28 the lock fell back to
+# open3d 0.18, which warns once per process that it has no CUDA device).
+LOCK_PLATFORM := x86_64-manylinux_2_35
 # `make lock` takes the newest versions published before this moment (so a rerun gives the
 # same lock); `make lock LOCK_DATE=...` moves it on. Review the diff, then `make test`.
 LOCK_DATE ?= 2026-11-27T00:00:00Z
-LOCK_ARGS := --python-version 3.11 --python-platform $(LOCK_PLATFORM) --generate-hashes \
+LOCK_ARGS := --upgrade --python-version 3.11 --python-platform $(LOCK_PLATFORM) --generate-hashes \
 	--format pylock.toml --exclude-newer $(LOCK_DATE) --quiet
 
-.PHONY: pycheck demo test lint test-all test-latest lock sysdeps sysdeps-egl venv install install-test clean bench
+.PHONY: pycheck demo test lint test-all test-latest lock dist sysdeps sysdeps-egl venv install install-test clean bench
 
 # open3d's Linux wheel links against libusb-1.0; pip cannot provide it.
 sysdeps:
@@ -74,7 +76,7 @@ lock: $(VENV)/.created
 	  $(LOCK_ARGS) -o pylock.test.toml
 	$(UV) pip compile pyproject.toml --extra test --extra pyrender requirements/build.in \
 	  --python-version 3.11 --python-platform $(LOCK_PLATFORM) --exclude-newer $(LOCK_DATE) \
-	  --quiet --no-header --no-annotate -o $(VENV)/lock-constraints.txt
+	  --upgrade --quiet --no-header --no-annotate -o $(VENV)/lock-constraints.txt
 	$(UV) pip compile pyproject.toml requirements/build.in -c $(VENV)/lock-constraints.txt \
 	  $(LOCK_ARGS) -o pylock.toml
 	@echo "pylock.toml and pylock.test.toml regenerated (newest before $(LOCK_DATE)); review git diff, then make test"
@@ -111,6 +113,11 @@ test: install-test
 
 test-all: install-test
 	$(BIN)/python -m pytest -q -m "slow or not slow"
+
+# sdist and wheel in dist/ (python -m build, with the locked setuptools: no download).
+dist: install-test
+	rm -rf dist
+	$(PY) -m build --no-isolation --outdir dist .
 
 # Benchmark suite (tools/bench_suite.py runs tools/bench_*.py and more): writes bench.json.
 bench: install-test

@@ -199,7 +199,12 @@ class ImageWorker:
         self._cameras = self._group_cameras(group, pl)
         add_placement(rs, self._visible_part(rs, pl), self.catalog,
                       simple_boxes=self.cfg.simple_vehicles)
-        self._placement_warnings = sorted({str(w.message) for w in caught})
+        # our own warnings only (PlacementWarning, SceneWarning): a library's one-time import
+        # warning (open3d's "built with CUDA support, but no suitable CUDA devices") reaches
+        # only the first placement of a process, and would make the meta depend on which
+        # worker placed which group
+        self._placement_warnings = sorted({str(w.message) for w in caught
+                                           if w.category.__module__.startswith("aerial_synth.")})
         self._group, self._rayscene, self._placement = group, rs, pl
 
     def _group_cameras(self, group: int, pl) -> dict:

@@ -653,3 +653,29 @@ def test_fork_server_workers_are_ready_and_light():
     assert viewer is None or "stub" not in (viewer.__doc__ or "")
     with pytest.raises(RuntimeError, match="not loaded"):
         _server_open3d._absent()
+
+
+def test_meta_records_our_warnings_not_a_library_s(tiny_scene, tmp_path, monkeypatch):
+    """A library's one-time warning during placement (open3d 0.18 warns once per process
+    that it was built with CUDA) stays out of meta.json: it reached only the first placement
+    of a process, so the meta of one image depended on which worker placed its group (a
+    killed-and-resumed export differed from a clean one). Our own warnings stay."""
+    import warnings
+
+    import aerial_synth.placement as placement_pkg
+    from aerial_synth.placement.traffic import PlacementWarning
+
+    real = placement_pkg.place
+
+    def noisy_place(*a, **kw):
+        warnings.warn("a third-party library warns once per process", UserWarning, stacklevel=2)
+        warnings.warn("ours: a placement warning", PlacementWarning, stacklevel=2)
+        return real(*a, **kw)
+
+    monkeypatch.setattr(placement_pkg, "place", noisy_place)
+    out = tmp_path / "ds"
+    export_dataset(_cfg(tiny_scene, images=1, formats="dota"), out, workers=1, progress=False)
+    metas = list((out / "meta").glob("*.json"))
+    assert len(metas) == 1
+    recorded = json.loads(metas[0].read_text())["placement"]["warnings"]
+    assert recorded == ["ours: a placement warning"]
