@@ -359,8 +359,16 @@ class Scene:
         hi = np.max([o.vertices.max(axis=0) for o in self.objects if len(o.vertices)], axis=0)
         return np.stack([lo, hi])
 
-    def vertex_hash(self) -> str:
-        """SHA-256 over names, labels, vertices and faces (for determinism checks)."""
+    def vertex_hash(self, decimals: int | None = None) -> str:
+        """SHA-256 over names, labels, materials, vertices and faces (for determinism checks).
+
+        ``decimals``: hash the vertices rounded to that many decimals of a metre (6: a
+        micrometre) instead of their exact bits. Two runs of one install agree bit for bit;
+        across machines, glibc picks CPU-specific variants of sin, cos, exp and pow (FMA code
+        where the CPU has it) that may differ in the last bit, and the procedural scenes'
+        coordinates follow (``GLIBC_TUNABLES=glibc.cpu.hwcaps=-FMA`` changes city_park's exact
+        hash, not its micrometre one). Pinned hashes use ``decimals=6``.
+        """
         import hashlib
 
         h = hashlib.sha256()
@@ -368,6 +376,9 @@ class Scene:
             h.update(o.name.encode())
             h.update(o.label.encode())
             h.update(o.material.encode())
-            h.update(np.ascontiguousarray(o.vertices).tobytes())
+            v = np.ascontiguousarray(o.vertices)
+            if decimals is not None:
+                v = np.round(v.astype(np.float64), decimals) + 0.0  # -0.0 and 0.0 alike
+            h.update(v.tobytes())
             h.update(np.ascontiguousarray(o.faces).tobytes())
         return h.hexdigest()
