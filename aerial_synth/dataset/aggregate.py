@@ -255,11 +255,18 @@ class MetaRecords:
         pool = ProcessPoolExecutor(workers, mp_context=pool_context(), initializer=_init_worker,
                                    initargs=(self.cfg, str(self.out), os.getpid()))
         pending: deque = deque()
+        unsent: list = []  # chunks the pool refused: it broke while they were submitted
         rest = None  # the chunks left when a process dies
         try:
             def submit(k):
                 for idx in islice(chunks, k):
-                    pending.append((idx, pool.submit(_pool_chunk, fn, split, idx)))
+                    if not unsent:
+                        try:
+                            pending.append((idx, pool.submit(_pool_chunk, fn, split, idx)))
+                            continue
+                        except BrokenProcessPool:  # a process died since the last result
+                            pass
+                    unsent.append(idx)  # kept in order, after those pending
 
             submit(WINDOW_PER_WORKER * workers)
             while pending:
@@ -268,12 +275,14 @@ class MetaRecords:
                     res = fut.result()
                 except BrokenProcessPool:  # a process died (killed, or a script's main module
                     # that exports again when a worker imports it): the rest here, same bytes
-                    rest = chain([idx], [i for i, _ in pending], chunks)
+                    rest = chain([idx], [i for i, _ in pending], unsent, chunks)
                     break
                 except (AerialSynthError, OSError) as exc:  # one line, as in this process
                     raise exc.with_traceback(None) from None
                 submit(1)
                 yield from self._merge(idx, *res)
+            if rest is None and unsent:  # the pool broke with nothing left pending
+                rest = chain(unsent, chunks)
         finally:
             for _, fut in pending:
                 fut.cancel()

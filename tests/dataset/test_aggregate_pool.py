@@ -318,3 +318,31 @@ def test_an_export_aggregating_on_the_pool_is_the_same_export(small_export, tmp_
     assert started == [()] and pools
     a, b = tree_bytes(out), tree_bytes(tmp_path / "ds")
     assert a.keys() == b.keys() and [k for k in a if a[k] != b[k]] == []
+
+
+@pytest.mark.parametrize("good_submits", [0, 3])
+def test_a_pool_that_breaks_while_chunks_are_submitted(small_export, tmp_path, pool_for_all,
+                                                        monkeypatch, good_submits):
+    """The pool may break between two results, so that the next submit raises
+    BrokenProcessPool (seen in a loaded clean-clone run: a traceback instead of the files).
+    The refused chunk and the rest are then made in this process, in order: the same bytes,
+    with the one warning."""
+    from concurrent.futures.process import BrokenProcessPool
+
+    cfg, out = small_export
+    wide = _widen(cfg, out, tmp_path / "ref")
+    write_aggregates(wide, tmp_path / "ref", workers=1)
+    _widen(cfg, out, tmp_path / "broken")
+    real_submit, calls = ProcessPoolExecutor.submit, []
+
+    def submit(self, *a, **kw):
+        calls.append(1)
+        if len(calls) > good_submits:
+            raise BrokenProcessPool("a child process terminated abruptly")
+        return real_submit(self, *a, **kw)
+
+    monkeypatch.setattr(ProcessPoolExecutor, "submit", submit)
+    with pytest.warns(RuntimeWarning, match="a worker process died"):
+        write_aggregates(wide, tmp_path / "broken", workers=2)
+    assert len(calls) > good_submits
+    assert _aggregates(tmp_path / "broken") == _aggregates(tmp_path / "ref")
