@@ -233,24 +233,32 @@ def place_driveways(rayscene, cfg, rng: np.random.Generator, catalog, seed=None,
     parked, dstats = fill_sites(sites, catalog, rng, rayscene)
     rest = place_parking(rayscene, cfg, rng, catalog, seed=seed, scene_name=scene_name,
                          n_vehicles=n_vehicles, n_lines=n_lines, place_traffic=place_traffic)
-    # kerb and traffic vehicles keep clear of the driveway vehicles
+    # kerb and traffic vehicles keep clear of the driveway vehicles, and every footprint
+    # sample of theirs lands on drivable surface (a kerb bay on a tight bend may not)
     import shapely
 
-    kept = []
-    if parked:
-        tree = shapely.STRtree([shapely.Polygon(v.corners_xy(0.2)) for v in parked])
-        for v in rest.vehicles:
-            if not len(tree.query(shapely.Polygon(v.corners_xy()), predicate="intersects")):
-                kept.append(v)
-    else:
-        kept = list(rest.vehicles)
+    from .footprints import footprint_points
+
+    drv = np.array(sorted(LABEL_IDS[n] for n in rayscene.label_config.drivable))
+    ok = np.ones(len(rest.vehicles), bool)
+    if rest.vehicles:
+        vs = rest.vehicles
+        pts, owner, _, _ = footprint_points(np.array([v.x_m for v in vs]), np.array([v.y_m for v in vs]),
+                                            np.array([v.heading_rad for v in vs]),
+                                            np.array([v.length_m for v in vs]), np.array([v.width_m for v in vs]))
+        off = ~np.isin(_labels(rayscene, pts), drv)
+        ok[np.unique(owner[off])] = False
+    tree = shapely.STRtree([shapely.Polygon(v.corners_xy(0.2)) for v in parked]) if parked else None
+    kept = [v for v, good in zip(rest.vehicles, ok) if good and (
+        tree is None or not len(tree.query(shapely.Polygon(v.corners_xy()), predicate="intersects")))]
     first = len(parked) + 1
     others = [dataclasses.replace(v, id=first + k) for k, v in enumerate(kept)]
     vehicles = with_lonlat(parked, rayscene.scene.crs) + others
     stats = dict(rest.stats)
     stats["vehicles"] = len(vehicles)
     stats["driveways"] = dstats
-    stats["dropped_near_driveways"] = len(rest.vehicles) - len(kept)
+    stats["dropped_off_drivable"] = int((~ok).sum())
+    stats["dropped_near_driveways"] = len(rest.vehicles) - len(kept) - int((~ok).sum())
     neg = rayscene.scene.meta.get("hard_negatives")
     if neg is not None:
         stats["hard_negatives"] = dict(neg.get("counts", {}))

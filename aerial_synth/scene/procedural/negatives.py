@@ -220,7 +220,8 @@ def add_negatives(scene_kind: str, cfg: Mapping | None, regions: Mapping, area_m
     area_m2    : the scene area the densities refer to
     taken      : shapely geometries already standing (footprints may not touch them)
     Returns (scene objects, one per kind and material; metadata) where the metadata is
-    ``{"scene_kind", "density_per_ha", "counts", "labelled": False}``.
+    ``{"scene_kind", "density_per_ha", "counts", "labelled": False, "positions": [[kind, x,
+    y], ...]}`` (footprint centres, world metres).
     """
     import shapely
 
@@ -228,6 +229,7 @@ def add_negatives(scene_kind: str, cfg: Mapping | None, regions: Mapping, area_m
     base = shapely.STRtree(list(taken)) if taken else None
     placed: list = []  # the negatives placed so far (checked one by one: few)
     counts = {k: 0 for k in NEGATIVE_KINDS}
+    where: list = []  # [kind, x, y] of every one placed
     by: dict[tuple, list] = {}
     prepared = {}
     for name, reg in regions.items():
@@ -260,6 +262,7 @@ def add_negatives(scene_kind: str, cfg: Mapping | None, regions: Mapping, area_m
                     by.setdefault((kind, label, mat), []).append((vf, col))
                 placed.append(poly)
                 counts[kind] += 1
+                where.append([kind, round(float(cx), 3), round(float(cy), 3)])
                 break
     objs = []
     for (kind, label, mat), items in sorted(by.items()):
@@ -272,7 +275,7 @@ def add_negatives(scene_kind: str, cfg: Mapping | None, regions: Mapping, area_m
             v, f = merge_meshes(vfs)
             objs.append(SceneObject(f"negative_{kind}_{mat}_{j}", label, v, f, material=mat, color=col))
     meta = {"scene_kind": scene_kind, "density_per_ha": {k: round(v, 4) for k, v in dens.items()},
-            "counts": counts, "labelled": False}
+            "counts": counts, "labelled": False, "positions": where}
     return objs, meta
 
 
