@@ -39,7 +39,8 @@ SIDE_MARGIN_M = 0.15
 @dataclasses.dataclass(frozen=True)
 class DrivewaySite:
     """One site: hint id and kind, frame (centre (2,), axis unit (2,)), usable length along
-    the axis and width across it (metres), bay centres (k, 2), bay size, occupancy, mix."""
+    the axis and width across it (metres), bay centres (k, 2), bay size, occupancy, mix,
+    the label ids it stands on."""
 
     id: int
     kind: str
@@ -52,6 +53,7 @@ class DrivewaySite:
     bay_wid_m: float
     occupancy: float
     mix: dict
+    label_ids: np.ndarray  # the labels its bays and footprints must stand on
 
     def polygon(self, grow_m: float = 0.0):
         import shapely
@@ -63,6 +65,13 @@ class DrivewaySite:
                                 c + self.axis * a + v * b, c - self.axis * a + v * b])
 
 
+def _site_ids(hint) -> np.ndarray:
+    """Label ids a site's vehicles may stand on: the hint's ``labels`` (an OSM driveway is
+    road surface) or parking and its painted lines."""
+    names = hint.get("labels") or _SITE_LABELS
+    return np.array([LABEL_IDS[n] for n in names if n in LABEL_IDS])
+
+
 def _labels(rs, xy):
     return rs.trace_labels(np.asarray(xy, float).reshape(-1, 2))
 
@@ -70,10 +79,10 @@ def _labels(rs, xy):
 def find_sites(rayscene) -> list[DrivewaySite]:
     """The scene's driveway hints with the bays that traces confirm (see the module doc)."""
     hints = rayscene.scene.meta.get("driveways") or []
-    ids = np.array([LABEL_IDS[n] for n in _SITE_LABELS])
     sites = []
     for h in hints:
         try:
+            ids = _site_ids(h)
             c = np.asarray(h["center_xy"], float)
             a = np.radians(float(h["axis_deg"]))
             L, Wd = float(h["long_m"]), float(h["short_m"])
@@ -98,7 +107,7 @@ def find_sites(rayscene) -> list[DrivewaySite]:
         ok = np.isin(_labels(rayscene, pts).reshape(len(centres), -1), ids).all(axis=1)
         sites.append(DrivewaySite(int(h["id"]), str(h.get("kind", "driveway")), c, u, L, Wd,
                                   centres[ok], bl_eff, bw_eff, float(h.get("occupancy", 0.6)),
-                                  dict(h.get("mix") or {"small-vehicle": 1.0})))
+                                  dict(h.get("mix") or {"small-vehicle": 1.0}), ids))
     return sites
 
 
@@ -126,7 +135,6 @@ def fill_sites(sites, catalog, rng: np.random.Generator, rayscene, first_id: int
     """Park vehicles in the sites' bays. Returns (vehicles, stats)."""
     import shapely
 
-    ids = np.array([LABEL_IDS[n] for n in _SITE_LABELS])
     placed_polys = list(obstacles or [])
     vehicles: list[PlacedVehicle] = []
     stats = {"sites": len(sites), "bays": 0, "filled": 0, "no_fit": 0, "off_surface": 0, "overlap": 0,
@@ -166,7 +174,7 @@ def fill_sites(sites, catalog, rng: np.random.Generator, rayscene, first_id: int
             corners = footprint_corners_xy(xy[0], xy[1], h, m.length_m, m.width_m)
             pts = _outline(np.array([xy[0]]), np.array([xy[1]]), np.array([h]),
                            np.array([m.length_m]), np.array([m.width_m]))
-            if not np.isin(_labels(rayscene, pts), ids).all():
+            if not np.isin(_labels(rayscene, pts), site.label_ids).all():
                 stats["off_surface"] += 1
                 continue
             poly = shapely.Polygon(corners)

@@ -33,6 +33,8 @@ from .tags import (
     waterway_width_m,
 )
 
+from .residential import residential_meta
+
 __all__ = ["build_scene", "ATTRIBUTION", "Z"]
 
 ATTRIBUTION = "© OpenStreetMap contributors"
@@ -574,6 +576,8 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
         "build_seconds": {"roads": round(t_roads - t0, 3),
                           "total": round(time.perf_counter() - t0, 3)},
     }
+    # driveway sites, house/garage/shed counts, sheds as hard negatives (osm/residential.py)
+    meta.update(residential_meta(roads, data.areas, ageoms, clip))
     return Scene(name=name, objects=objects, source=source, truth=truth, meta=meta,
                  origin=(float(origin_xy[0]), float(origin_xy[1]), 0.0), crs=crs)
 
