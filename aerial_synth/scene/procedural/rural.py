@@ -349,6 +349,8 @@ def _fields(rng, land, ang, fcfg, W, H):
 def _rural_scene(b: Builder, source: str, meta: dict):
     """Builder.scene, then: road surfaces split into asphalt, gravel and dirt, wheel ruts
     on the tracks, fields, farm buildings, hard negatives; hints and counts in the meta."""
+    import dataclasses
+
     import shapely
 
     from ..build import polygon_object
@@ -396,6 +398,9 @@ def _rural_scene(b: Builder, source: str, meta: dict):
             out.append(polygon_object("track_grass", "road", g, Z_TRACK, material="grass",
                                       color=(0.16, 0.22, 0.10)))
     objs[i0:i0] = out
+    # farm yards are gravel, not asphalt
+    objs = [dataclasses.replace(o, material="paving", color=(0.50, 0.47, 0.41)) if o.name == "parking" else o
+            for o in objs]
     objs.extend(r["fields"])
     objs.extend(r["houses"].objects("farm"))
     objs.extend(r["negatives"])
