@@ -23,8 +23,8 @@ from ._hull import box as _box
 from ._hull import convex_hull as _hull
 from .catalog import OPTION_RISE_M
 from .large import LARGE_BUILDERS
-from .towed import TOWED_BUILDERS
 from .model import VehicleColor, VehicleModel
+from .towed import TOWED_BUILDERS
 from .user_mesh import load_user_mesh_parts
 
 __all__ = ["VehicleMesh", "build_mesh"]

@@ -22,6 +22,7 @@ from ..build import flat_polygon
 from ..hints import META_KEY, HintRoad, RoadHints
 from ..model import RoadTruth, Scene, SceneObject, SceneTruth
 from .read import OsmData
+from .residential import residential_meta
 from .tags import (
     EDGE_LINE_CLASSES,
     SIDEWALK_WIDTH_M,
@@ -32,8 +33,6 @@ from .tags import (
     road_params,
     waterway_width_m,
 )
-
-from .residential import residential_meta
 
 __all__ = ["build_scene", "ATTRIBUTION", "Z"]
 

@@ -48,7 +48,7 @@ from ... import validators as V
 from ...errors import SceneError
 from . import spec as S
 from .builder import Builder
-from .houses import HouseSet, rect_poly
+from .houses import HouseSet
 from .negatives import NEGATIVE_KINDS, add_negatives
 from .roads import Road, chaikin, offset_line
 
