@@ -28,6 +28,17 @@ _TYRE = DEFAULT_COLOR_FOR_MATERIAL["tyre"]
 _TRIM = DEFAULT_COLOR_FOR_MATERIAL["trim"]
 _GLASS = (0.075, 0.095, 0.125)
 _GALV = (0.55, 0.56, 0.57)
+_FRONT = DEFAULT_COLOR_FOR_MATERIAL["light_front"]
+_REAR = DEFAULT_COLOR_FOR_MATERIAL["light_rear"]
+
+
+def _rear_lights(x0, hw, z):
+    """A pair of red rear lights on a trailer's rear edge."""
+    out = []
+    for s in (1, -1):
+        y0, y1 = sorted((s * (hw - 0.05), s * (hw - 0.3)))
+        out.append(_part("light_rear", "light_rear", _REAR, _box(x0 - 0.02, x0 + 0.06, y0, y1, z - 0.1, z)))
+    return out
 _BOAT_WHITE = (0.88, 0.88, 0.86)
 
 
@@ -69,6 +80,15 @@ def _tractor(L, W, H):
     parts.append(_part("greenhouse", "glass", _GLASS, _box(cab_x0 + 0.05, cab_x1 - 0.05, -cw + 0.05, cw - 0.05,
                                                           1.45, H - 0.12)))
     parts.append(_part("roof", "paint", None, _box(cab_x0 - 0.1, cab_x1 + 0.1, -cw - 0.1, cw + 0.1, H - 0.12, H)))
+    parts.append(_part("windscreen", "glass", _GLASS, _box(cab_x1 - 0.05, cab_x1 + 0.01, -cw + 0.1, cw - 0.1,
+                                                          1.55, H - 0.2)))
+    parts.append(_part("rear_window", "glass", _GLASS, _box(cab_x0 - 0.01, cab_x0 + 0.05, -cw + 0.1, cw - 0.1,
+                                                           1.55, H - 0.2)))
+    for s in (1, -1):
+        y0, y1 = sorted((s * 0.15, s * 0.4))
+        parts.append(_part("light_front", "light_front", _FRONT, _box(x1 - 0.1, x1, y0, y1, 1.2, 1.4)))
+        y0, y1 = sorted((s * (cw - 0.05), s * (cw - 0.25)))
+        parts.append(_part("light_rear", "light_rear", _REAR, _box(cab_x0 - 0.08, cab_x0, y0, y1, 1.0, 1.2)))
     # mudguards over the rear wheels
     for s in (1, -1):
         y0, y1 = sorted((s * (hw - wr - 0.02), s * hw))
@@ -88,14 +108,13 @@ def _farm_trailer(L, W, H):
     parts.append(_part("chassis", "trim", _TRIM, _box(x0 + 0.5, box_front, -0.6, 0.6, 0.55, floor)))
     parts.append(_part("floor", "cargo", (0.30, 0.26, 0.20), _box(x0, box_front, -hw, hw, floor, floor + 0.08)))
     t = 0.08
-    for name, bx in (("wall_left", _box(x0, box_front, hw - t, hw, floor, H)),
-                     ("wall_right", _box(x0, box_front, -hw, -hw + t, floor, H)),
-                     ("wall_front", _box(box_front - t, box_front, -hw, hw, floor, H)),
-                     ("wall_rear", _box(x0, x0 + t, -hw, hw, floor, H))):
-        parts.append(_part(name, "paint", None, bx))
+    for bx in (_box(x0 + 0.06, box_front, hw - t, hw, floor, H), _box(x0 + 0.06, box_front, -hw, -hw + t, floor, H),
+               _box(box_front - t, box_front, -hw + t, hw - t, floor, H), _box(x0 + 0.06, x0 + 0.06 + t, -hw + t, hw - t, floor, H)):
+        parts.append(_part("body", "paint", None, bx))  # the box's four walls
     xc = (x0 + box_front) / 2
     for xa in (xc - 0.7, xc + 0.7):
         parts += _pair(xa, hw - 0.05, 0.5, 0.42)
+    parts += _rear_lights(x0 + 0.02, hw, floor)
     return parts
 
 
@@ -115,7 +134,7 @@ def _boat_trailer(L, W, H):
     hull = _hull([(stern, s * (hw - 0.05), z) for s in (1, -1) for z in (z0 + 0.15, z1)]
                  + [(stern + 0.7 * bl, s * (hw - 0.05), z) for s in (1, -1) for z in (z0, z1)]
                  + [(bow, 0.0, z1), (bow - 0.3, 0.0, z0 + 0.2)])
-    parts.append(_part("hull", "paint", _BOAT_WHITE, hull))
+    parts.append(_part("body", "paint", _BOAT_WHITE, hull))  # the boat's hull
     parts.append(_part("stripe", "paint", None, _box(stern + 0.2, stern + 0.6 * bl, hw - 0.06, hw - 0.03, z1 - 0.25, z1 - 0.1)))
     parts.append(_part("stripe", "paint", None, _box(stern + 0.2, stern + 0.6 * bl, -hw + 0.03, -hw + 0.06, z1 - 0.25, z1 - 0.1)))
     parts.append(_part("cockpit", "trim", (0.12, 0.12, 0.13),
@@ -124,7 +143,8 @@ def _boat_trailer(L, W, H):
                + [(stern + 0.52 * bl, s * (hw - 0.35), H) for s in (1, -1)]
                + [(stern + 0.55 * bl, s * (hw - 0.3), z1) for s in (1, -1)])
     parts.append(_part("windscreen", "glass", _GLASS, ws))
-    parts.append(_part("motor", "trim", (0.10, 0.10, 0.11), _box(stern - 0.0, stern + 0.5, -0.25, 0.25, z0, z1 + 0.3)))
+    parts.append(_part("motor", "trim", (0.10, 0.10, 0.11), _box(stern + 0.1, stern + 0.5, -0.25, 0.25, z0, z1 + 0.3)))
+    parts += _rear_lights(stern + 0.1, hw - 0.1, 0.5)
     return parts
 
 
@@ -137,16 +157,17 @@ def _utility_trailer(L, W, H):
     parts = [_drawbar(x1, box_front, 0.45)]
     parts.append(_part("floor", "cargo", (0.35, 0.30, 0.24), _box(x0, box_front, -hw + 0.1, hw - 0.1, floor - 0.05, floor)))
     t = 0.04
-    for name, bx in (("wall_left", _box(x0, box_front, hw - 0.1 - t, hw - 0.1, floor, H)),
-                     ("wall_right", _box(x0, box_front, -hw + 0.1, -hw + 0.1 + t, floor, H)),
-                     ("wall_front", _box(box_front - t, box_front, -hw + 0.1, hw - 0.1, floor, H)),
-                     ("wall_rear", _box(x0, x0 + t, -hw + 0.1, hw - 0.1, floor, H))):
-        parts.append(_part(name, "paint", None, bx))
+    for bx in (_box(x0 + 0.06, box_front, hw - 0.1 - t, hw - 0.1, floor, H),
+               _box(x0 + 0.06, box_front, -hw + 0.1, -hw + 0.1 + t, floor, H),
+               _box(box_front - t, box_front, -hw + 0.1 + t, hw - 0.1 - t, floor, H),
+               _box(x0 + 0.06, x0 + 0.06 + t, -hw + 0.1 + t, hw - 0.1 - t, floor, H)):
+        parts.append(_part("body", "paint", None, bx))  # the box's four walls
     xc = (x0 + box_front) / 2
     parts += _pair(xc, hw, 0.28, 0.18)
     for s in (1, -1):
         y0, y1 = sorted((s * hw, s * (hw - 0.2)))
         parts.append(_part("mudguard", "metal", _GALV, _box(xc - 0.35, xc + 0.35, y0, y1, 0.55, 0.62)))
+    parts += _rear_lights(x0 + 0.02, hw - 0.1, floor - 0.05)
     return parts
 
 
