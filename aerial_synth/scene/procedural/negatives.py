@@ -59,9 +59,9 @@ DENSITY_PER_HA: dict[str, dict[str, float]] = {
     "residential_eu": {"shed": 1.5, "garden_house": 1.5, "ac_unit": 0.8, "container": 0.05,
                        "dumpster": 0.5, "bus_shelter": 0.25, "market_stall": 0.1, "slab": 1.0,
                        "road_patch": 1.5, "boat": 0.1},
-    "rural": {"shed": 0.15, "garden_house": 0.05, "ac_unit": 0.05, "container": 0.12,
-              "dumpster": 0.06, "bus_shelter": 0.02, "market_stall": 0.03, "slab": 0.12,
-              "road_patch": 0.3, "boat": 0.03},
+    "rural": {"shed": 0.3, "garden_house": 0.08, "ac_unit": 0.08, "container": 0.3,
+              "dumpster": 0.12, "bus_shelter": 0.06, "market_stall": 0.08, "slab": 0.3,
+              "road_patch": 0.6, "boat": 0.06},
 }
 #: Kind -> the regions (named by the generator) it may stand in, in order of preference.
 KIND_REGIONS: dict[str, tuple[str, ...]] = {

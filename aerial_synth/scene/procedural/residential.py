@@ -1,8 +1,9 @@
 """Generator ``residential``: a neighbourhood of detached houses, US or European (``variant``).
 
-Streets: a curved collector street across the scene (west to east) and ``branches``
-curved side streets off it, alternately north and south; a share of them end in a
-cul-de-sac (a turning circle), the others run on to the scene edge. Parcels line both
+Streets: a curved collector street across the scene (west to east), up to two crescents
+parallel to it (two parcel depths away, where the scene is tall enough) and ``branches``
+curved side streets off the collector, alternately north and south; a share of them end in
+a cul-de-sac (a turning circle), the others run on to the scene edge. Parcels line both
 sides of every street (and fan round every turning circle); each holds:
 
 - a house (gable, hip or pyramid roof, or flat; coverings and colours per variant,
@@ -24,9 +25,9 @@ double, pools and RV pads common; European lots are narrow (16-22 m), streets 6 
 sidewalks, single driveways, hedges, few pools. Every value can be set in the spec::
 
     variant: us
-    streets: {collector_width_m: 11, street_width_m: 9, sidewalk_m: 1.5, branches: 3,
-              cul_de_sac_prob: 0.7, curve_m: 25}
-    houses:  {frontage_m: [24, 32], depth_m: [34, 42], setback_m: [7, 12],
+    streets: {collector_width_m: 11, street_width_m: 9, sidewalk_m: 1.5, branches: 4,
+              cul_de_sac_prob: 0.7, curve_m: 25, crescents: 2}
+    houses:  {frontage_m: [24, 30], depth_m: [30, 38], setback_m: [7, 12.5],
               width_m: [11, 16], house_depth_m: [9, 13], height_m: [6, 9]}
     yards:   {double_driveway: 0.7, garage: 0.9, pad: 0.3, pool: 0.3, trampoline: 0.2,
               patio: 0.7, furniture: 0.5, hedge: 0.0, trees_per_parcel: 1.5}
@@ -58,7 +59,7 @@ __all__ = ["generate_residential", "RESIDENTIAL_DEFAULTS", "check_residential", 
 RESIDENTIAL_DEFAULTS: dict[str, dict] = {
     "us": {
         "streets": {"collector_width_m": 11.0, "street_width_m": 9.0, "sidewalk_m": 1.5,
-                    "branches": 4, "cul_de_sac_prob": 0.7, "curve_m": 25.0},
+                    "branches": 4, "cul_de_sac_prob": 0.7, "curve_m": 25.0, "crescents": 2},
         "houses": {"frontage_m": [24.0, 30.0], "depth_m": [30.0, 38.0], "setback_m": [7.0, 12.5],
                    "width_m": [11.0, 16.0], "house_depth_m": [9.0, 13.0], "height_m": [6.0, 9.0]},
         "yards": {"double_driveway": 0.7, "garage": 0.92, "pad": 0.3, "pool": 0.3,
@@ -70,7 +71,7 @@ RESIDENTIAL_DEFAULTS: dict[str, dict] = {
     },
     "eu": {
         "streets": {"collector_width_m": 7.5, "street_width_m": 6.0, "sidewalk_m": 2.0,
-                    "branches": 4, "cul_de_sac_prob": 0.5, "curve_m": 18.0},
+                    "branches": 4, "cul_de_sac_prob": 0.5, "curve_m": 18.0, "crescents": 2},
         "houses": {"frontage_m": [16.0, 22.0], "depth_m": [26.0, 34.0], "setback_m": [5.8, 8.0],
                    "width_m": [8.5, 12.0], "house_depth_m": [8.0, 11.0], "height_m": [7.0, 10.0]},
         "yards": {"double_driveway": 0.15, "garage": 0.7, "pad": 0.06, "pool": 0.06,
@@ -112,7 +113,8 @@ _KEYS = {
     "variant": S.choice("us", "eu"),
     "streets": S.section({"collector_width_m": S.pos(40.0), "street_width_m": S.pos(40.0),
                           "sidewalk_m": S.nonneg(10.0), "branches": S.integer(0, 40),
-                          "cul_de_sac_prob": S.prob, "curve_m": S.nonneg(500.0)}),
+                          "cul_de_sac_prob": S.prob, "curve_m": S.nonneg(500.0),
+                          "crescents": S.integer(0, 2)}),
     "houses": S.section({"frontage_m": S.span(8.0, 200.0), "depth_m": S.span(15.0, 300.0),
                          "setback_m": S.span(5.8, 50.0), "width_m": S.span(5.0, 60.0),
                          "house_depth_m": S.span(6.0, 60.0), "height_m": S.span(3.5, 30.0)}),
@@ -160,6 +162,20 @@ def _streets(b: Builder, cfg: Mapping) -> None:
     ys -= ys.mean()
     coll = LineString(chaikin(np.column_stack([xs, ys]), 3))
     b.roads.append(Road("collector", coll, cw, sidewalk_m=side, centre="dashed" if cw >= 8 else "none"))
+    # crescents: streets parallel to the collector, two parcel depths away on each side
+    hs = cfg["houses"]
+    gap = sum(hs["depth_m"]) + sw + 2 * side + 2.0
+    for k, sgn in enumerate((1.0, -1.0)[: int(st["crescents"])]):
+        if gap + amp > H / 2 - 20.0:
+            break
+        cres = offset_line(coll, sgn * gap)
+        if cres.is_empty or cres.geom_type != "LineString":
+            continue
+        c = np.asarray(cres.coords)  # run both ends on along their tangents, past the edge
+        t0 = (c[0] - c[1]) / max(np.linalg.norm(c[0] - c[1]), 1e-9)
+        t1 = (c[-1] - c[-2]) / max(np.linalg.norm(c[-1] - c[-2]), 1e-9)
+        cres = LineString(np.vstack([c[:1] + t0 * W / 4, c, c[-1:] + t1 * W / 4]))
+        b.roads.append(Road(f"crescent_{k}", cres, sw, sidewalk_m=side, centre="none"))
     nb = int(st["branches"])
     if nb == 0:
         return
