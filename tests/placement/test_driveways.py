@@ -85,3 +85,22 @@ def test_rural_yards_and_classes():
         if v.model in ("tractor", "farm_trailer", "boat_trailer"):
             assert v.cls == "large-vehicle"
     assert any(v.state == "moving" for v in pl.vehicles)  # sparse traffic on the country roads
+
+
+def test_scene_without_hints_warns_and_places_kerbs_and_traffic():
+    spec = {"generator": "city_park", "seed": 1, "size_m": [160, 120],
+            "roads": [{"name": "a", "points": [[-80, 0], [80, 0]], "width_m": 9}]}
+    rs = RayScene(generate(spec))
+    with pytest.warns(UserWarning, match="no driveway hints"):
+        pl = place(rs, "residential", seed=1, overrides={"lines": 2, "parking": {"kerb_lines": 2}})
+    assert pl.vehicles and all(v.driveway == -1 for v in pl.vehicles)
+    assert pl.stats["driveways"]["sites"] == 0
+
+
+def test_bad_site_mix_is_one_clear_error():
+    from aerial_synth.errors import ConfigError
+
+    spec = {**SPECS["eu"], "vehicles": {"driveway_mix": {"spaceship": 1.0}}}
+    rs = RayScene(generate(spec))
+    with pytest.raises(ConfigError, match=r"driveways\[0\]\.mix\.spaceship: unknown class or model"):
+        place(rs, "residential", seed=1, overrides={"lines": 1, "parking": {"kerb_lines": 1}})
