@@ -297,19 +297,25 @@ def generate_residential(b: Builder, spec: Mapping) -> None:
         has_garage = rng.random() < ys["garage"]
         gw = dw + 0.8
         half = f / 2 - 0.3
+        # a side pad (RV, boat, trailer) takes 4.6 m beside the house: the house gives way
+        # to it down to 8 m wide, else there is no pad
+        want_pad = rng.random() < ys["pad"]
+        pad_room = 4.6 if want_pad and 2 * half - 2.4 - gw - 3.4 >= 8.0 else 0.0
         # house and garage slot side by side, 1.2 m or more from the parcel sides
-        if hw + gw > 2 * half - 2.4:
-            hw = 2 * half - 2.4 - gw
+        if hw + gw > 2 * half - 2.4 - pad_room:
+            hw = 2 * half - 2.4 - gw - pad_room
         if hw < 6.5:
             double = False
             dw = rng.uniform(3.0, 3.4)
             gw = dw + 0.8
             hw = min(rng.uniform(*hs["width_m"]), 2 * half - 2.4 - gw)
+            pad_room = 0.0
             if hw < 6.0:
                 continue
         gsd = 1.0 if rng.random() < 0.5 else -1.0  # garage on the +u or -u side
-        slack = 2 * half - 2.4 - hw - gw
-        u_lo = -half + 1.2 + rng.uniform(0.0, max(slack, 0.0))
+        slack = 2 * half - 2.4 - hw - gw - max(pad_room - 1.2, 0.0)
+        # the pad goes on the house's side away from the garage: -u when the garage is at +u
+        u_lo = -half + 1.2 + (max(pad_room - 1.2, 0.0) if gsd > 0 else 0.0) + rng.uniform(0.0, max(slack, 0.0))
         if gsd > 0:
             hu0, hu1 = u_lo, u_lo + hw
             gu0, gu1 = hu1, hu1 + gw
@@ -355,7 +361,7 @@ def generate_residential(b: Builder, spec: Mapping) -> None:
         else:
             free = half - hu1
             pu0, pu1 = hu1 + 0.4, half - 0.6
-        has_pad = free >= 4.4 and rng.random() < ys["pad"] and pad_end - 0.4 >= 7.6
+        has_pad = want_pad and free >= 4.4 and pad_end - 0.4 >= 7.6
         if has_pad:
             pw = min(pu1 - pu0, 3.8)
             pc_u = (pu0 + pu1) / 2
