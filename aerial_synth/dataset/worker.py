@@ -294,6 +294,9 @@ class ImageWorker:
                 "parameters": pl.parameters,
                 "n_vehicles": len(pl.vehicles),
                 "warnings": self._placement_warnings,
+                # scenes with hard negatives (procedural/negatives.py) count them here
+                **({"hard_negatives": rs.scene.meta["hard_negatives"]}
+                   if "hard_negatives" in rs.scene.meta else {}),
             },
             box_config=cfg.box.to_dict(),
             annotations=tuple(anns),

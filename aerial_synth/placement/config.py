@@ -186,7 +186,7 @@ class ScenarioConfig:
         V.one_of("kind", self.kind, ("lines", "random") + tuple(PARKING_KINDS))
         if self.spacing is not None and not isinstance(self.spacing, SpacingSampler):
             raise ConfigError(f"spacing: expected a spacing block, got {V.show(self.spacing)}")
-        if self.kind in ("lines", "mixed") and self.spacing is None:
+        if self.kind in ("lines", "mixed", "driveways") and self.spacing is None:
             raise ConfigError(f"spacing: a '{self.kind}' scenario needs a spacing block, got null")
         if self.parking is not None and not isinstance(self.parking, ParkingConfig):
             raise ConfigError(f"parking: expected a mapping, got {V.show(self.parking)}")

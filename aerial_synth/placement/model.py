@@ -34,6 +34,8 @@ class PlacedVehicle:
     state       : "moving" (traffic) or "parked" (placement/parking.py)
     lot, kerb   : id of the parking lot or of the kerb line a parked vehicle stands in (-1 none)
     bay         : index of its bay in that lot or kerb line (-1 for moving vehicles)
+    driveway    : id of the driveway, side pad or farm yard a parked vehicle stands in
+                  (the scene's ``driveways`` hint, placement/driveways.py; -1 none)
     """
 
     id: int
@@ -60,11 +62,14 @@ class PlacedVehicle:
     lot: int = -1
     kerb: int = -1
     bay: int = -1
+    driveway: int = -1
 
     def to_dict(self) -> dict:
         # every field is a scalar: read them straight (dataclasses.asdict deep-copies each
         # value; with ~60 vehicles per image that was 12 ms of every exported image)
         d = {k: getattr(self, k) for k in _vehicle_fields()}
+        if d["driveway"] < 0:  # only driveway vehicles carry it (other records keep their bytes)
+            del d["driveway"]
         for k, v in d.items():
             if isinstance(v, float):
                 d[k] = None if not math.isfinite(v) else round(v, 9 if k in _DEGREES else 6)

@@ -21,6 +21,8 @@ PARKING_KINDS: dict[str, tuple[bool, bool, bool]] = {
     "parking": (True, False, False),
     "street-parking": (False, True, False),
     "mixed": (True, True, True),
+    # driveways, side pads and farm yards (placement/driveways.py), kerbs and traffic
+    "driveways": (False, True, True),
 }
 DEFAULT_MIX = {"small-vehicle": 0.96, "delivery_van": 0.04}
 DEFAULT_DEPOT_MIX = {"city_bus": 0.45, "school_bus": 0.1, "coach": 0.2, "semi_trailer": 0.25}

@@ -841,6 +841,11 @@ def place(
         from ..vehicles import load_catalog
 
         catalog = load_catalog()
+    if cfg.kind == "driveways":  # residential and farm sites, then kerbs and traffic
+        from .driveways import place_driveways
+
+        return place_driveways(rayscene, cfg, rng, catalog, seed=seed, scene_name=scene_name,
+                               n_vehicles=n_vehicles, n_lines=n_lines, place_traffic=place)
     if cfg.kind in PARKING_KINDS:  # parking, street-parking, mixed: placement/parking.py
         from .parking import place_parking
 

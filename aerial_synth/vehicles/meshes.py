@@ -24,6 +24,7 @@ from ._hull import convex_hull as _hull
 from .catalog import OPTION_RISE_M
 from .large import LARGE_BUILDERS
 from .model import VehicleColor, VehicleModel
+from .towed import TOWED_BUILDERS
 from .user_mesh import load_user_mesh_parts
 
 __all__ = ["VehicleMesh", "build_mesh"]
@@ -620,6 +621,8 @@ def _wrap_large(fn):
 
 # buses, coach, delivery van, semi-trailer truck (vehicles/large.py)
 _BUILDERS.update({name: _wrap_large(fn) for name, fn in LARGE_BUILDERS.items()})
+# tractor, farm, boat and utility trailers (vehicles/towed.py)
+_BUILDERS.update({name: _wrap_large(fn) for name, fn in TOWED_BUILDERS.items()})
 
 
 # ----------------------------------------------------------------- trim options

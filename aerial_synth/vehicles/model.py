@@ -43,6 +43,11 @@ BODY_TYPES: tuple[str, ...] = (
     "coach",
     "delivery_van",
     "semi_trailer",
+    # residential and farm vehicles (vehicles/towed.py)
+    "tractor",
+    "farm_trailer",
+    "boat_trailer",
+    "utility_trailer",
 )
 
 #: Axis names accepted for a user mesh's ``forward`` and ``up``.

@@ -75,7 +75,8 @@ SET_CASES = [
     (["double_lane_probability=2"],
      "--set double_lane_probability: expected a finite number >= 0 and <= 1, got 2"),
     (["traffic=middle"], "--set traffic: expected one of right, left, got 'middle'"),
-    (["kind=parked"], "--set kind: expected one of lines, random, parking, street-parking, mixed, got 'parked'"),
+    (["kind=parked"], "--set kind: expected one of lines, random, parking, street-parking, mixed, driveways, "
+     "got 'parked'"),
     (["lines=0"], "--set lines: expected an integer >= 1 and <= 10000000, got 0"),
     (["vehicles=2.5"], "--set vehicles: expected an integer >= 1 and <= 10000000, got 2.5"),
     (["min_center_distance_m=-8"],

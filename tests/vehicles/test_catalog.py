@@ -32,7 +32,7 @@ def test_bundled_catalog_has_the_nine_thesis_models(cat):
     assert all(m.cls in CLASSES for m in cat.models)
     large = {m.name for m in cat.models if m.cls == "large-vehicle"}
     assert large == {"box_truck", "box_truck_large", "campervan", "city_bus", "school_bus", "coach",
-                     "semi_trailer"}
+                     "semi_trailer", "tractor", "farm_trailer", "boat_trailer"}
     assert len(cat.variants()) >= 50
     assert len({v.name for v in cat.variants()}) == len(cat.variants())
 
@@ -49,6 +49,10 @@ def test_bundled_catalog_has_the_nine_thesis_models(cat):
         ("box_truck", (7.0, 2.2, 3.0), (8.0, 2.55, 3.8)),
         ("box_truck_large", (7.0, 2.2, 3.0), (8.0, 2.55, 3.8)),
         ("campervan", (6.0, 2.1, 2.6), (7.6, 2.4, 3.2)),
+        ("tractor", (4.0, 2.2, 2.6), (5.5, 2.6, 3.2)),
+        ("farm_trailer", (6.0, 2.3, 1.8), (8.5, 2.55, 3.0)),
+        ("boat_trailer", (6.0, 2.1, 1.8), (9.0, 2.55, 2.8)),
+        ("utility_trailer", (2.8, 1.5, 0.6), (4.2, 2.1, 1.3)),
     ],
 )
 def test_sizes_are_realistic(cat, name, lo, hi):

@@ -22,6 +22,7 @@ from ..build import flat_polygon
 from ..hints import META_KEY, HintRoad, RoadHints
 from ..model import RoadTruth, Scene, SceneObject, SceneTruth
 from .read import OsmData
+from .residential import residential_meta
 from .tags import (
     EDGE_LINE_CLASSES,
     SIDEWALK_WIDTH_M,
@@ -574,6 +575,8 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
         "build_seconds": {"roads": round(t_roads - t0, 3),
                           "total": round(time.perf_counter() - t0, 3)},
     }
+    # driveway sites, house/garage/shed counts, sheds as hard negatives (osm/residential.py)
+    meta.update(residential_meta(roads, data.areas, ageoms, clip))
     return Scene(name=name, objects=objects, source=source, truth=truth, meta=meta,
                  origin=(float(origin_xy[0]), float(origin_xy[1]), 0.0), crs=crs)
 

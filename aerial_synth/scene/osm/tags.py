@@ -22,7 +22,20 @@ __all__ = [
     "waterway_width_m",
     "kerb_parking",
     "RoadParams",
+    "is_driveway",
+    "RESIDENTIAL_BUILDINGS",
 ]
+
+#: building=* values counted as residential (houses, garages) and as hard negatives (sheds)
+#: in the metadata of an OSM scene (docs/osm.md).
+RESIDENTIAL_BUILDINGS: dict[str, str] = {"house": "houses", "detached": "houses",
+                                         "garage": "garages", "shed": "sheds"}
+
+
+def is_driveway(tags) -> bool:
+    """``highway=service`` + ``service=driveway``: a drivable way (road surface) whose
+    stretch off the street becomes a driveway parking site (scene hint ``driveways``)."""
+    return tags.get("highway") == "service" and tags.get("service") == "driveway"
 
 #: highway=* classes that become drivable road: (lane width m, default width m two-way,
 #: default width m one-way).

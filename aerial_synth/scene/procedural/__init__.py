@@ -29,6 +29,8 @@ from .city import generate_city, with_size_m
 from .city_park import generate_city_park
 from .highway import generate_highway
 from .parking import generate_depot
+from .residential import generate_residential
+from .rural import generate_rural
 from .spec import check_spec
 from .suburb import generate_suburb
 
@@ -37,7 +39,8 @@ __all__ = ["generate", "checked_spec", "GENERATORS", "Z_GROUND", "Z_ROAD", "Z_MA
 #: generator name -> function(builder, spec) that fills the builder. Adding a generator is
 #: one module plus one line here.
 GENERATORS = {"city_park": generate_city_park, "suburb": generate_suburb, "highway": generate_highway,
-              "city": generate_city, "depot": generate_depot}
+              "city": generate_city, "depot": generate_depot,
+              "residential": generate_residential, "rural": generate_rural}
 
 
 def checked_spec(spec: Mapping, where: str, seed: int | None = None) -> tuple[dict, int]:
