@@ -21,6 +21,7 @@ from ..errors import AssetError
 from ..scene.model import DEFAULT_COLOR_FOR_MATERIAL, MATERIAL_IDS
 from ._hull import box as _box
 from ._hull import convex_hull as _hull
+from .bodies import CAR_PROFILES, car_kwargs
 from .catalog import OPTION_RISE_M
 from .large import LARGE_BUILDERS
 from .model import VehicleColor, VehicleModel
@@ -128,7 +129,9 @@ def _model_parts(model: VehicleModel) -> tuple["_Part", ...]:
     geometry is built once per model and each colour only fills the albedo column."""
     if model.is_procedural:
         # the base body is built and fitted to the base size; options go on top in metres
-        h0 = model.height_m - sum(OPTION_RISE_M[o] for o in model.options)
+        # (rounded: 1.78 + 0.42 - 0.42 is 1.7800000000000002, and the base body must be
+        # the base model's to the bit)
+        h0 = round(model.height_m - sum(OPTION_RISE_M[o] for o in model.options), 9)
         parts = _procedural_parts(model, h0)
         parts = _fit_to_size(parts, model.length_m, model.width_m, h0)
         for opt in model.options:
@@ -390,9 +393,12 @@ def _procedural_parts(model: VehicleModel, height_m: float | None = None) -> lis
 
 
 def _car(L, W, H, *, bonnet, ws_run, rw_top_from_rear, rw_base_from_rear, belt, nose_top,
-         tail_top, wheel_r, tumble=0.10, clear=0.16, rails=False) -> list[_Part]:
+         tail_top, wheel_r, tumble=0.16, clear=0.16, rails=False) -> list[_Part]:
     """A passenger car. Lengths in metres; bonnet = nose to windscreen base; ws_run =
-    horizontal run of the windscreen; rw_* = rear window edges measured from the tail."""
+    horizontal run of the windscreen; rw_* = rear window edges measured from the tail.
+    tumble: the side glass leans in by 16 cm at the roof (a 1.8 m car's roof is ~1.3 m
+    wide), so the side windows show from above as dark strips beside the roof (was 10 cm:
+    a 1-2 px line at 4 cm/px, nothing at 0.12 m)."""
     x0, x1 = -L / 2, L / 2
     roof_h = H - (0.04 if rails else 0.0)
     spec = _CarSpec(
@@ -620,6 +626,25 @@ def _wrap_large(fn):
 
 # buses, coach, delivery van, semi-trailer truck (vehicles/large.py)
 _BUILDERS.update({name: _wrap_large(fn) for name, fn in LARGE_BUILDERS.items()})
+
+
+def _profiled(body: str):
+    """The builder of a car body of :data:`.bodies.CAR_PROFILES` (a panel van's upper body
+    is painted, not glazed)."""
+    prof = CAR_PROFILES[body]
+
+    def build(L, W, H):
+        parts = _car(L, W, H, **car_kwargs(prof, L, H))
+        if not prof.glass_sides:
+            parts = [_Part(p.name, "paint", None, p.v, p.f) if p.name == "greenhouse" else p
+                     for p in parts]
+        return parts
+
+    return build
+
+
+# compact, estate, mpv, van, minibus (vehicles/bodies.py)
+_BUILDERS.update({body: _profiled(body) for body in CAR_PROFILES})
 
 
 # ----------------------------------------------------------------- trim options
