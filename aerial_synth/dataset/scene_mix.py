@@ -126,12 +126,30 @@ def _from_text(text: str, where: str) -> tuple[MixEntry, ...]:
             name, weight = item, "1"
         if not name:
             _fail(where, f"entry {k + 1}: expected SCENE[/SCENARIO]:WEIGHT, got {item!r}")
-        scene, slash, scenario = name.partition("/")
-        # a scene file path holds slashes too: "scenes/x.yaml/jam" -> split at the last
-        if slash and ("." in scenario.split("/")[0] or "/" in scenario):
-            scene, _, scenario = name.rpartition("/")
-        out.append(_entry(f"{where} entry {k + 1}", scene, scenario if slash else None, weight))
+        scene, scenario = _split_scene(name)
+        out.append(_entry(f"{where} entry {k + 1}", scene, scenario, weight))
     return tuple(out)
+
+
+def _is_scene(text: str) -> bool:
+    from ..scene.io import list_scenes
+
+    return text in list_scenes() or Path(text).is_file()
+
+
+def _split_scene(name: str) -> tuple[str, str | None]:
+    """``SCENE[/SCENARIO]`` -> (scene, scenario or None). A scene file's path holds slashes
+    too: the text is split at its last slash when what comes before is a bundled scene or
+    a file, kept whole when it is one itself, else split at the last slash (and the scene
+    is refused by :func:`check_names`)."""
+    if "/" not in name:
+        return name, None
+    head, _, tail = name.rpartition("/")
+    if _is_scene(head):
+        return head, tail
+    if _is_scene(name):
+        return name, None
+    return head, tail
 
 
 def _from_yaml(path: Path) -> tuple[MixEntry, ...]:

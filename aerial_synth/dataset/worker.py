@@ -217,7 +217,13 @@ class ImageWorker:
         self._cameras = self._group_cameras(group, pl)
         add_placement(rs, self._visible_part(rs, pl), self.catalog,
                       simple_boxes=self.cfg.simple_vehicles)
-        self._placement_warnings = sorted({str(w.message) for w in caught})
+        # placement's own warnings only: a library's import-time warning (open3d's "built
+        # with CUDA support" on a machine without a GPU) came once per process, in the first
+        # group a process placed, so a 1-worker export's metadata differed from a 2-worker one
+        from ..placement.traffic import PlacementWarning
+
+        self._placement_warnings = sorted({str(w.message) for w in caught
+                                           if issubclass(w.category, PlacementWarning)})
         self._group, self._rayscene, self._placement = group, rs, pl
 
     @functools.cached_property
