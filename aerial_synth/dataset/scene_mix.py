@@ -140,16 +140,20 @@ def _is_scene(text: str) -> bool:
 def _split_scene(name: str) -> tuple[str, str | None]:
     """``SCENE[/SCENARIO]`` -> (scene, scenario or None). A scene file's path holds slashes
     too: the text is split at its last slash when what comes before is a bundled scene or
-    a file, kept whole when it is one itself, else split at the last slash (and the scene
-    is refused by :func:`check_names`)."""
+    a file, kept whole when it is a file itself or ends in a mesh suffix, else split at the
+    last slash (and an unknown scene is refused by :func:`check_names`)."""
     if "/" not in name:
         return name, None
     head, _, tail = name.rpartition("/")
     if _is_scene(head):
         return head, tail
-    if _is_scene(name):
+    if _is_scene(name) or Path(tail).suffix.lower() in _MESH_SUFFIXES:
         return name, None
     return head, tail
+
+
+#: scene-file suffixes that no scenario has (a mesh or an OSM extract)
+_MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".osm", ".pbf", ".bz2")
 
 
 def _from_yaml(path: Path) -> tuple[MixEntry, ...]:
