@@ -28,10 +28,12 @@ stream ``[seed, g, 1]``.
 
 The ``default`` preset (provisional). The issue asks for the mix that trains the best
 detector on real images; that is measured with the sim-to-real loop (``sim2real``), which
-has not been run on mixes yet. Until it has, ``default`` is a judgement: about half city
-traffic (the bundled scenes where the detector already does well), a quarter residential
-streets with kerb and driveway parking (the weakest real imagery), and the rest highway,
-car parks and a depot, so every placement context of the issue appears. The residential
+has not been run on mixes yet. Until it has, ``default`` is a judgement: 40 % city traffic
+(jam and mixed traffic with kerb parking on city_park, where the detector already does
+well), 30 % residential streets with kerb and lot parking (suburb: the weakest real imagery
+is residential), and 10 % each highway traffic, a car park (suburb's lots) and a depot's
+bus and truck yards, so every placement context of the issue appears. Every entry places
+vehicles on its scene (tested). The residential
 and rural scenes of issue 29 (part 1) belong in it once they are bundled: add entries here.
 Plain ``export`` (no ``--scene-mix``) stays city_park/jam, so existing datasets, pinned
 outputs and benchmarks keep their bytes.
@@ -55,7 +57,7 @@ MIX_STREAM = 3
 #: named mixes; ``default`` is provisional (see the module text)
 PRESETS: dict[str, str] = {
     "default": ("city_park/jam:2,city_park/mixed:2,suburb/mixed:2,"
-                "suburb/street-parking:1,highway/normal:1,city_park/parking:1,depot/parking:1"),
+                "suburb/street-parking:1,highway/normal:1,suburb/parking:1,depot/parking:1"),
 }
 
 
