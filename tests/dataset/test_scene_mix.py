@@ -127,3 +127,18 @@ def test_mixed_export_records_each_groups_scene_and_scenario(tmp_path):
         assert rec.placement["scene"] == ("a" if k == 0 else "b")
         seen.add(k)
     assert seen == {0, 1}  # both entries drawn by these six groups (seed 5)
+
+
+@pytest.mark.slow  # loads four bundled scenes and places ~2000 vehicles (~30 s)
+def test_every_default_entry_places_vehicles():
+    from aerial_synth.placement import place
+    from aerial_synth.scene import load_scene
+    from aerial_synth.scene.raycast import RayScene
+    from aerial_synth.vehicles import load_catalog
+
+    cat = load_catalog()
+    scenes = {}
+    for e in parse_mix("default").entries:
+        s = scenes.setdefault(e.scene, load_scene(e.scene))
+        pl = place(RayScene(s), e.scenario, np.random.default_rng(0), catalog=cat, scene_name=e.scene)
+        assert len(pl.vehicles) > 20, e
