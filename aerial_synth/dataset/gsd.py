@@ -18,6 +18,10 @@ the camera at ``--altitude`` at the range's geometric centre:
 
 One range at a time: both would fix the same focal length twice.
 
+A scene smaller than the top of the range's frames (the 240 m depot at 0.3 m: 307 m frames)
+draws over the part of the range whose frames fit (:func:`scene_cap_m`), so no frame shows
+the void beyond the scene's edge; the draw stays log-uniform there.
+
 The distribution: log-uniform (``log gsd`` uniform in ``[log LO, log HI]``). GSD is a scale,
 and what a detector sees is the object's size in pixels, ``1 / gsd``: log-uniform gives the
 same share of images to every octave of scale (0.05-0.1 m as many as 0.1-0.2 m), which is
@@ -41,8 +45,8 @@ import numpy as np
 
 from ..errors import ExportError
 
-__all__ = ["GSD_STREAM", "DISTRIBUTIONS", "GsdRange", "parse_range", "arg_range", "image_gsd_m",
-           "image_camera_config", "widest_camera_config"]
+__all__ = ["GSD_STREAM", "DISTRIBUTIONS", "FOOTPRINT_MARGIN", "GsdRange", "parse_range", "arg_range",
+           "scene_cap_m", "image_gsd_m", "image_camera_config", "widest_camera_config"]
 
 #: third SeedSequence word of an image's GSD draw: [seed, index, GSD_STREAM] (placement
 #: groups use [seed, group, 1], see .seeds)
@@ -128,13 +132,19 @@ class GsdRange:
             return cls(f, a[0] / f, a[1] / f)
         return None
 
-    def draw(self, rng: np.random.Generator) -> float:
-        """One nadir GSD in [gsd_lo_m, gsd_hi_m], metres per pixel."""
+    def draw(self, rng: np.random.Generator, cap_m: float | None = None) -> float:
+        """One nadir GSD in [gsd_lo_m, gsd_hi_m], metres per pixel. ``cap_m`` narrows the
+        top of the range (never below gsd_lo_m); the same uniform is mapped to the narrower
+        range, so the draw stays log-uniform (or uniform) there."""
         u = float(rng.random())
+        lo_m = self.gsd_lo_m
+        hi_m = self.gsd_hi_m if cap_m is None else max(lo_m, min(self.gsd_hi_m, float(cap_m)))
+        if hi_m <= lo_m:
+            return lo_m
         if self.distribution == "uniform":
-            return self.gsd_lo_m + u * (self.gsd_hi_m - self.gsd_lo_m)
-        lo, hi = math.log(self.gsd_lo_m), math.log(self.gsd_hi_m)
-        return min(self.gsd_hi_m, max(self.gsd_lo_m, math.exp(lo + u * (hi - lo))))
+            return lo_m + u * (hi_m - lo_m)
+        lo, hi = math.log(lo_m), math.log(hi_m)
+        return min(hi_m, max(lo_m, math.exp(lo + u * (hi - lo))))
 
     def camera_config(self, cfg, gsd_m: float):
         """The CameraConfig of an image at ``gsd_m``: this lens, altitude gsd x focal."""
@@ -145,22 +155,40 @@ class GsdRange:
                             max_tilt_deg=cfg.max_tilt_deg)
 
 
-def image_gsd_m(cfg, index: int) -> float | None:
-    """Image ``index``'s drawn nadir GSD (None without a range)."""
+#: a frame's ground footprint at nadir times this must fit in the scene for the draw to
+#: reach a GSD (tilt up to 15 degrees and the aim's jitter widen the footprint)
+FOOTPRINT_MARGIN = 1.5
+
+
+def scene_cap_m(cfg, scene_xy_bounds) -> float | None:
+    """The largest GSD whose frame still fits in a scene of these bounds
+    ([[xmin, ymin], [xmax, ymax]], metres): a depot of 240 m x 200 m shows void beyond its
+    edge at 0.3 m GSD (307 m frames). None without bounds."""
+    if scene_xy_bounds is None:
+        return None
+    b = np.asarray(scene_xy_bounds, dtype=np.float64)
+    extent = float(np.min(b[1, :2] - b[0, :2]))
+    return extent / (max(cfg.width_px, cfg.height_px) * FOOTPRINT_MARGIN)
+
+
+def image_gsd_m(cfg, index: int, scene_xy_bounds=None) -> float | None:
+    """Image ``index``'s drawn nadir GSD (None without a range), from
+    ``SeedSequence([seed, index, GSD_STREAM])``; in a scene too small for the range's top,
+    drawn over the part of the range whose frames fit (:func:`scene_cap_m`)."""
     r = GsdRange.of(cfg)
     if r is None:
         return None
     rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, int(index), GSD_STREAM]))
-    return r.draw(rng)
+    return r.draw(rng, scene_cap_m(cfg, scene_xy_bounds))
 
 
-def image_camera_config(cfg, index: int):
+def image_camera_config(cfg, index: int, scene_xy_bounds=None):
     """Image ``index``'s CameraConfig: ``cfg.camera_config()`` without a range, else the
     range's lens at the image's drawn GSD (:func:`image_gsd_m`)."""
     r = GsdRange.of(cfg)
     if r is None:
         return cfg.camera_config()
-    return r.camera_config(cfg, image_gsd_m(cfg, index))
+    return r.camera_config(cfg, image_gsd_m(cfg, index, scene_xy_bounds))
 
 
 def widest_camera_config(cfg):

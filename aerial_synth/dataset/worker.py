@@ -263,7 +263,8 @@ class ImageWorker:
         from ..camera import sample_pose_targeted
 
         cam_ss, _ = np.random.SeedSequence([self.cfg.seed, index]).spawn(2)
-        return sample_pose_targeted(image_camera_config(self.cfg, index), pl, np.random.default_rng(cam_ss),
+        cam_cfg = image_camera_config(self.cfg, index, self.scene_xy_bounds)
+        return sample_pose_targeted(cam_cfg, pl, np.random.default_rng(cam_ss),
                                     within_xy=self.scene_xy_bounds, clear=self._open_sky)
 
     def _open_sky(self, cam) -> bool:

@@ -167,3 +167,21 @@ def test_median_car_length_in_metres_is_the_same_at_every_gsd(tiny_scene, tmp_pa
         vals = [m[k] for m in med.values()]
         assert max(vals) / min(vals) < bound, med
     assert 3.5 < med[0.05][0] < 6.0  # a car, in metres
+
+
+def test_small_scene_narrows_the_top_of_the_range():
+    """A 240 m x 200 m depot cannot hold a 0.3 m frame (307 m at 1024 px): its images draw
+    over the part of the range whose frames fit, log-uniformly, never below the range."""
+    from aerial_synth.dataset.gsd import FOOTPRINT_MARGIN, scene_cap_m
+
+    cfg = ExportConfig(gsd_range=(0.05, 0.3), seed=2)
+    depot = [[-120.0, -100.0], [120.0, 100.0]]
+    cap = scene_cap_m(cfg, depot)
+    assert cap == pytest.approx(200.0 / (1024 * FOOTPRINT_MARGIN))
+    g = np.array([image_gsd_m(cfg, i, depot) for i in range(3000)])
+    assert g.min() >= 0.05 and g.max() <= cap
+    assert np.mean(g < math.sqrt(0.05 * cap)) == pytest.approx(0.5, abs=0.03)
+    big = [[-1000.0, -1000.0], [1000.0, 1000.0]]
+    assert [image_gsd_m(cfg, i, big) for i in range(50)] == [image_gsd_m(cfg, i) for i in range(50)]
+    tiny = [[0.0, 0.0], [10.0, 10.0]]  # smaller than even the range's bottom: the bottom
+    assert {image_gsd_m(cfg, i, tiny) for i in range(20)} == {0.05}
