@@ -67,6 +67,9 @@ def main(argv=None) -> int:
     ap.add_argument("--dask", default=None, help="run on Dask instead: local:K or tcp://HOST:PORT")
     ap.add_argument("--scene", default="city_park")
     ap.add_argument("--scenario", default="jam")
+    ap.add_argument("--scene-mix", default=None,
+                    help="placement groups draw scene/scenario from weights (export --scene-mix)")
+    ap.add_argument("--gsd", default=None, help="metres per pixel, or a range LO:HI (export --gsd)")
     ap.add_argument("--format", default="dota")
     ap.add_argument("--preset", default="full", choices=("full", "fast"))
     ap.add_argument("--images-per-placement", type=int, default=10)
@@ -93,11 +96,16 @@ def main(argv=None) -> int:
         limit_threads(1)
 
     from aerial_synth.dataset.export import ExportConfig, export_dataset
+    from aerial_synth.dataset.gsd import parse_range
+
+    gsd = None if a.gsd is None else parse_range("--gsd", a.gsd)
 
     out = Path(a.out) if a.out else Path(tempfile.mkdtemp(prefix="bench_export_")) / "ds"
     cfg = ExportConfig(scene=a.scene, scenario=a.scenario, images=a.images, formats=a.format,
                        seed=a.seed, images_per_placement=a.images_per_placement,
-                       render_preset=None if a.preset == "full" else a.preset)
+                       render_preset=None if a.preset == "full" else a.preset,
+                       scene_mix=a.scene_mix, gsd_m=gsd if isinstance(gsd, float) else None,
+                       gsd_range=gsd if isinstance(gsd, tuple) else None)
     load = [round(x, 2) for x in os.getloadavg()]
     cpu0 = _cpu_s()
     t0 = time.perf_counter()
@@ -112,7 +120,8 @@ def main(argv=None) -> int:
     print(f"command: {' '.join([sys.executable, *sys.argv])}")
     print(f"machine: {os.cpu_count()} cpu cores, load average before {load}"
           + (f", pinned to core {pinned}" if pinned is not None else ""))
-    print(f"export: {a.images} images, {a.scene} {a.scenario}, preset {a.preset}, format {a.format}, "
+    what = f"scene mix {cfg.scene_mix}" if a.scene_mix else f"{a.scene} {a.scenario}"
+    print(f"export: {a.images} images, {what}, gsd {a.gsd or 'default'}, preset {a.preset}, format {a.format}, "
           f"{engine}, {a.images_per_placement} images per placement")
     print(f"wall time: {wall:.1f} s  ({wall / a.images:.2f} s/image, {a.images / wall:.2f} images/s)"
           f"  target <= {a.target_s:.0f} s: {'PASS' if wall <= a.target_s else 'FAIL'}")

@@ -29,6 +29,8 @@ def register(sub) -> None:
     from ..scene.cli import add_scene_args
     from ..validators import arg_choice, arg_float, arg_int
     from .config import IMAGE_EXTS, MAX_IMAGES, RANDOMISE_MODES, RENDER_PRESETS
+    from .gsd import arg_range
+    from .scene_mix import PRESETS as MIX_PRESETS
 
     fmts = ", ".join(format_names())
     p = sub.add_parser(
@@ -41,6 +43,10 @@ def register(sub) -> None:
     add_scene_args(p)
     p.add_argument("--scenario", default="jam", metavar="NAME|FILE",
                    help=f"traffic scenario: {', '.join(SCENARIOS)} or a YAML file (jam)")
+    p.add_argument("--scene-mix", default=None, metavar="SCENE[/SCENARIO]:W,...|FILE|PRESET",
+                   help="each placement group draws its scene and scenario from these weights "
+                   f"(a YAML file, or a preset: {', '.join(MIX_PRESETS)}); replaces --scene; "
+                   "entries without /SCENARIO use --scenario (docs/gsd.md)")
     p.add_argument("--images", type=arg_int("--images", 1, MAX_IMAGES), default=10, metavar="N",
                    help="number of images (10)")
     p.add_argument("--format", type=_format_list, default="dota", metavar="LIST",
@@ -71,10 +77,13 @@ def register(sub) -> None:
                    help="square image size in pixels (1024)")
     c.add_argument("--width", type=arg_int("--width", 1, MAX_IMAGE_PX), default=None, metavar="PX")
     c.add_argument("--height", type=arg_int("--height", 1, MAX_IMAGE_PX), default=None, metavar="PX")
-    c.add_argument("--altitude", type=arg_float("--altitude", 0.0, lo_open=True), default=60.0,
-                   metavar="M", help="metres (60)")
-    c.add_argument("--gsd", type=arg_float("--gsd", 0.0, lo_open=True), default=None, metavar="M",
-                   help="metres per pixel at nadir (0.12)")
+    c.add_argument("--altitude", type=arg_range("--altitude"), default=60.0,
+                   metavar="M|LO:HI", help="metres (60); a range LO:HI draws each image's "
+                   "altitude (and so its GSD) log-uniformly, the lens fixed (docs/gsd.md)")
+    c.add_argument("--gsd", type=arg_range("--gsd"), default=None, metavar="M|LO:HI",
+                   help="metres per pixel at nadir (0.12); a range LO:HI (e.g. 0.05:0.3) draws "
+                   "each image's GSD log-uniformly, the lens fixed, the altitude following "
+                   "(docs/gsd.md)")
     c.add_argument("--max-tilt", type=arg_float("--max-tilt", 0.0, 89.0, hi_open=True),
                    default=15.0, metavar="DEG", help="tilt drawn in [-DEG, DEG], 0 <= DEG < 89 (15)")
     b = p.add_argument_group("boxes and flags (docs/formats.md)")
@@ -157,8 +166,11 @@ def config_from_args(args):
         n_lines=args.lines,
         width_px=args.width if args.width is not None else size,
         height_px=args.height if args.height is not None else size,
-        altitude_m=args.altitude,
-        gsd_m=args.gsd,
+        altitude_m=60.0 if isinstance(args.altitude, tuple) else args.altitude,
+        gsd_m=None if isinstance(args.gsd, tuple) else args.gsd,
+        gsd_range=args.gsd if isinstance(args.gsd, tuple) else None,
+        altitude_range=args.altitude if isinstance(args.altitude, tuple) else None,
+        scene_mix=getattr(args, "scene_mix", None),
         max_tilt_deg=args.max_tilt,
         box=box,
         image_ext=args.image_ext,

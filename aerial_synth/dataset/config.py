@@ -25,7 +25,7 @@ IMAGE_EXTS = ("png", "jpg")
 MAX_IMAGES = 1_000_000
 #: parameters that appear in the manifest only when set (added after manifest version 1)
 _OPTIONAL_FIELDS = ("bbox", "crs", "render_preset", "randomise", "distractors", "tile_m",
-                    "margin_m")
+                    "margin_m", "gsd_range", "altitude_range", "scene_mix")
 #: render presets and randomisation modes (aerial_synth.render.shading); kept here as text so
 #: that reading a config imports no renderer
 RENDER_PRESETS = ("full", "fast")
@@ -56,6 +56,12 @@ class ExportConfig:
     distractors         : distractors per hectare (manholes, containers, signs, ...; never
                           labelled), drawn once per dataset from SeedSequence([seed,
                           DISTRACTOR_KEY]); None or 0 = none
+    gsd_range / altitude_range : (lo, hi) metres: each image draws its nadir GSD from the
+                          range (log-uniform), the lens fixed (aerial_synth.dataset.gsd);
+                          at most one, and gsd_range not with gsd_m
+    scene_mix           : placement groups draw (scene, scenario) from weighted entries
+                          (aerial_synth.dataset.scene_mix); stored as its canonical text;
+                          scene and scenario then only fill entries that name no scenario
     tile_m / margin_m   : render a tiled world (aerial_synth.dataset.tiled): square tiles of
                           tile_m metres, each worker holding only the tiles a placement group
                           needs; margin_m is the placement margin (None = 60 m, resolved here)
@@ -87,6 +93,9 @@ class ExportConfig:
     distractors: float | None = None
     tile_m: float | None = None
     margin_m: float | None = None
+    gsd_range: tuple[float, float] | None = None
+    altitude_range: tuple[float, float] | None = None
+    scene_mix: str | None = None
 
     def __post_init__(self):
         from ..formats.registry import parse_names
@@ -132,8 +141,34 @@ class ExportConfig:
             s(self, "margin_m", check_tiled_config(self))
         elif self.margin_m is not None:
             raise E(f"--margin-m: only with --tile-m (a tiled export), got --margin-m {v.show(self.margin_m)}")
+        self._check_ranges_and_mix()
         if not isinstance(self.box, BoxConfig):
             raise ConfigError(f"box: expected a BoxConfig, got {type(self.box).__name__}")
+
+    def _check_ranges_and_mix(self) -> None:
+        from .gsd import parse_range
+        from .scene_mix import parse_mix
+
+        E = ExportError
+        s = object.__setattr__
+        for name, opt in (("gsd_range", "--gsd"), ("altitude_range", "--altitude")):
+            val = getattr(self, name)
+            if val is not None:
+                r = parse_range(opt, val, error=E)
+                if not isinstance(r, tuple):
+                    raise E(f"{opt}: expected a range LO:HI for {name}, got {v.show(val)}")
+                s(self, name, r)
+        if self.gsd_range is not None and self.altitude_range is not None:
+            raise E(f"--gsd and --altitude: give a range to one of them (both fix the lens), got "
+                    f"--gsd {self.gsd_range[0]:g}:{self.gsd_range[1]:g} --altitude "
+                    f"{self.altitude_range[0]:g}:{self.altitude_range[1]:g}")
+        if self.gsd_range is not None and self.gsd_m is not None:
+            raise E(f"--gsd: one value or one range, got gsd_m {v.show(self.gsd_m)} and gsd_range "
+                    f"{v.show(self.gsd_range)}")
+        if self.scene_mix is not None:
+            s(self, "scene_mix", parse_mix(self.scene_mix).text())
+            if self.tile_m is not None:
+                raise E("--scene-mix: not with --tile-m (a tiled export renders one world)")
 
     # --------------------------------------------------------------- derived
     @property
@@ -146,8 +181,14 @@ class ExportConfig:
         return {"train": self.n_train, "val": self.images - self.n_train}
 
     def camera_config(self):
+        """The camera of every image; with a GSD or altitude range the one that sees
+        farthest (per image: :func:`aerial_synth.dataset.gsd.image_camera_config`)."""
         from ..camera import CameraConfig
+        from .gsd import widest_camera_config
 
+        widest = widest_camera_config(self)
+        if widest is not None:
+            return widest
         return CameraConfig(
             altitude_m=self.altitude_m,
             width_px=self.width_px,
@@ -174,7 +215,7 @@ class ExportConfig:
                 continue
             if f.name == "box":
                 val = val.to_dict()
-            elif f.name == "formats":
+            elif f.name in ("formats", "gsd_range", "altitude_range"):
                 val = list(val)
             d[f.name] = val
         return d

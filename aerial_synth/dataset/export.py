@@ -48,10 +48,12 @@ from .output import (
     remove_stray_temps,
 )
 from .pool import _WORKER_MODULES, check_entry_point, pool_context, start_pool_server  # noqa: F401 (re-exported)
+from .scene_mix import check_names, parse_mix
 from .worker import (
     ImageWorker,
     encode_image,
     init_pool_worker,
+    mix_scene,
     record_counts,
     render_image,
     run_group,
@@ -92,6 +94,12 @@ def validate_inputs(cfg: ExportConfig):
     from ..placement import load_scenario
     from ..vehicles import load_catalog
 
+    if cfg.scene_mix is not None:  # every entry's names; the first group's scene is loaded
+        mix = parse_mix(cfg.scene_mix)
+        check_names(mix, cfg.scenario)
+        catalog = load_catalog()
+        scene = mix_scene(cfg, mix.entries[mix.index_for_group(cfg.seed, 0)].scene)
+        return scene, catalog
     load_scenario(cfg.scenario)
     catalog = load_catalog()
     scene = ImageWorker(cfg, Path(".")).scene

@@ -27,7 +27,9 @@ import numpy as np
 from ..errors import ExportError
 from ..io_utils import atomic_write_bytes, atomic_write_text
 from .config import PLACEMENT_STREAM, ExportConfig
+from .gsd import image_camera_config
 from .layout import image_name, image_paths, meta_path, split_of
+from .scene_mix import parse_mix
 
 __all__ = [
     "ImageWorker",
@@ -119,6 +121,21 @@ def _load_scene(cfg: ExportConfig):
     return scene
 
 
+_MIX_SCENES: dict = {}  # (scene, labels, scene_seed, seed, distractors) -> Scene, this process
+
+
+def mix_scene(cfg: ExportConfig, name: str):
+    """Scene ``name`` of a ``--scene-mix`` export, with the export's distractors, loaded
+    once per process (a mix switches scenes between placement groups)."""
+    import dataclasses
+
+    key = (name, cfg.labels, cfg.scene_seed, cfg.seed, cfg.distractors)
+    scene = _MIX_SCENES.get(key)
+    if scene is None:
+        scene = _MIX_SCENES[key] = _load_scene(dataclasses.replace(cfg, scene=name, scene_mix=None))
+    return scene
+
+
 class ImageWorker:
     """Per-process state: scene, catalog and the current placement group."""
 
@@ -177,13 +194,14 @@ class ImageWorker:
         from ..render import add_placement
         from ..scene.raycast import RayScene
 
+        scenario = self._use_scene(group)
         rs = RayScene(self.scene, nthreads=self.nthreads)  # fresh: independent of history
         rng = np.random.default_rng(np.random.SeedSequence([self.cfg.seed, group, PLACEMENT_STREAM]))
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             pl = place(
                 rs,
-                self.cfg.scenario,
+                scenario,
                 rng,
                 n_vehicles=self.cfg.n_vehicles,
                 n_lines=self.cfg.n_lines,
@@ -192,8 +210,8 @@ class ImageWorker:
             )
         if not pl.vehicles:
             raise ExportError(
-                f"placement group {group}: scenario {self.cfg.scenario!r} placed no vehicles "
-                f"on scene {self.cfg.scene!r} (no road found?)"
+                f"placement group {group}: scenario {scenario!r} placed no vehicles "
+                f"on scene {self.scene.name if self._mix else self.cfg.scene!r} (no road found?)"
             )
         self._sky = rs
         self._cameras = self._group_cameras(group, pl)
@@ -206,6 +224,29 @@ class ImageWorker:
         self._placement_warnings = sorted({str(w.message) for w in caught
                                            if w.category.__module__.startswith("aerial_synth.")})
         self._group, self._rayscene, self._placement = group, rs, pl
+
+    @functools.cached_property
+    def _mix(self):
+        """The export's SceneMix (None without ``--scene-mix``)."""
+        return None if self.cfg.scene_mix is None else parse_mix(self.cfg.scene_mix)
+
+    def _use_scene(self, group: int) -> str:
+        """Make placement group ``group``'s scene current and return its scenario: the
+        export's own without a mix, else the group's drawn entry's (scenes are loaded once
+        per process and kept, :func:`mix_scene`)."""
+        mix = self._mix
+        if mix is None:
+            return self.cfg.scenario
+        k = mix.index_for_group(self.cfg.seed, group)
+        entry = mix.entries[k]
+        scene = mix_scene(self.cfg, entry.scene)
+        if scene is not self._scene:
+            self._scene = scene
+            self.__dict__.pop("scene_xy_bounds", None)
+            self.__dict__.pop("georeference", None)
+        self._mix_entry = {"entry": k, "scene": entry.scene,
+                           "scenario": mix.scenario_of(entry, self.cfg.scenario)}
+        return self._mix_entry["scenario"]
 
     def _group_cameras(self, group: int, pl) -> dict:
         """{index: Camera} of every image of placement group ``group`` (all of them, not
@@ -221,7 +262,8 @@ class ImageWorker:
         from ..camera import sample_pose_targeted
 
         cam_ss, _ = np.random.SeedSequence([self.cfg.seed, index]).spawn(2)
-        return sample_pose_targeted(self.cfg.camera_config(), pl, np.random.default_rng(cam_ss),
+        cam_cfg = image_camera_config(self.cfg, index, self.scene_xy_bounds)
+        return sample_pose_targeted(cam_cfg, pl, np.random.default_rng(cam_ss),
                                     within_xy=self.scene_xy_bounds, clear=self._open_sky)
 
     def _open_sky(self, cam) -> bool:
@@ -297,6 +339,7 @@ class ImageWorker:
                 # scenes with hard negatives (procedural/negatives.py) count them here
                 **({"hard_negatives": rs.scene.meta["hard_negatives"]}
                    if "hard_negatives" in rs.scene.meta else {}),
+                **({"scene_mix": dict(self._mix_entry)} if self._mix else {}),
             },
             box_config=cfg.box.to_dict(),
             annotations=tuple(anns),

@@ -38,6 +38,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..errors import AssetError
+from .bodies import CAR_PROFILES
 from .model import (
     AXES,
     BODY_TYPES,
@@ -115,6 +116,10 @@ DEFAULT_OPTION_RATES: dict[str, dict[str, float]] = {
     "delivery_van": {"roof_rack": 0.30},
     "semi_trailer": {"container": 0.35},
 }
+# the car bodies of .bodies: their options and rates come with their profiles
+OPTION_BODIES.update({opt: bodies + tuple(b for b, p in CAR_PROFILES.items() if opt in p.option_rates)
+                      for opt, bodies in OPTION_BODIES.items()})
+DEFAULT_OPTION_RATES.update({b: dict(p.option_rates) for b, p in CAR_PROFILES.items()})
 _MESH_KEYS = {"name", "pack", "mesh", "scale", "forward", "up", "class", "paint_material", "weight"}
 _COLOR_KEYS = {"name", "rgb", "weight"}
 

@@ -21,6 +21,7 @@ from ..errors import AssetError
 from ..scene.model import DEFAULT_COLOR_FOR_MATERIAL, MATERIAL_IDS
 from ._hull import box as _box
 from ._hull import convex_hull as _hull
+from .bodies import CAR_PROFILES, car_kwargs
 from .catalog import OPTION_RISE_M
 from .large import LARGE_BUILDERS
 from .model import VehicleColor, VehicleModel
@@ -129,7 +130,9 @@ def _model_parts(model: VehicleModel) -> tuple["_Part", ...]:
     geometry is built once per model and each colour only fills the albedo column."""
     if model.is_procedural:
         # the base body is built and fitted to the base size; options go on top in metres
-        h0 = model.height_m - sum(OPTION_RISE_M[o] for o in model.options)
+        # (rounded: 1.78 + 0.42 - 0.42 is 1.7800000000000002, and the base body must be
+        # the base model's to the bit)
+        h0 = round(model.height_m - sum(OPTION_RISE_M[o] for o in model.options), 9)
         parts = _procedural_parts(model, h0)
         parts = _fit_to_size(parts, model.length_m, model.width_m, h0)
         for opt in model.options:
@@ -278,17 +281,25 @@ def _car_like(s: _CarSpec) -> list[_Part]:
     """Body, greenhouse, roof, windscreen, rear window, front and rear lights."""
     hw = s.half_w
     c = s.corner
+    # sills tucked in: the body's sides slope in by 6 cm over their lowest 14 cm (rocker
+    # panels), so an oblique view sees the ground in the body's shade under them: the
+    # dark contact line real cars show along their sides
+    tk, sill = 0.06, s.clear + 0.14
     body_pts = _sym(
         [
             (s.x_rear, hw - c, s.tail_bot),
             (s.x_rear, hw - c, s.tail_top - 0.04),
-            (s.x_rear + c, hw, s.clear),
+            (s.x_rear + c, hw - tk, s.clear),
+            (s.x_rear + c, hw, sill),
             (s.x_rear + c, hw, s.tail_top),
-            (s.rw_base, hw, s.clear),
+            (s.rw_base, hw - tk, s.clear),
+            (s.rw_base, hw, sill),
             (s.rw_base, hw, s.belt),
-            (s.ws_base, hw, s.clear),
+            (s.ws_base, hw - tk, s.clear),
+            (s.ws_base, hw, sill),
             (s.ws_base, hw, s.belt),
-            (s.x_front - c, hw, s.clear),
+            (s.x_front - c, hw - tk, s.clear),
+            (s.x_front - c, hw, sill),
             (s.x_front - c, hw, s.nose_top),
             (s.x_front, hw - c, s.nose_bot),
             (s.x_front, hw - c, s.nose_top - 0.05),
@@ -391,9 +402,12 @@ def _procedural_parts(model: VehicleModel, height_m: float | None = None) -> lis
 
 
 def _car(L, W, H, *, bonnet, ws_run, rw_top_from_rear, rw_base_from_rear, belt, nose_top,
-         tail_top, wheel_r, tumble=0.10, clear=0.16, rails=False) -> list[_Part]:
+         tail_top, wheel_r, tumble=0.16, clear=0.16, rails=False) -> list[_Part]:
     """A passenger car. Lengths in metres; bonnet = nose to windscreen base; ws_run =
-    horizontal run of the windscreen; rw_* = rear window edges measured from the tail."""
+    horizontal run of the windscreen; rw_* = rear window edges measured from the tail.
+    tumble: the side glass leans in by 16 cm at the roof (a 1.8 m car's roof is ~1.3 m
+    wide), so the side windows show from above as dark strips beside the roof (was 10 cm:
+    a 1-2 px line at 4 cm/px, nothing at 0.12 m)."""
     x0, x1 = -L / 2, L / 2
     roof_h = H - (0.04 if rails else 0.0)
     spec = _CarSpec(
@@ -623,6 +637,25 @@ def _wrap_large(fn):
 _BUILDERS.update({name: _wrap_large(fn) for name, fn in LARGE_BUILDERS.items()})
 # tractor, farm, boat and utility trailers (vehicles/towed.py)
 _BUILDERS.update({name: _wrap_large(fn) for name, fn in TOWED_BUILDERS.items()})
+
+
+def _profiled(body: str):
+    """The builder of a car body of :data:`.bodies.CAR_PROFILES` (a panel van's upper body
+    is painted, not glazed)."""
+    prof = CAR_PROFILES[body]
+
+    def build(L, W, H):
+        parts = _car(L, W, H, **car_kwargs(prof, L, H))
+        if not prof.glass_sides:
+            parts = [_Part(p.name, "paint", None, p.v, p.f) if p.name == "greenhouse" else p
+                     for p in parts]
+        return parts
+
+    return build
+
+
+# compact, estate, mpv, van, minibus (vehicles/bodies.py)
+_BUILDERS.update({body: _profiled(body) for body in CAR_PROFILES})
 
 
 # ----------------------------------------------------------------- trim options

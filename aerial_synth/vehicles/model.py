@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import AssetError
+from .bodies import CAR_PROFILES
 
 __all__ = [
     "CLASSES",
@@ -48,7 +49,7 @@ BODY_TYPES: tuple[str, ...] = (
     "farm_trailer",
     "boat_trailer",
     "utility_trailer",
-)
+) + tuple(CAR_PROFILES)  # compact, estate, mpv, van, minibus (.bodies)
 
 #: Axis names accepted for a user mesh's ``forward`` and ``up``.
 AXES: dict[str, tuple[float, float, float]] = {
