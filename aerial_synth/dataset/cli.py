@@ -175,12 +175,7 @@ def _cmd_export(args) -> int:
     from .export import export_dataset
 
     cfg = config_from_args(args)
-    if args.dask is not None and args.workers is not None:
-        from ..errors import ExportError
-
-        raise ExportError(f"--dask and --workers: choose one engine (the cluster's workers do the work), "
-                          f"got --dask {args.dask} --workers {args.workers}")
-    res = export_dataset(cfg, args.out, workers=args.workers or 1, resume=args.resume,
+    res = export_dataset(cfg, args.out, workers=args.workers, resume=args.resume,
                          force=args.force, progress=False if args.no_progress else None, dask=args.dask)
     print(res.text())
     return 0
