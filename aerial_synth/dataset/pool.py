@@ -15,7 +15,7 @@ WORKER_MODULES = (
     "aerial_synth.dataset._server_guard",  # first: see that module
     "aerial_synth.dataset._server_open3d",  # before anything imports open3d
     "aerial_synth.numba_setup", "aerial_synth.dataset.worker", "aerial_synth.dataset.engines.pool",
-    "aerial_synth.render.frame", "aerial_synth.scene.hints",
+    "aerial_synth.render.frame", "aerial_synth.render.backends.raycast", "aerial_synth.scene.hints",
     "aerial_synth.render.shading", "aerial_synth.render._kernels", "aerial_synth.render._tone",
     "aerial_synth.render._vis_kernels", "aerial_synth.render.smooth", "aerial_synth.render.raster",
     "aerial_synth.render.world",

@@ -58,6 +58,7 @@ def camera_config_from_args(args):
 def register(sub) -> None:
     from ..scene.cli import add_scene_args
     from ..validators import arg_choice, arg_float, arg_int
+    from . import backends
 
     p = sub.add_parser(
         "render",
@@ -88,7 +89,7 @@ def register(sub) -> None:
     p.add_argument("--depth-format", type=arg_choice("--depth-format", ("npy", "png")),
                    default="npy",
                    help="depth as float32 metres .npy or 16-bit centimetre PNG (npy)")
-    p.add_argument("--backend", type=arg_choice("--backend", ("raycast", "pyrender")),
+    p.add_argument("--backend", type=arg_choice("--backend", backends.names()),
                    default="raycast", help="RGB backend (labels always come from ray casting)")
     p.add_argument("--preset", type=arg_choice("--preset", ("full", "fast")), default="full",
                    help="shading preset: full (every realism factor) or fast (no ambient "
@@ -124,6 +125,7 @@ def run(args) -> int:
     from ..placement import place
     from ..scene.cli import scene_from_args
     from ..scene.raycast import RayScene
+    from . import backends
     from .budget import check_frame_memory
     from .frame import render_frame
     from .io import write_frame
@@ -140,10 +142,7 @@ def run(args) -> int:
     check_frame_memory(cam_cfg.width_px, cam_cfg.height_px)  # before a 30 GB frame is OOM-killed
     _check_args(args)
     out = check_output_dir(args.out, "--out")
-    if args.backend == "pyrender":
-        from .pyrender_backend import check_available
-
-        check_available()
+    backends.get(args.backend).check()  # e.g. pyrender without EGL: said before any work
     t0 = time.perf_counter()
     scene = scene_from_args(args)
     grid = None

@@ -36,6 +36,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..scene.model import DEFAULT_COLOR_FOR_MATERIAL, MATERIAL_IDS, MATERIALS
 from ..validators import boolean, in_range, integer, known_keys, one_of, probability
+from . import backends
 
 __all__ = ["RenderConfig", "PRESETS", "sample_factors", "shade", "sun_direction",
            "solve_tone", "tone_lut"]
@@ -157,7 +158,7 @@ class RenderConfig:
             s(self, p, probability(f"render config {p}", getattr(self, p)))
         for b in ("shadows", "soft_shadows", "ambient_occlusion", "texture", "wet_reflections"):
             boolean(f"render config {b}", getattr(self, b))
-        one_of("render config backend", self.backend, ("raycast", "pyrender"))
+        one_of("render config backend", self.backend, backends.names())
         one_of("render config exposure_mode", self.exposure_mode, ("auto", "fixed"))
         one_of("render config randomise", self.randomise, RANDOMISE)
         one_of("render config shadow_edges", self.shadow_edges, SHADOW_EDGES)

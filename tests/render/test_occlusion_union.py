@@ -176,7 +176,7 @@ def _spy_builds(monkeypatch, delay_s: float = 0.0):
 
 @pytest.mark.parametrize("primary", ["raster", "embree"])
 def test_rendering_builds_no_scene_with_vehicles_but_without_trees(monkeypatch, primary):
-    from aerial_synth.render import raycast as render_raycast
+    from aerial_synth.render import buffers as render_raycast
     from aerial_synth.render.world import add_placement
 
     monkeypatch.setattr(render_raycast, "PRIMARY", primary)
