@@ -37,7 +37,7 @@ __all__ = [
 _LAZY = {
     "render_frame": "frame",
     "Frame": "frame",
-    "RenderConfig": "shading",
+    "RenderConfig": "config",
     "VehicleVisibility": "visibility",
     "add_placement": "world",
     "write_frame": "io",

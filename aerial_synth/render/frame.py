@@ -12,7 +12,7 @@ import numpy as np
 
 from . import backends
 from .buffers import cast_buffers
-from .shading import RenderConfig, sample_factors
+from .config import RenderConfig, sample_factors
 from .visibility import AmodalMasks, VehicleVisibility
 
 __all__ = ["Frame", "render_frame"]

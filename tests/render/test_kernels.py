@@ -132,7 +132,8 @@ def test_block_shadow_sampling_matches_one_ray_per_pixel():
     # trees and a house cast shadows on road, grass and vehicles; one shadow ray per 2 x 2
     # block (plus object edges) must reproduce the per-pixel image almost everywhere
     from aerial_synth.render.buffers import cast_buffers
-    from aerial_synth.render.shading import sample_factors, shade
+    from aerial_synth.render.config import sample_factors
+    from aerial_synth.render.shading import shade
 
     spec = [(1, 22.0, 0.0, 0.3, 4.5, 1.8, 1.5), (2, 30.0, -2.0, 0.0, 9.0, 2.5, 3.5)]
     rs, pl = make_world(spec, crown_at=(26.0, 3.0))
@@ -330,6 +331,7 @@ def test_shadow_spread_inside_compose_equals_the_spread_pass(monkeypatch, step):
     # the image must be the one of spread_shadow's pass over the image, byte for byte
     from aerial_synth.render import shading
     from aerial_synth.render.buffers import cast_buffers
+    from aerial_synth.render.config import sample_factors
 
     spec = [(1, 22.0, 0.0, 0.3, 4.5, 1.8, 1.5), (2, 30.0, -2.0, 0.0, 9.0, 2.5, 3.5)]
     rs, pl = make_world(spec, crown_at=(26.0, 3.0))
@@ -339,7 +341,7 @@ def test_shadow_spread_inside_compose_equals_the_spread_pass(monkeypatch, step):
         cfg = RenderConfig.preset(preset, soft_shadows=False, overcast_probability=0,
                                   jpeg_probability=0, shadow_step=step,
                                   shadow_edges=edges)
-        factors = shading.sample_factors(cfg, np.random.default_rng(3))
+        factors = sample_factors(cfg, np.random.default_rng(3))
         out = {}
         for fused in (True, False):
             monkeypatch.setattr(shading, "_SPREAD_IN_COMPOSE", fused)

@@ -20,7 +20,7 @@ import pytest
 import aerial_synth.scene.raycast as rc
 from aerial_synth.camera import Camera, CameraConfig
 from aerial_synth.render import render_frame
-from aerial_synth.render.shading import RenderConfig
+from aerial_synth.render.config import RenderConfig
 from aerial_synth.scene import build
 from aerial_synth.scene.model import LABEL_IDS, Scene, SceneObject
 from aerial_synth.scene.raycast import VEHICLES_ONLY, RayScene
