@@ -20,6 +20,7 @@ def _format_list(text: str):
 
 
 def register(sub) -> None:
+    """``aerial-synth export`` and ``aerial-synth show``."""
     from ..annotate.boxes import BOX_FITS, BOX_MODES, BoxConfig
     from ..formats.registry import names as format_names
     from ..placement.config import SCENARIOS
@@ -105,6 +106,11 @@ def register(sub) -> None:
                    help="box-shaped vehicles instead of catalog meshes (quick tests)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_export)
+    _register_show(sub)
+
+
+def _register_show(sub) -> None:
+    from ..validators import arg_int
 
     s = sub.add_parser(
         "show",
