@@ -17,6 +17,8 @@ from __future__ import annotations
 import os
 import sys
 
+from ..errors import EntryPointError
+
 
 def _in_fork_server() -> bool:
     return sys.argv[:1] == ["-c"] and "multiprocessing.forkserver" in sys.modules
@@ -55,8 +57,6 @@ def _quiet_main_fixup() -> bool:
     if not _in_fork_server():
         return False
     import multiprocessing.spawn as spawn
-
-    from ..errors import EntryPointError
 
     def quiet(fixup):
         def run(*args, **kwargs):

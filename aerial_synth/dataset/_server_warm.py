@@ -16,7 +16,8 @@ from ._server_guard import _in_fork_server
 def _warm() -> bool:
     if not _in_fork_server():
         return False
-    from .. import numba_setup  # noqa: F401  (threading layer chosen before anything else)
+    # lazy: numba, in the fork server only (threading layer chosen before anything else)
+    from .. import numba_setup  # noqa: F401
 
     try:
         from numba.core.registry import cpu_target

@@ -1,18 +1,28 @@
-"""``aerial-synth export`` and ``aerial-synth show``. Imports nothing heavy at import time."""
+"""``aerial-synth export`` and ``aerial-synth show``. Imports nothing heavy at import time (the
+exporter itself is imported when ``export`` runs)."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 
+from ..annotate.boxes import BOX_FITS, BOX_MODES, BoxConfig
+from ..errors import AerialSynthError
+from ..formats.registry import names as format_names
+from ..formats.registry import parse_names
+from ..placement.config import SCENARIOS
+from ..render.cli import add_camera_args, camera_config_from_args
+from ..render.config import RANDOMISE, RENDER_PRESETS
+from ..scene.cli import add_scene_args
+from ..validators import arg_choice, arg_float, arg_int
+from .config import IMAGE_EXTS, MAX_IMAGES, ExportConfig
+from .show import show_dataset
+
 __all__ = ["register"]
 
 
 def _format_list(text: str):
     """argparse ``type=`` for ``--format``: a comma list of registered formats."""
-    from ..errors import AerialSynthError
-    from ..formats.registry import parse_names
-
     try:
         return ",".join(parse_names(text))
     except AerialSynthError as exc:
@@ -21,15 +31,6 @@ def _format_list(text: str):
 
 def register(sub) -> None:
     """``aerial-synth export`` and ``aerial-synth show``."""
-    from ..annotate.boxes import BOX_FITS, BOX_MODES, BoxConfig
-    from ..formats.registry import names as format_names
-    from ..placement.config import SCENARIOS
-    from ..render.cli import add_camera_args
-    from ..render.config import RANDOMISE, RENDER_PRESETS
-    from ..scene.cli import add_scene_args
-    from ..validators import arg_choice, arg_float, arg_int
-    from .config import IMAGE_EXTS, MAX_IMAGES
-
     box = BoxConfig()  # the one home of the box thresholds' defaults
 
     fmts = ", ".join(format_names())
@@ -110,8 +111,6 @@ def register(sub) -> None:
 
 
 def _register_show(sub) -> None:
-    from ..validators import arg_int
-
     s = sub.add_parser(
         "show",
         help="draw a dataset's labels over its images, plus a contact sheet",
@@ -129,10 +128,6 @@ def _register_show(sub) -> None:
 
 
 def config_from_args(args):
-    from ..annotate.boxes import BoxConfig
-    from ..render.cli import camera_config_from_args
-    from .config import ExportConfig
-
     cam = camera_config_from_args(args)
     box = BoxConfig(
         box=args.box,
@@ -172,7 +167,7 @@ def config_from_args(args):
 
 
 def _cmd_export(args) -> int:
-    from .export import export_dataset
+    from .export import export_dataset  # lazy: the renderer (open3d, numba) loads only to export
 
     cfg = config_from_args(args)
     res = export_dataset(cfg, args.out, workers=args.workers, resume=args.resume,
@@ -182,8 +177,6 @@ def _cmd_export(args) -> int:
 
 
 def _cmd_show(args) -> int:
-    from .show import show_dataset
-
     paths = show_dataset(args.dir, args.out, limit=args.limit, thumb_px=args.thumb)
     print(f"wrote {len(paths) - 1} previews and {paths[-1]}", file=sys.stdout)
     return 0

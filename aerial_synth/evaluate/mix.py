@@ -42,6 +42,7 @@ from ..errors import EvaluationError
 from ..formats import dota, yolo_obb
 from ..formats.labels import ImageLabels
 from ..io_utils import check_output_dir, dumps_json, is_inside
+from .ap import to_polygons
 from .labels import (
     IMAGE_EXTS,
     find_data_yaml,
@@ -176,8 +177,6 @@ def clip_to_tile(polygons_xy_px, difficult, tile_xywh, keep_threshold: float = 0
     diff = np.asarray(difficult, bool)
     if len(P) == 0:
         return np.zeros(0, int), np.zeros((0, 4, 2)), np.zeros(0, bool), np.zeros(0, bool)
-    from .ap import to_polygons
-
     polys = to_polygons(P)
     box = shapely.box(x0, y0, x0 + w, y0 + h)
     area = shapely.area(polys)

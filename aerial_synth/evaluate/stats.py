@@ -400,7 +400,7 @@ def run_stats(path: Path, out: Path, *, compare: Path | None = None, gsd: float 
               compare_gsd: float | None = None, max_images: int = 500, seed: int = 0,
               classes=VEHICLE_CLASSES) -> str:
     """Compute, write ``stats.json`` and PNG plots into ``out``; return the summary text."""
-    from .plots import grid, histogram_chart, line_chart, png_bytes
+    from .plots import grid, histogram_chart, line_chart, png_bytes  # lazy: matplotlib, for plots
 
     sa, da, ha = dataset_stats(path, gsd=gsd, max_images=max_images, seed=seed, classes=classes,
                                option="DIR")

@@ -37,6 +37,7 @@ import numpy as np
 
 from ..scene.model import DEFAULT_COLOR_FOR_MATERIAL, MATERIAL_IDS, MATERIALS
 from . import _kernels as K
+from . import _materials as M
 from .tone import solve_tone, tone_lut
 
 __all__ = ["shade", "material_gains", "sun_direction", "face_tangents"]
@@ -131,8 +132,6 @@ _WETK = _table(0.0, asphalt=1.0, marking=0.7, concrete=0.9, paving=0.9, soil=0.6
 
 def _kinds() -> np.ndarray:
     """(n_materials,) int64 pattern kind of each material (:mod:`._materials`)."""
-    from . import _materials as M
-
     t = np.zeros(len(MATERIALS), np.int64)
     for name, kind in (("roof_gravel", M.KIND_GRAVEL), ("roof_tiles", M.KIND_TILES),
                        ("roof_metal", M.KIND_METAL), ("track", M.KIND_TRACK),
