@@ -61,9 +61,9 @@ def cast_buffers(rayscene, camera, method: str | None = None) -> Buffers:
     (:mod:`.smooth`), in one compiled pass (:func:`.smooth.finish_smooth_buffers`); the
     result is the same as mapping :meth:`RayScene.cast_rays` hits and then
     :func:`.smooth.smooth_shading_normals` (tests/render/test_smooth_normals.py)."""
-    # lazy: numba kernels cached on disk; importing them needs a writable cache, and the
-    # commands check their output folder before they render
-    from . import raster, smooth
+    # numba kernels cached on disk: importing them needs a writable cache, and the commands
+    # check their output folder before they render
+    from . import raster, smooth  # lazy: numba kernels (see above)
 
     h, w = camera.height_px, camera.width_px
     method = PRIMARY if method is None else method
