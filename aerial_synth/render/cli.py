@@ -135,10 +135,17 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+def _check_args(args) -> None:
+    from ..placement import load_scenario  # lazy: shapely, only when render runs
+
+    # the one list of bundled scenarios (placement.SCENARIOS) or a .yaml file, every field checked
+    load_scenario(args.scenario)
+
+
 def run(args) -> int:
     import numpy as np
 
-    from ..placement import load_scenario, place  # lazy: shapely, only when render runs
+    from ..placement import place  # lazy: shapely, only when render runs
     from . import distractors, frame, io, world  # lazy: the renderer (numba, OpenCV)
 
     # validate everything cheap before loading or writing anything
@@ -149,8 +156,7 @@ def run(args) -> int:
         kw["jpeg_probability"] = args.jpeg_probability
     rcfg = RenderConfig.preset(args.preset, **kw)
     check_frame_memory(cam_cfg.width_px, cam_cfg.height_px)  # before a 30 GB frame is OOM-killed
-    # the one list of bundled scenarios (placement.SCENARIOS) or a .yaml file, every field checked
-    load_scenario(args.scenario)
+    _check_args(args)
     out = check_output_dir(args.out, "--out")
     backends.get(args.backend).check()  # e.g. pyrender without EGL: said before any work
     t0 = time.perf_counter()
