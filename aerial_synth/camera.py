@@ -49,6 +49,10 @@ __all__ = [
 DEFAULT_GSD_M = 0.12
 MAX_IMAGE_PX = 16384
 MAX_TILT_LIMIT_DEG = 89.0
+#: The one set of camera bounds (CameraConfig, and every command's camera options from it)
+MAX_ALTITUDE_M = 100_000.0
+MAX_GSD_M = 1000.0
+MAX_FOCAL_PX = 1e7
 
 
 def _finite(name: str, value, lo=None, hi=None, lo_open=True, hi_open=False) -> float:
@@ -61,10 +65,10 @@ def _finite(name: str, value, lo=None, hi=None, lo_open=True, hi_open=False) -> 
 class CameraConfig:
     """Camera settings (validated at construction; bad values raise :class:`CameraError`).
 
-    altitude_m   : camera height above the ground at its target, metres (> 0)
+    altitude_m   : camera height above the ground at its target, metres, in (0, 1e5]
     width_px, height_px : image size, 1..16384
-    gsd_m        : ground sampling distance at nadir, metres per pixel
-    focal_px     : focal length in pixels (square pixels)
+    gsd_m        : ground sampling distance at nadir, metres per pixel, in (0, 1e3]
+    focal_px     : focal length in pixels (square pixels), in (0, 1e7]
     fov_deg      : horizontal field of view across ``width_px``, degrees, in (0, 180)
                    Give at most one of gsd_m / focal_px / fov_deg; none = gsd 0.12 m.
     max_tilt_deg : tilt off nadir is sampled uniformly in [-max, max]; 0 <= max < 89
@@ -80,7 +84,7 @@ class CameraConfig:
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
-        set_(self, "altitude_m", _finite("altitude_m", self.altitude_m, lo=0.0))
+        set_(self, "altitude_m", _finite("altitude_m", self.altitude_m, lo=0.0, hi=MAX_ALTITUDE_M))
         for name in ("width_px", "height_px"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) and not (
@@ -98,9 +102,9 @@ class CameraConfig:
                 f"focal length), got {' and '.join(given)}"
             )
         if self.gsd_m is not None:
-            set_(self, "gsd_m", _finite("gsd_m", self.gsd_m, lo=0.0))
+            set_(self, "gsd_m", _finite("gsd_m", self.gsd_m, lo=0.0, hi=MAX_GSD_M))
         if self.focal_px is not None:
-            set_(self, "focal_px", _finite("focal_px", self.focal_px, lo=0.0))
+            set_(self, "focal_px", _finite("focal_px", self.focal_px, lo=0.0, hi=MAX_FOCAL_PX))
         if self.fov_deg is not None:
             set_(self, "fov_deg", _finite("fov_deg", self.fov_deg, lo=0.0, hi=180.0, hi_open=True))
         set_(
@@ -324,7 +328,7 @@ class Camera:
         if cached is None:
             # as pixel_rays(rows, cols) for every pixel, with the same float32 operations in
             # the same order, but separable: x depends on the column only, y on the row
-            from .camera_rays import grid_rays
+            from .camera_rays import grid_rays  # lazy: numba; camera is read at --help
 
             h, w = self.height_px, self.width_px
             x = ((np.arange(w, dtype=np.float32) + np.float32(0.5)) - np.float32(self.K[0, 2])

@@ -15,6 +15,7 @@ import re
 import sys
 
 from . import __version__
+from ._open3d import stub_viewer
 from .errors import AerialSynthError
 
 # (module, ...) each exposing register(subparsers) that adds its commands and sets `func`.
@@ -98,8 +99,6 @@ def console_main(argv: list[str] | None = None) -> int:
     """The ``aerial-synth`` command: :func:`main` in a process of its own, which imports
     open3d without its plotly viewer (:mod:`aerial_synth._open3d`: ~0.4 s less start-up
     for every command that casts rays)."""
-    from ._open3d import stub_viewer
-
     stub_viewer()
     return main(argv)
 

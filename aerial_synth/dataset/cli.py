@@ -1,21 +1,31 @@
-"""``aerial-synth export`` and ``aerial-synth show``. Imports nothing heavy at import time."""
+"""``aerial-synth export`` and ``aerial-synth show``. Imports nothing heavy at import time (the
+exporter itself is imported when ``export`` runs)."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 
+from ..annotate.boxes import BOX_FITS, BOX_MODES, BoxConfig
+from ..camera import CameraConfig
+from ..errors import AerialSynthError
+from ..formats.registry import names as format_names
+from ..formats.registry import parse_names
+from ..placement.config import SCENARIOS
+from ..render.cli import add_camera_args, camera_config_from_args
+from ..render.config import RANDOMISE, RENDER_PRESETS
+from ..scene.cli import add_scene_args
+from ..validators import arg_choice, arg_float, arg_int
+from .config import IMAGE_EXTS, MAX_IMAGES, ExportConfig
+from .gsd import camera_range
+from .scene_mix import PRESETS as MIX_PRESETS
+from .show import show_dataset
+
 __all__ = ["register"]
-
-
-MAX_IMAGE_PX = 16384  # as aerial_synth.camera.MAX_IMAGE_PX (not imported: --help stays instant)
 
 
 def _format_list(text: str):
     """argparse ``type=`` for ``--format``: a comma list of registered formats."""
-    from ..errors import AerialSynthError
-    from ..formats.registry import parse_names
-
     try:
         return ",".join(parse_names(text))
     except AerialSynthError as exc:
@@ -23,14 +33,8 @@ def _format_list(text: str):
 
 
 def register(sub) -> None:
-    from ..annotate.boxes import BOX_FITS, BOX_MODES
-    from ..formats.registry import names as format_names
-    from ..placement.config import SCENARIOS
-    from ..scene.cli import add_scene_args
-    from ..validators import arg_choice, arg_float, arg_int
-    from .config import IMAGE_EXTS, MAX_IMAGES, RANDOMISE_MODES, RENDER_PRESETS
-    from .gsd import arg_range
-    from .scene_mix import PRESETS as MIX_PRESETS
+    """``aerial-synth export`` and ``aerial-synth show``."""
+    box = BoxConfig()  # the one home of the box thresholds' defaults
 
     fmts = ", ".join(format_names())
     p = sub.add_parser(
@@ -72,31 +76,20 @@ def register(sub) -> None:
                    metavar="N", help="vehicles per placement (default: the scenario's)")
     g.add_argument("--lines", type=arg_int("--lines", 1, 1_000_000), default=None, metavar="N",
                    help="traffic lines per placement (default: the scenario's)")
-    c = p.add_argument_group("camera")
-    c.add_argument("--size", type=arg_int("--size", 1, MAX_IMAGE_PX), default=None, metavar="PX",
-                   help="square image size in pixels (1024)")
-    c.add_argument("--width", type=arg_int("--width", 1, MAX_IMAGE_PX), default=None, metavar="PX")
-    c.add_argument("--height", type=arg_int("--height", 1, MAX_IMAGE_PX), default=None, metavar="PX")
-    c.add_argument("--altitude", type=arg_range("--altitude"), default=60.0,
-                   metavar="M|LO:HI", help="metres (60); a range LO:HI draws each image's "
-                   "altitude (and so its GSD) log-uniformly, the lens fixed (docs/gsd.md)")
-    c.add_argument("--gsd", type=arg_range("--gsd"), default=None, metavar="M|LO:HI",
-                   help="metres per pixel at nadir (0.12); a range LO:HI (e.g. 0.05:0.3) draws "
-                   "each image's GSD log-uniformly, the lens fixed, the altitude following "
-                   "(docs/gsd.md)")
-    c.add_argument("--max-tilt", type=arg_float("--max-tilt", 0.0, 89.0, hi_open=True),
-                   default=15.0, metavar="DEG", help="tilt drawn in [-DEG, DEG], 0 <= DEG < 89 (15)")
+    add_camera_args(p, size=True, lens=False, ranges=camera_range)
     b = p.add_argument_group("boxes and flags (docs/formats.md)")
-    b.add_argument("--box", type=arg_choice("--box", BOX_MODES), default="visible",
+    b.add_argument("--box", type=arg_choice("--box", BOX_MODES), default=box.box,
                    metavar="|".join(BOX_MODES),
                    help="visible: rectangle of the visible mask (thesis); amodal: whole vehicle")
     b.add_argument("--difficult-fraction", type=arg_float("--difficult-fraction", 0.0, 1.0),
-                   default=0.5, metavar="F", help="difficult when the visible fraction is below F (0.5)")
+                   default=box.difficult_visible_fraction, metavar="F",
+                   help=f"difficult when the visible fraction is below F ({box.difficult_visible_fraction:g})")
     b.add_argument("--min-visible-fraction", type=arg_float("--min-visible-fraction", 0.0, 1.0),
-                   default=0.1, metavar="F", help="dropped when the visible fraction is below F (0.1)")
-    b.add_argument("--min-visible-px", type=arg_int("--min-visible-px", 0), default=20, metavar="N",
-                   help="dropped when fewer visible pixels than N (20)")
-    b.add_argument("--box-fit", type=arg_choice("--box-fit", BOX_FITS), default="pixels",
+                   default=box.min_visible_fraction, metavar="F",
+                   help=f"dropped when the visible fraction is below F ({box.min_visible_fraction:g})")
+    b.add_argument("--min-visible-px", type=arg_int("--min-visible-px", 0), default=box.min_visible_px,
+                   metavar="N", help=f"dropped when fewer visible pixels than N ({box.min_visible_px})")
+    b.add_argument("--box-fit", type=arg_choice("--box-fit", BOX_FITS), default=box.fit,
                    metavar="|".join(BOX_FITS),
                    help="rectangle of the region's pixels (default) or of the dilated contour")
     p.add_argument("--image-ext", type=arg_choice("--image-ext", IMAGE_EXTS), default="png",
@@ -104,7 +97,7 @@ def register(sub) -> None:
     r = p.add_argument_group("rendering (docs/rendering.md)")
     r.add_argument("--preset", type=arg_choice("--preset", RENDER_PRESETS), default="full",
                    help="shading preset: full (every realism factor) or fast (full)")
-    r.add_argument("--randomise", type=arg_choice("--randomise", RANDOMISE_MODES),
+    r.add_argument("--randomise", type=arg_choice("--randomise", RANDOMISE),
                    default="none", help="textures: domain-randomised materials and light (none)")
     r.add_argument("--distractors", type=arg_float("--distractors", 0.0, 1000.0), default=0.0,
                    metavar="PER_HA", help="unlabelled street objects (manholes, containers, "
@@ -121,7 +114,10 @@ def register(sub) -> None:
                    help="box-shaped vehicles instead of catalog meshes (quick tests)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_export)
+    _register_show(sub)
 
+
+def _register_show(sub) -> None:
     s = sub.add_parser(
         "show",
         help="draw a dataset's labels over its images, plus a contact sheet",
@@ -139,10 +135,15 @@ def register(sub) -> None:
 
 
 def config_from_args(args):
-    from ..annotate.boxes import BoxConfig
-    from .export import ExportConfig
-
-    size = args.size if args.size is not None else 1024
+    # --altitude and --gsd may be ranges LO:HI (dataset/gsd.py): the config keeps the range,
+    # its camera the defaults (the per-image camera is drawn from the range)
+    altitude_range = args.altitude if isinstance(args.altitude, tuple) else None
+    gsd_range = args.gsd if isinstance(args.gsd, tuple) else None
+    cam = camera_config_from_args(argparse.Namespace(**{
+        **vars(args),
+        "altitude": CameraConfig().altitude_m if altitude_range else args.altitude,
+        "gsd": None if gsd_range else args.gsd,
+    }))
     box = BoxConfig(
         box=args.box,
         fit=args.box_fit,
@@ -164,14 +165,14 @@ def config_from_args(args):
         images_per_placement=args.images_per_placement,
         n_vehicles=args.vehicles,
         n_lines=args.lines,
-        width_px=args.width if args.width is not None else size,
-        height_px=args.height if args.height is not None else size,
-        altitude_m=60.0 if isinstance(args.altitude, tuple) else args.altitude,
-        gsd_m=None if isinstance(args.gsd, tuple) else args.gsd,
-        gsd_range=args.gsd if isinstance(args.gsd, tuple) else None,
-        altitude_range=args.altitude if isinstance(args.altitude, tuple) else None,
+        width_px=cam.width_px,
+        height_px=cam.height_px,
+        altitude_m=cam.altitude_m,
+        gsd_m=cam.gsd_m,
+        gsd_range=gsd_range,
+        altitude_range=altitude_range,
         scene_mix=getattr(args, "scene_mix", None),
-        max_tilt_deg=args.max_tilt,
+        max_tilt_deg=cam.max_tilt_deg,
         box=box,
         image_ext=args.image_ext,
         simple_vehicles=args.simple_vehicles,
@@ -184,23 +185,16 @@ def config_from_args(args):
 
 
 def _cmd_export(args) -> int:
-    from .export import export_dataset
+    from .export import export_dataset  # lazy: the renderer (open3d, numba) loads only to export
 
     cfg = config_from_args(args)
-    if args.dask is not None and args.workers is not None:
-        from ..errors import ExportError
-
-        raise ExportError(f"--dask and --workers: choose one engine (the cluster's workers do the work), "
-                          f"got --dask {args.dask} --workers {args.workers}")
-    res = export_dataset(cfg, args.out, workers=args.workers or 1, resume=args.resume,
+    res = export_dataset(cfg, args.out, workers=args.workers, resume=args.resume,
                          force=args.force, progress=False if args.no_progress else None, dask=args.dask)
     print(res.text())
     return 0
 
 
 def _cmd_show(args) -> int:
-    from .show import show_dataset
-
     paths = show_dataset(args.dir, args.out, limit=args.limit, thumb_px=args.thumb)
     print(f"wrote {len(paths) - 1} previews and {paths[-1]}", file=sys.stdout)
     return 0

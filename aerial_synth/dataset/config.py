@@ -13,7 +13,12 @@ from pathlib import Path
 
 from .. import validators as v
 from ..annotate.boxes import BoxConfig
+from ..camera import MAX_ALTITUDE_M, MAX_GSD_M, CameraConfig
 from ..errors import ConfigError, ExportError
+from ..formats.registry import parse_names
+from ..render.config import RANDOMISE, RenderConfig
+from ..render.config import RENDER_PRESETS as _RENDER_PRESETS
+from .gsd import widest_camera_config
 from .seeds import PLACEMENT_STREAM
 
 __all__ = ["IMAGE_EXTS", "PLACEMENT_STREAM", "SPLITS", "ExportConfig", "ExportResult"]
@@ -26,10 +31,10 @@ MAX_IMAGES = 1_000_000
 #: parameters that appear in the manifest only when set (added after manifest version 1)
 _OPTIONAL_FIELDS = ("bbox", "crs", "render_preset", "randomise", "distractors", "tile_m",
                     "margin_m", "gsd_range", "altitude_range", "scene_mix")
-#: render presets and randomisation modes (aerial_synth.render.shading); kept here as text so
-#: that reading a config imports no renderer
-RENDER_PRESETS = ("full", "fast")
-RANDOMISE_MODES = ("none", "textures")
+#: render presets and randomisation modes: the values of the enums of aerial_synth.render.config
+#: (reading a config imports no renderer)
+RENDER_PRESETS = _RENDER_PRESETS
+RANDOMISE_MODES = RANDOMISE
 
 
 @dataclass(frozen=True)
@@ -80,11 +85,11 @@ class ExportConfig:
     images_per_placement: int = 10
     n_vehicles: int | None = None
     n_lines: int | None = None
-    width_px: int = 1024
-    height_px: int = 1024
-    altitude_m: float = 60.0
-    gsd_m: float | None = None
-    max_tilt_deg: float = 15.0
+    width_px: int = CameraConfig.width_px  # the camera's defaults are CameraConfig's
+    height_px: int = CameraConfig.height_px
+    altitude_m: float = CameraConfig.altitude_m
+    gsd_m: float | None = CameraConfig.gsd_m
+    max_tilt_deg: float = CameraConfig.max_tilt_deg
     box: BoxConfig = field(default_factory=BoxConfig)
     image_ext: str = "png"
     simple_vehicles: bool = False
@@ -98,8 +103,6 @@ class ExportConfig:
     scene_mix: str | None = None
 
     def __post_init__(self):
-        from ..formats.registry import parse_names
-
         E = ExportError
         s = object.__setattr__
         for name in ("scene", "labels", "scenario"):  # paths are stored as text (manifest)
@@ -135,6 +138,7 @@ class ExportConfig:
             s(self, "distractors", v.in_range("--distractors", self.distractors, 0.0, 1000.0,
                                               error=E))
         if self.tile_m is not None:
+            # lazy: tiled imports placement and the scene's tiles (shapely); configs are read at --help
             from .tiled import check_tiled_config
 
             s(self, "tile_m", float(v.in_range("--tile-m", self.tile_m, 0.0, 1e9, lo_open=True, error=E)))
@@ -151,10 +155,11 @@ class ExportConfig:
 
         E = ExportError
         s = object.__setattr__
-        for name, opt in (("gsd_range", "--gsd"), ("altitude_range", "--altitude")):
+        for name, opt, hi in (("gsd_range", "--gsd", MAX_GSD_M),
+                              ("altitude_range", "--altitude", MAX_ALTITUDE_M)):
             val = getattr(self, name)
-            if val is not None:
-                r = parse_range(opt, val, error=E)
+            if val is not None:  # the camera's bounds (aerial_synth.camera) hold for ranges too
+                r = parse_range(opt, val, error=E, hi=hi)
                 if not isinstance(r, tuple):
                     raise E(f"{opt}: expected a range LO:HI for {name}, got {v.show(val)}")
                 s(self, name, r)
@@ -180,12 +185,9 @@ class ExportConfig:
         """Split name -> number of images."""
         return {"train": self.n_train, "val": self.images - self.n_train}
 
-    def camera_config(self):
+    def camera_config(self) -> CameraConfig:
         """The camera of every image; with a GSD or altitude range the one that sees
         farthest (per image: :func:`aerial_synth.dataset.gsd.image_camera_config`)."""
-        from ..camera import CameraConfig
-        from .gsd import widest_camera_config
-
         widest = widest_camera_config(self)
         if widest is not None:
             return widest
@@ -199,8 +201,6 @@ class ExportConfig:
 
     def render_config(self):
         """The :class:`~aerial_synth.render.RenderConfig` of every image."""
-        from ..render import RenderConfig
-
         return RenderConfig.preset(self.render_preset or "full",
                                    randomise=self.randomise or "none")
 

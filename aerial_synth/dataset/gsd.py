@@ -55,10 +55,11 @@ GSD_STREAM = 2
 DISTRIBUTIONS = ("log-uniform", "uniform")
 
 
-def parse_range(option: str, value, *, error=ExportError) -> float | tuple[float, float]:
+def parse_range(option: str, value, *, error=ExportError,
+                hi: float = math.inf) -> float | tuple[float, float]:
     """``"0.12"`` -> 0.12; ``"0.05:0.3"`` -> (0.05, 0.3); numbers and 2-sequences pass
-    through checked. Values must be finite and > 0, and a range's LO < HI; anything else
-    raises ``error`` with one line naming ``option``."""
+    through checked. Values must be finite, > 0 and <= ``hi``, and a range's LO < HI;
+    anything else raises ``error`` with one line naming ``option``."""
     if isinstance(value, (list, tuple)):
         parts = list(value)
         text = ":".join(str(p) for p in parts)
@@ -80,6 +81,8 @@ def parse_range(option: str, value, *, error=ExportError) -> float | tuple[float
                         f"got {text!r}") from None
         if not (math.isfinite(x) and x > 0):
             raise error(f"{option}: expected values > 0 (metres), got {text!r}")
+        if x > hi:
+            raise error(f"{option}: expected values <= {hi:g} (metres), got {text!r}")
         nums.append(x)
     if len(nums) == 1:
         return nums[0]
@@ -89,13 +92,19 @@ def parse_range(option: str, value, *, error=ExportError) -> float | tuple[float
     return (lo, hi)
 
 
-def arg_range(option: str):
+def camera_range(option: str, hi: float):
+    """argparse ``type=`` of :func:`parse_range` with the camera's bound ``hi`` (its one-line
+    error, exit status 2): ``render.cli.add_camera_args(..., ranges=camera_range)``."""
+    return arg_range(option, hi)
+
+
+def arg_range(option: str, hi: float = math.inf):
     """argparse ``type=`` of :func:`parse_range` (its one-line error, exit status 2)."""
     import argparse
 
     def conv(text: str):
         try:
-            return parse_range(option, text)
+            return parse_range(option, text, hi=hi)
         except ExportError as exc:
             raise argparse.ArgumentTypeError(str(exc)) from None
 

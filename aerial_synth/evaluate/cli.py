@@ -8,6 +8,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from ..errors import EvaluationError
 from ..validators import arg_choice, arg_float, arg_int
 
 __all__ = ["register"]
@@ -119,14 +120,17 @@ def _classes(text):
         return None
     out = [c.strip() for c in text.split(",") if c.strip()]
     if not out:
-        from ..errors import EvaluationError
-
         raise EvaluationError(f"--classes: expected a comma list of class names, got {text!r}")
     return out
 
 
 def _cmd_eval(args) -> int:
-    from .evaluation import check_report_dir, run_eval, summary_table, write_eval_report
+    from .evaluation import (  # lazy: shapely
+        check_report_dir,
+        run_eval,
+        summary_table,
+        write_eval_report,
+    )
 
     out = None
     if args.out is not None:
@@ -143,7 +147,7 @@ def _cmd_eval(args) -> int:
 
 
 def _cmd_mix(args) -> int:
-    from .mix import MixConfig, make_mix
+    from .mix import MixConfig, make_mix  # lazy: shapely, OpenCV; the parser is built at --help
 
     classes = None if args.classes == "all" else _classes(args.classes)
     cfg = MixConfig(
@@ -167,12 +171,12 @@ def _cmd_mix(args) -> int:
 
 
 def _cmd_stats(args) -> int:
-    from .evaluation import check_report_dir
-    from .stats import run_stats
+    # lazy: shapely and OpenCV load only when stats runs (the parser is built at --help)
+    from . import evaluation, stats
 
     inputs = [("DIR", Path(args.dir))] + ([("--compare", Path(args.compare))] if args.compare else [])
-    out = check_report_dir(args.out, inputs)
-    text = run_stats(Path(args.dir), out, compare=Path(args.compare) if args.compare else None,
+    out = evaluation.check_report_dir(args.out, inputs)
+    text = stats.run_stats(Path(args.dir), out, compare=Path(args.compare) if args.compare else None,
                      gsd=args.gsd, compare_gsd=args.compare_gsd, max_images=args.max_images,
                      seed=args.seed, classes=None if args.classes == "all" else _classes(args.classes))
     print(text)

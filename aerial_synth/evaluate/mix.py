@@ -39,17 +39,17 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import EvaluationError
+from ..formats import dota, yolo_obb
+from ..formats.labels import ImageLabels
 from ..io_utils import check_output_dir, dumps_json, is_inside
+from .ap import to_polygons
 from .labels import (
     IMAGE_EXTS,
-    ImageLabels,
-    dota_lines,
     find_data_yaml,
     image_size,
     parse_names,
-    parse_yolo_obb_lines,
     read_dota_folder,
-    read_lines,
+    read_yolo_labels,
 )
 
 __all__ = ["MixConfig", "make_mix", "tile_origins", "clip_to_tile", "rescale_polygons",
@@ -177,8 +177,6 @@ def clip_to_tile(polygons_xy_px, difficult, tile_xywh, keep_threshold: float = 0
     diff = np.asarray(difficult, bool)
     if len(P) == 0:
         return np.zeros(0, int), np.zeros((0, 4, 2)), np.zeros(0, bool), np.zeros(0, bool)
-    from .ap import to_polygons
-
     polys = to_polygons(P)
     box = shapely.box(x0, y0, x0 + w, y0 + h)
     area = shapely.area(polys)
@@ -270,14 +268,7 @@ def _read_split(spec: tuple, option: str) -> list[ImageLabels]:
     names = spec[3]
     items = []
     for p in sorted(q for q in img.iterdir() if q.suffix.lower() in IMAGE_EXTS and q.is_file()):
-        size = image_size(p)
-        lp = lab / (p.stem + ".txt")
-        if lp.is_file():
-            polys, classes, _ = parse_yolo_obb_lines(read_lines(lp), str(lp), names, size, with_conf=False)
-        else:
-            polys, classes = np.zeros((0, 4, 2)), []
-        items.append(ImageLabels(p.stem, polys, classes, np.zeros(len(classes), bool), None, None,
-                                 lp if lp.is_file() else None, p, size))
+        items.append(read_yolo_labels(lab / (p.stem + ".txt"), p, names, image_size(p)))
     if not items:
         raise EvaluationError(f"{option} {img}: no images found")
     return items
@@ -423,14 +414,13 @@ class _Writer:
             first = first or dst
             images.append(str(dst.relative_to(self.root)))
             if fmt == "dota":
-                text = "\n".join(dota_lines(P, C, D, gsd, src.image_source or item.origin)) + "\n"
+                out = ImageLabels(item.out_stem, P, C, D)
+                text = dota.text(dota.from_labels(out), gsd, src.image_source or item.origin)
             else:
-                lines = []
-                for p, c in zip(P, C):
-                    k = self.classes.index(c) if self.classes else 0
-                    q = np.clip(p / (w, h), 0.0, 1.0).reshape(-1)
-                    lines.append(f"{k} " + " ".join(f"{v:.6f}" for v in q))
-                text = "".join(ln + "\n" for ln in lines)
+                text = yolo_obb.text(
+                    yolo_obb.YoloObbObject(self.classes.index(c) if self.classes else 0,
+                                           tuple(map(tuple, np.clip(p / (w, h), 0.0, 1.0))))
+                    for p, c in zip(P, C))
             (lab_dir / (item.out_stem + ".txt")).write_text(text, encoding="utf-8")
         return {
             "split": split, "origin": item.origin, "image": images[0], "images": images,
@@ -446,8 +436,8 @@ def _shuffle(items: list, rng: np.random.Generator) -> list:
     return [items[i] for i in order]
 
 
-def make_mix(cfg: MixConfig) -> dict:
-    """Build the mix (see the module docstring); returns the manifest."""
+def _check_out(cfg: MixConfig) -> Path:
+    """``--out``: not inside an input nor holding one, and new, empty or a mix (with --force)."""
     out = Path(cfg.out)
     for opt, p in (("--real", cfg.real), ("--synthetic", cfg.synthetic)):
         if not Path(p).exists():
@@ -462,6 +452,29 @@ def make_mix(cfg: MixConfig) -> dict:
             raise EvaluationError(f"--out {out}: exists, is not empty and is not a mix; choose a new folder")
         if not cfg.force:
             raise EvaluationError(f"--out {out}: holds a mix already (use --force to replace it)")
+    return out
+
+
+def _counts(entries: list[dict]) -> dict:
+    """The manifest's counts of the written images."""
+    tr = [e for e in entries if e["split"] == "train"]
+    va = [e for e in entries if e["split"] == "val"]
+    n_r = sum(e["origin"] == "real" for e in tr)
+    counts = {
+        "train_real": n_r, "train_synthetic": len(tr) - n_r,
+        "real_share": (n_r / len(tr)) if tr else 0.0,
+        "val_real": sum(e["origin"] == "real" for e in va),
+        "val_synthetic": sum(e["origin"] == "synthetic" for e in va),
+        "objects": sum(e["objects"] for e in entries),
+        "clipped": sum(e["clipped"] for e in entries),
+        "copied": sum(e["file"] == "copy" for e in entries),
+    }
+    return counts
+
+
+def make_mix(cfg: MixConfig) -> dict:
+    """Build the mix (see the module docstring); returns the manifest."""
+    out = _check_out(cfg)
 
     real_splits = _dota_splits(Path(cfg.real), "--real")
     syn_splits = _dota_splits(Path(cfg.synthetic), "--synthetic")
@@ -523,18 +536,7 @@ def make_mix(cfg: MixConfig) -> dict:
             (tmp / "yolo-obb" / "data.yaml").write_text(yaml.safe_dump(
                 {"train": "images/train", "val": val_dir, "nc": len(classes),
                  "names": dict(enumerate(classes))}, sort_keys=False), encoding="utf-8")
-        tr = [e for e in entries if e["split"] == "train"]
-        va = [e for e in entries if e["split"] == "val"]
-        n_r = sum(e["origin"] == "real" for e in tr)
-        counts = {
-            "train_real": n_r, "train_synthetic": len(tr) - n_r,
-            "real_share": (n_r / len(tr)) if tr else 0.0,
-            "val_real": sum(e["origin"] == "real" for e in va),
-            "val_synthetic": sum(e["origin"] == "synthetic" for e in va),
-            "objects": sum(e["objects"] for e in entries),
-            "clipped": sum(e["clipped"] for e in entries),
-            "copied": sum(e["file"] == "copy" for e in entries),
-        }
+        counts = _counts(entries)
         used = {}
         for e in entries:
             used.setdefault(e["source_image"], []).append(e["image"])

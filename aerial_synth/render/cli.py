@@ -17,48 +17,82 @@ import argparse
 import sys
 import time
 
+from ..camera import (
+    DEFAULT_GSD_M,
+    MAX_ALTITUDE_M,
+    MAX_FOCAL_PX,
+    MAX_GSD_M,
+    MAX_IMAGE_PX,
+    MAX_TILT_LIMIT_DEG,
+    CameraConfig,
+    grid_poses,
+    sample_pose_targeted,
+)
+from ..io_utils import atomic_write_json, atomic_write_text, check_output_dir
+from ..scene.cli import add_scene_args, scene_from_args
+from ..scene.raycast import RayScene
+from ..validators import arg_choice, arg_float, arg_int
+from . import backends
+from .budget import check_frame_memory
+from .config import RANDOMISE, RENDER_PRESETS, Backend, RenderConfig
+
 __all__ = ["register", "add_camera_args", "camera_config_from_args", "run"]
 
 PLACEMENT_KEY = 0x504C  # "PL"
-MAX_IMAGE_PX = 16384
 
 
-def add_camera_args(p: argparse.ArgumentParser) -> None:
-    """Camera options shared by commands that render."""
-    from ..validators import arg_float, arg_int
+def add_camera_args(p: argparse.ArgumentParser, *, size: bool = False, lens: bool = True,
+                    ranges=None) -> None:
+    """The one camera option group of every command that renders: defaults from
+    :class:`~aerial_synth.camera.CameraConfig`, bounds from :mod:`aerial_synth.camera`.
 
+    size : also ``--size`` (a square image; ``--width``/``--height`` then default to it)
+    lens : ``--focal`` and ``--fov`` besides ``--gsd``
+    ranges : ``ranges(option, max_value)`` -> an argparse type for ``--altitude`` and
+             ``--gsd`` that also takes a range ``LO:HI`` (export's per-image draw,
+             :func:`aerial_synth.dataset.gsd.camera_range`); the bounds stay these"""
+    d = CameraConfig()
     g = p.add_argument_group("camera")
-    g.add_argument("--altitude", type=arg_float("--altitude", 0.0, 100_000.0, lo_open=True),
-                   default=60.0, metavar="M",
-                   help="camera height above the target ground, metres (default 60)")
-    g.add_argument("--width", type=arg_int("--width", 1, MAX_IMAGE_PX), default=1024,
-                   metavar="PX", help="image width (1024)")
-    g.add_argument("--height", type=arg_int("--height", 1, MAX_IMAGE_PX), default=1024,
-                   metavar="PX", help="image height (1024)")
-    g.add_argument("--gsd", type=arg_float("--gsd", 0.0, 1000.0, lo_open=True), default=None,
-                   metavar="M", help="ground sampling distance at nadir, m/px (default 0.12)")
-    g.add_argument("--focal", type=arg_float("--focal", 0.0, 1e7, lo_open=True), default=None,
-                   metavar="PX", help="focal length, px")
-    g.add_argument("--fov", type=arg_float("--fov", 0.0, 180.0, lo_open=True, hi_open=True),
-                   default=None, metavar="DEG", help="horizontal field of view, degrees")
-    g.add_argument("--max-tilt", type=arg_float("--max-tilt", 0.0, 89.0, hi_open=True),
-                   default=15.0, metavar="DEG",
-                   help="tilt off nadir ~ U[-max, max] (default 15; must be < 89)")
+    rng = " or a range LO:HI drawn per image (docs/gsd.md)" if ranges else ""
+    g.add_argument("--altitude", type=(ranges("--altitude", MAX_ALTITUDE_M) if ranges else
+                                       arg_float("--altitude", 0.0, MAX_ALTITUDE_M, lo_open=True)),
+                   default=d.altitude_m, metavar="M|LO:HI" if ranges else "M",
+                   help=f"camera height above the target ground, metres ({d.altitude_m:g}){rng}")
+    if size:
+        g.add_argument("--size", type=arg_int("--size", 1, MAX_IMAGE_PX), default=None, metavar="PX",
+                       help=f"square image size in pixels ({d.width_px})")
+    g.add_argument("--width", type=arg_int("--width", 1, MAX_IMAGE_PX), default=None if size else d.width_px,
+                   metavar="PX", help=f"image width ({d.width_px})")
+    g.add_argument("--height", type=arg_int("--height", 1, MAX_IMAGE_PX),
+                   default=None if size else d.height_px, metavar="PX", help=f"image height ({d.height_px})")
+    g.add_argument("--gsd", type=(ranges("--gsd", MAX_GSD_M) if ranges else
+                                  arg_float("--gsd", 0.0, MAX_GSD_M, lo_open=True)), default=None,
+                   metavar="M|LO:HI" if ranges else "M",
+                   help=f"ground sampling distance at nadir, m/px ({DEFAULT_GSD_M:g}){rng}")
+    if lens:
+        g.add_argument("--focal", type=arg_float("--focal", 0.0, MAX_FOCAL_PX, lo_open=True), default=None,
+                       metavar="PX", help="focal length, px")
+        g.add_argument("--fov", type=arg_float("--fov", 0.0, 180.0, lo_open=True, hi_open=True),
+                       default=None, metavar="DEG", help="horizontal field of view, degrees")
+    g.add_argument("--max-tilt", type=arg_float("--max-tilt", 0.0, MAX_TILT_LIMIT_DEG, hi_open=True),
+                   default=d.max_tilt_deg, metavar="DEG",
+                   help=f"tilt off nadir ~ U[-max, max] ({d.max_tilt_deg:g}; must be < {MAX_TILT_LIMIT_DEG:g})")
 
 
-def camera_config_from_args(args):
-    from ..camera import CameraConfig
-
+def camera_config_from_args(args) -> CameraConfig:
+    """The :class:`CameraConfig` of the options :func:`add_camera_args` added."""
+    size = getattr(args, "size", None)
+    d = CameraConfig()
+    width = args.width if args.width is not None else size if size is not None else d.width_px
+    height = args.height if args.height is not None else size if size is not None else d.height_px
     return CameraConfig(
-        altitude_m=args.altitude, width_px=args.width, height_px=args.height, gsd_m=args.gsd,
-        focal_px=args.focal, fov_deg=args.fov, max_tilt_deg=args.max_tilt,
+        altitude_m=args.altitude, width_px=width, height_px=height, gsd_m=args.gsd,
+        focal_px=getattr(args, "focal", None), fov_deg=getattr(args, "fov", None),
+        max_tilt_deg=args.max_tilt,
     )
 
 
 def register(sub) -> None:
-    from ..scene.cli import add_scene_args
-    from ..validators import arg_choice, arg_float, arg_int
-
     p = sub.add_parser(
         "render",
         help="render frames (RGB, instance, semantic, depth, meta) of a placed scene",
@@ -88,12 +122,12 @@ def register(sub) -> None:
     p.add_argument("--depth-format", type=arg_choice("--depth-format", ("npy", "png")),
                    default="npy",
                    help="depth as float32 metres .npy or 16-bit centimetre PNG (npy)")
-    p.add_argument("--backend", type=arg_choice("--backend", ("raycast", "pyrender")),
+    p.add_argument("--backend", type=arg_choice("--backend", tuple(b.value for b in Backend)),
                    default="raycast", help="RGB backend (labels always come from ray casting)")
-    p.add_argument("--preset", type=arg_choice("--preset", ("full", "fast")), default="full",
+    p.add_argument("--preset", type=arg_choice("--preset", RENDER_PRESETS), default="full",
                    help="shading preset: full (every realism factor) or fast (no ambient "
                    "occlusion or sun-disk sampling, coarser shadow rays) (full)")
-    p.add_argument("--randomise", type=arg_choice("--randomise", ("none", "textures")),
+    p.add_argument("--randomise", type=arg_choice("--randomise", RANDOMISE),
                    default="none",
                    help="domain randomisation: textures = random material, sun and sky "
                    "colours (Tobin et al. 2017), a style to mix with realistic frames (none)")
@@ -110,7 +144,7 @@ def register(sub) -> None:
 
 
 def _check_args(args) -> None:
-    from ..placement import load_scenario
+    from ..placement import load_scenario  # lazy: shapely, only when render runs
 
     # the one list of bundled scenarios (placement.SCENARIOS) or a .yaml file, every field checked
     load_scenario(args.scenario)
@@ -119,16 +153,8 @@ def _check_args(args) -> None:
 def run(args) -> int:
     import numpy as np
 
-    from ..camera import grid_poses, sample_pose_targeted
-    from ..io_utils import atomic_write_json, atomic_write_text, check_output_dir
-    from ..placement import place
-    from ..scene.cli import scene_from_args
-    from ..scene.raycast import RayScene
-    from .budget import check_frame_memory
-    from .frame import render_frame
-    from .io import write_frame
-    from .shading import RenderConfig
-    from .world import add_placement
+    from ..placement import place  # lazy: shapely, only when render runs
+    from . import distractors, frame, io, world  # lazy: the renderer (numba, OpenCV)
 
     # validate everything cheap before loading or writing anything
     cam_cfg = camera_config_from_args(args)
@@ -140,10 +166,7 @@ def run(args) -> int:
     check_frame_memory(cam_cfg.width_px, cam_cfg.height_px)  # before a 30 GB frame is OOM-killed
     _check_args(args)
     out = check_output_dir(args.out, "--out")
-    if args.backend == "pyrender":
-        from .pyrender_backend import check_available
-
-        check_available()
+    backends.get(args.backend).check()  # e.g. pyrender without EGL: said before any work
     t0 = time.perf_counter()
     scene = scene_from_args(args)
     grid = None
@@ -152,12 +175,10 @@ def run(args) -> int:
         lows = [o.vertices[:, 2].min() for o in scene.objects if len(o.vertices)]
         gz = float(np.median(lows)) if lows else 0.0
         grid = grid_poses(cam_cfg, b[:, :2], overlap=args.overlap, ground_z=gz)
-    distractors = []
+    extras = []
     if args.distractors > 0:
-        from .distractors import DISTRACTOR_KEY, add_distractors
-
-        scene, distractors = add_distractors(
-            scene, np.random.default_rng(np.random.SeedSequence([args.seed, DISTRACTOR_KEY])),
+        scene, extras = distractors.add_distractors(
+            scene, np.random.default_rng(np.random.SeedSequence([args.seed, distractors.DISTRACTOR_KEY])),
             per_hectare=args.distractors)
     rs = RayScene(scene)
 
@@ -166,7 +187,7 @@ def run(args) -> int:
         pl = place(rs, args.scenario, rng, n_vehicles=args.vehicles, seed=args.seed,
                    scene_name=scene.name)
         rs.clear_vehicles()
-        add_placement(rs, pl)
+        world.add_placement(rs, pl)
         return pl
 
     placement = None
@@ -174,7 +195,7 @@ def run(args) -> int:
         placement = make_placement([args.seed, PLACEMENT_KEY])
         atomic_write_text(out / "placement.json", placement.to_json())
     atomic_write_json(out / "distractors.json", {"per_hectare": args.distractors,
-                                                 "distractors": distractors})
+                                                 "distractors": extras})
     n_veh = 0
     for i in range(args.images):
         if args.placement_per_image:
@@ -186,14 +207,14 @@ def run(args) -> int:
         else:
             cam = sample_pose_targeted(cam_cfg, placement, rng, within_xy=scene.bounds()[:, :2],
                                        clear=lambda c: rs.open_above(c.center))
-        frame = render_frame(rs, cam, placement, rng, rcfg)
-        write_frame(frame, out / f"{i:06d}", depth_format=args.depth_format, extra_meta={
+        fr = frame.render_frame(rs, cam, placement, rng, rcfg)
+        io.write_frame(fr, out / f"{i:06d}", depth_format=args.depth_format, extra_meta={
             "seed": args.seed, "image_index": i, "scene": scene.name,
             "scenario": placement.scenario, "sampler": args.sampler,
             "render_config": rcfg.to_dict(),
-            "distractors": {"per_hectare": args.distractors, "count": len(distractors)},
+            "distractors": {"per_hectare": args.distractors, "count": len(extras)},
         })
-        n_veh += len(frame.visibility)
+        n_veh += len(fr.visibility)
     dt = time.perf_counter() - t0
     print(f"rendered {args.images} frame(s) of {scene.name} ({placement.scenario}), "
           f"{n_veh} vehicles in view in total, {dt:.1f} s -> {out}", file=sys.stdout)

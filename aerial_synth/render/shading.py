@@ -20,236 +20,27 @@ Stages (float32, one fused numba pass over the pixels each, :mod:`._kernels`):
 - **Sensor**: chromatic blur, noise growing with brightness, optional JPEG.
 
 Sun azimuth is in degrees clockwise from north (90 = east), elevation above the horizon.
-Every factor is drawn from the ranges of :class:`RenderConfig` with the frame's generator and
-recorded in ``Frame.factors`` (with ``pixel_seed``, the seed of every per-pixel hash).
+Every factor is drawn from the ranges of :class:`~aerial_synth.render.config.RenderConfig`
+with the frame's generator (:func:`~aerial_synth.render.config.sample_factors`) and recorded
+in ``Frame.factors`` (with ``pixel_seed``, the seed of every per-pixel hash).
 """
 
 from __future__ import annotations
 
 import math
+import time
 import weakref
-from dataclasses import dataclass, fields
 from functools import lru_cache
 
+import cv2
 import numpy as np
 
-from ..errors import ConfigError
 from ..scene.model import DEFAULT_COLOR_FOR_MATERIAL, MATERIAL_IDS, MATERIALS
-from ..validators import boolean, in_range, integer, known_keys, one_of, probability
+from . import _kernels as K
+from . import _materials as M
+from .tone import solve_tone, tone_lut
 
-__all__ = ["RenderConfig", "PRESETS", "sample_factors", "shade", "sun_direction",
-           "solve_tone", "tone_lut"]
-
-
-def _pair(name: str, value, lo: float, hi: float) -> tuple[float, float]:
-    """A (low, high) range within [lo, hi], low <= high."""
-    field = f"render config {name}"
-    expected = f"(low, high) with {lo:g} <= low <= high <= {hi:g}"
-    if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:
-        raise ConfigError(f"{field}: expected {expected}, got {value!r}")
-    a = in_range(f"{field} low", value[0], lo, hi)
-    b = in_range(f"{field} high", value[1], lo, hi)
-    if a > b:
-        raise ConfigError(f"{field}: expected {expected}, got ({a:g}, {b:g})")
-    return (a, b)
-
-
-#: Named presets (keyword overrides of the defaults): ``full`` is every realism factor on
-#: (the default); ``fast`` drops ambient occlusion, the sun-disk sampling, procedural
-#: texture and material detail (so also the light through crown gaps) and the mirror rays
-#: of wet roads, and casts one shadow ray per 4 x 4 block, object-edge pixels taking a
-#: neighbouring block sample on their own surface (``shadow_edges="nearest"``; see
-#: docs/rendering.md, "Speed", for the measured costs: fast stays within 1.5 x the bare
-#: primary cast).
-PRESETS: dict[str, dict] = {
-    "full": {},
-    "fast": {"ambient_occlusion": False, "soft_shadows": False, "shadow_step": 4,
-             "shadow_edges": "nearest", "texture": False, "wet_reflections": False},
-}
-
-_PAIRS = {  # name: (lowest, highest) allowed
-    "sun_azimuth_deg": (0, 360), "sun_elevation_deg": (1, 90), "sun_radius_deg": (0, 5),
-    "haze": (0, 1), "haze_tint": (-1, 1), "overcast": (0, 1), "wet": (0, 1),
-    "key_gray": (5, 250), "contrast_cv": (0.01, 2), "contrast_sd_max": (1, 127),
-    "exposure": (0.05, 20), "tone_shoulder": (0, 4), "white_balance": (-1, 1),
-    "tint": (-0.5, 0.5), "saturation": (0, 3), "blur_sigma_px": (0, 10),
-    "chromatic_blur": (0, 2), "noise_sigma": (0, 0.5), "shot_noise": (0, 0.5),
-    "jpeg_quality": (1, 100), "vignetting": (0, 0.9), "asphalt_albedo": (0.05, 4),
-    "concrete_albedo": (0.05, 4), "ground_albedo": (0.05, 4), "sky_light": (0.1, 5),
-    "vegetation_dryness": (0, 1), "road_wear": (0, 1),
-}
-#: ``shadow_edges`` modes (``shadow_step`` > 1): "cast": a pixel that differs from its
-#: block's sample (label, depth) casts its own shadow ray; "nearest": it copies the first
-#: sample at its cell's corners on its own surface and casts only when there is none
-SHADOW_EDGES = ("cast", "nearest")
-#: ``randomise`` modes: "none" (realistic), "textures" (domain randomisation after Tobin et
-#: al. 2017: every material's colour, the light's colour and the sky's drawn at random)
-RANDOMISE = ("none", "textures")
-
-
-@dataclass(frozen=True)
-class RenderConfig:
-    """Ranges of the influence factors (each drawn uniformly per frame) and switches.
-
-    A fixed value is a range with low == high, e.g. ``sun_elevation_deg=(40, 40)``.
-    overcast / wet / jpeg / grayscale apply with their probability, then their strength is
-    drawn. The spreads of the camera factors (key_gray, contrast, white balance, saturation,
-    JPEG quality) are chosen to match real aerial imagery: see docs/rendering.md.
-
-    exposure_mode "auto": the camera meters the frame's linear radiance and picks the
-    exposure gain that gives the drawn mean gray ``key_gray`` and the tone-curve power that
-    gives the drawn gray standard deviation min(contrast_cv x key_gray, contrast_sd_max);
-    "fixed": gain ``exposure`` and the display power 1 / 2.2 (a plain camera).
-    """
-
-    sun_azimuth_deg: tuple[float, float] = (0.0, 360.0)
-    sun_elevation_deg: tuple[float, float] = (25.0, 70.0)
-    sun_radius_deg: tuple[float, float] = (0.27, 1.0)
-    haze: tuple[float, float] = (0.0, 0.2)
-    haze_tint: tuple[float, float] = (-1.0, 1.0)
-    overcast_probability: float = 0.25
-    overcast: tuple[float, float] = (0.3, 1.0)
-    wet_probability: float = 0.15
-    wet: tuple[float, float] = (0.4, 1.0)
-    exposure_mode: str = "auto"
-    key_gray: tuple[float, float] = (48.0, 185.0)
-    contrast_cv: tuple[float, float] = (0.25, 0.55)
-    contrast_sd_max: tuple[float, float] = (32.0, 50.0)
-    exposure: tuple[float, float] = (0.9, 1.1)
-    tone_shoulder: tuple[float, float] = (0.0, 0.6)
-    white_balance: tuple[float, float] = (-0.2, 0.1)
-    tint: tuple[float, float] = (-0.04, 0.04)
-    saturation: tuple[float, float] = (0.3, 0.75)
-    grayscale_probability: float = 0.1
-    blur_sigma_px: tuple[float, float] = (0.4, 0.9)
-    chromatic_blur: tuple[float, float] = (0.0, 0.35)
-    noise_sigma: tuple[float, float] = (0.002, 0.008)
-    shot_noise: tuple[float, float] = (0.01, 0.03)
-    jpeg_probability: float = 0.6
-    jpeg_quality: tuple[float, float] = (55.0, 95.0)
-    vignetting: tuple[float, float] = (0.0, 0.25)
-    asphalt_albedo: tuple[float, float] = (0.3, 0.8)
-    concrete_albedo: tuple[float, float] = (0.8, 1.15)
-    ground_albedo: tuple[float, float] = (0.45, 0.85)
-    vegetation_dryness: tuple[float, float] = (0.0, 0.8)
-    road_wear: tuple[float, float] = (0.2, 1.0)
-    sky_light: tuple[float, float] = (1.3, 2.2)
-    randomise: str = "none"
-    shadows: bool = True
-    soft_shadows: bool = True
-    wet_reflections: bool = True
-    shadow_step: int = 3
-    shadow_edges: str = "cast"
-    ambient_occlusion: bool = True
-    ao_step: int = 5
-    ao_rays: int = 4
-    ao_radius_m: float = 2.0
-    texture: bool = True
-    texture_seed: int = 0
-    backend: str = "raycast"
-
-    def __post_init__(self) -> None:
-        s = object.__setattr__
-        for name, (lo, hi) in _PAIRS.items():
-            s(self, name, _pair(name, getattr(self, name), lo, hi))
-        for p in ("overcast_probability", "wet_probability", "jpeg_probability",
-                  "grayscale_probability"):
-            s(self, p, probability(f"render config {p}", getattr(self, p)))
-        for b in ("shadows", "soft_shadows", "ambient_occlusion", "texture", "wet_reflections"):
-            boolean(f"render config {b}", getattr(self, b))
-        one_of("render config backend", self.backend, ("raycast", "pyrender"))
-        one_of("render config exposure_mode", self.exposure_mode, ("auto", "fixed"))
-        one_of("render config randomise", self.randomise, RANDOMISE)
-        one_of("render config shadow_edges", self.shadow_edges, SHADOW_EDGES)
-        s(self, "shadow_step", integer("render config shadow_step", self.shadow_step, 1, 16))
-        s(self, "ao_step", integer("render config ao_step", self.ao_step, 1, 32))
-        s(self, "ao_rays", integer("render config ao_rays", self.ao_rays, 1, 64))
-        s(self, "ao_radius_m", in_range("render config ao_radius_m", self.ao_radius_m, 0.05,
-                                        50.0))
-        s(self, "texture_seed", integer("render config texture_seed", self.texture_seed, 0))
-
-    def to_dict(self) -> dict:
-        out = {}
-        for f in fields(self):
-            v = getattr(self, f.name)
-            out[f.name] = list(v) if isinstance(v, tuple) else v
-        return out
-
-    @classmethod
-    def preset(cls, name: str = "full", **overrides) -> "RenderConfig":
-        """The named preset (:data:`PRESETS`) with keyword overrides."""
-        one_of("render preset", name, tuple(PRESETS))
-        return cls(**{**PRESETS[name], **overrides})
-
-    @classmethod
-    def from_mapping(cls, data) -> "RenderConfig":
-        if not data:
-            return cls()
-        known_keys("render config", data, [f.name for f in fields(cls)])
-        kw = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
-        return cls(**kw)
-
-
-def sample_factors(cfg: RenderConfig, rng: np.random.Generator) -> dict:
-    """Draw every influence factor for one frame (fixed draw order: deterministic).
-
-    Everything drawn is in the returned dict (and so in meta.json), including
-    ``pixel_seed``, the seed of the per-pixel hashes (sun-disk samples, ambient-occlusion
-    directions, sensor noise)."""
-    u = rng.uniform
-    f = {
-        "sun_azimuth_deg": float(u(*cfg.sun_azimuth_deg)),
-        "sun_elevation_deg": float(u(*cfg.sun_elevation_deg)),
-        "haze": float(u(*cfg.haze)),
-    }
-    oc_on, oc = rng.random() < cfg.overcast_probability, float(u(*cfg.overcast))
-    f["overcast"] = oc if oc_on else 0.0
-    wet_on, wet = rng.random() < cfg.wet_probability, float(u(*cfg.wet))
-    f["wet"] = wet if wet_on else 0.0
-    f["exposure"] = float(u(*cfg.exposure))
-    f["white_balance"] = float(u(*cfg.white_balance))
-    f["blur_sigma_px"] = float(u(*cfg.blur_sigma_px))
-    f["noise_sigma"] = float(u(*cfg.noise_sigma))
-    jp_on, q = rng.random() < cfg.jpeg_probability, int(round(u(*cfg.jpeg_quality)))
-    f["jpeg_quality"] = q if jp_on else None
-    f["vignetting"] = float(u(*cfg.vignetting))
-    f["shadows"] = bool(cfg.shadows)
-    f["texture_seed"] = cfg.texture_seed if cfg.texture else None
-    # --- realism factors (issue 15), drawn after the original ones
-    f["sun_radius_deg"] = float(u(*cfg.sun_radius_deg)) if cfg.soft_shadows else 0.0
-    f["haze_tint"] = float(u(*cfg.haze_tint))
-    f["exposure_mode"] = cfg.exposure_mode
-    f["key_gray"] = float(u(*cfg.key_gray))
-    cv, sd_max = float(u(*cfg.contrast_cv)), float(u(*cfg.contrast_sd_max))
-    f["contrast_cv"], f["contrast_sd_max"] = cv, sd_max
-    f["target_gray_sd"] = min(cv * f["key_gray"], sd_max)
-    f["tone_shoulder"] = float(u(*cfg.tone_shoulder))
-    f["tint"] = float(u(*cfg.tint))
-    f["saturation"] = float(u(*cfg.saturation))
-    f["grayscale"] = bool(rng.random() < cfg.grayscale_probability)
-    f["chromatic_blur"] = float(u(*cfg.chromatic_blur))
-    f["shot_noise"] = float(u(*cfg.shot_noise))
-    f["shadow_step"] = cfg.shadow_step
-    if cfg.shadow_edges != "cast":  # recorded when not the default (as before otherwise)
-        f["shadow_edges"] = cfg.shadow_edges
-    f["wet_reflections"] = bool(cfg.wet_reflections)
-    f["ambient_occlusion"] = (
-        {"step_px": cfg.ao_step, "rays": cfg.ao_rays, "radius_m": cfg.ao_radius_m}
-        if cfg.ambient_occlusion else None)
-    f["asphalt_albedo"] = float(u(*cfg.asphalt_albedo))
-    f["concrete_albedo"] = float(u(*cfg.concrete_albedo))
-    f["ground_albedo"] = float(u(*cfg.ground_albedo))
-    f["vegetation_dryness"] = float(u(*cfg.vegetation_dryness))
-    f["road_wear"] = float(u(*cfg.road_wear)) if cfg.texture else 0.0
-    f["sky_light"] = float(u(*cfg.sky_light))
-    f["randomise"] = cfg.randomise
-    if cfg.randomise == "textures":  # a random colour gain per material, sun and sky
-        f["material_rgb_gain"] = np.exp(rng.normal(0.0, 0.6, (len(MATERIALS), 3))).round(
-            4).tolist()
-        f["sun_rgb"] = rng.uniform(0.6, 1.0, 3).round(4).tolist()
-        f["sky_rgb"] = rng.uniform(0.3, 1.0, 3).round(4).tolist()
-    f["pixel_seed"] = int(rng.integers(0, 2**62, dtype=np.int64))
-    return f
+__all__ = ["shade", "material_gains", "sun_direction", "face_tangents"]
 
 
 _ASPHALT = [MATERIAL_IDS["asphalt"], MATERIAL_IDS["track"]]  # tracks age with the road
@@ -299,44 +90,6 @@ def sun_direction(azimuth_deg: float, elevation_deg: float) -> np.ndarray:
 
 # --------------------------------------------------------------------------- tone
 _LUMA = np.array([0.299, 0.587, 0.114])
-_LUT_SIZE = 4 * 4096  # exposed linear values 0 .. 4 (K.LUT_SCALE entries per unit)
-
-
-def _curve(v: np.ndarray, shoulder: float, power: float) -> np.ndarray:
-    """Tone curve on exposed linear values: clip at 1, soft shoulder, power (gamma)."""
-    v = np.clip(v, 0.0, 1.0)
-    return (v * (1.0 + shoulder) / (1.0 + shoulder * v)) ** power
-
-
-def tone_lut(shoulder: float, power: float) -> np.ndarray:
-    """(16384,) uint8 display value for exposed linear value k / 4096."""
-    x = np.arange(_LUT_SIZE, dtype=np.float64) / 4096.0
-    return np.clip(_curve(x, shoulder, power) * 255.0 + 0.5, 0, 255).astype(np.uint8)
-
-
-def solve_tone(luma: np.ndarray, key_gray: float, target_sd: float, shoulder: float,
-               power_range: tuple[float, float] = (0.3, 1.6)) -> tuple[float, float]:
-    """Auto exposure and contrast: (gain, power) such that the display gray
-    255 * curve(gain * luma, shoulder, power) has mean ``key_gray`` and standard deviation
-    as close to ``target_sd`` as ``power_range`` allows. ``luma``: linear luminances of a
-    subsample of the frame (after white balance). Bisection on a 256-bin log histogram."""
-    y = luma[np.isfinite(luma) & (luma > 1e-6)]
-    if len(y) == 0:
-        return 1.0, 1.0 / 2.2
-    ly = np.log(y)
-    lo, hi = float(ly.min()), float(ly.max()) + 1e-6
-    from ._tone import histogram_uniform, solve_on_histogram  # compiled, same results
-
-    edges = np.linspace(lo, hi, 257)  # np.histogram(ly, bins=256, range=(lo, hi))
-    cnt = histogram_uniform(np.ascontiguousarray(ly, np.float64), edges)
-    yc = np.exp(0.5 * (edges[1:] + edges[:-1]))
-    wts = cnt / cnt.sum()
-
-    plo, phi = power_range
-    lg, p = solve_on_histogram(lo, np.ascontiguousarray(yc, np.float64),
-                               np.ascontiguousarray(wts, np.float64), float(key_gray),
-                               float(target_sd), float(shoulder), float(plo), float(phi))
-    return math.exp(lg), float(p)
 
 
 # ----------------------------------------------------------------------- materials
@@ -379,8 +132,6 @@ _WETK = _table(0.0, asphalt=1.0, marking=0.7, concrete=0.9, paving=0.9, soil=0.6
 
 def _kinds() -> np.ndarray:
     """(n_materials,) int64 pattern kind of each material (:mod:`._materials`)."""
-    from . import _materials as M
-
     t = np.zeros(len(MATERIALS), np.int64)
     for name, kind in (("roof_gravel", M.KIND_GRAVEL), ("roof_tiles", M.KIND_TILES),
                        ("roof_metal", M.KIND_METAL), ("track", M.KIND_TRACK),
@@ -590,6 +341,144 @@ def _haze_colour(tint: float, e_sky: float) -> np.ndarray:
     return (c * (0.8 + 0.4 * e_sky)).astype(np.float32)
 
 
+def _light(factors, oc):
+    """The frame's light: sun and sky colours, their irradiances and the haze veil's colour."""
+    elev = math.radians(factors["sun_elevation_deg"])
+    warm = max(0.0, 1.0 - elev / math.radians(45.0))
+    sun_col = np.array([1.0, 0.96 - 0.05 * warm, 0.90 - 0.12 * warm], np.float32)
+    sky_col = np.array([0.60, 0.68, 0.85], np.float32)  # blue sky light: shadows turn blue
+    if factors.get("sun_rgb") is not None:  # domain randomisation
+        sun_col = np.asarray(factors["sun_rgb"], np.float32)
+        sky_col = np.asarray(factors["sky_rgb"], np.float32)
+    sky_col = sky_col + np.float32(oc) * (np.array([0.85, 0.86, 0.88], np.float32) - sky_col)
+    e_sun = np.float32(1.15 * (1.0 - 0.85 * oc))
+    # sky light (diffuse share of the irradiance: turbidity, bounce light from the
+    # surroundings); a clear-sky shadow keeps ~25 % (x1) to ~45 % (x2) of the sunlit level
+    e_sky = np.float32((0.30 + 0.45 * oc) * float(factors.get("sky_light", 1.0)))
+    veil = _haze_colour(float(factors.get("haze_tint", 0.0)), float(e_sky))
+    return sun_col, sky_col, e_sun, e_sky, veil
+
+
+def _shadow_pass(rayscene, buffers, factors, has_lit, own, ndl, src, L, tiles, textured, nearest,
+                 step, oc, pseed, mark):
+    """Sun visibility ``lit`` per pixel (shadow rays at sun-disk samples, dappled light through
+    crowns, spread over each block and blurred into a penumbra) and its ``lit_step`` (0:
+    every pixel's value; k: only the block samples', read by :func:`._kernels.compose`)."""
+    h, w = buffers.height_px, buffers.width_px
+    n = h * w
+    lit = np.ones(n if has_lit else 1, np.float32)
+    lit_step = 0  # 0: lit holds every pixel's value; k: only the own pixels' (K.compose)
+    if has_lit:
+        disk = _disk_vectors(L.astype(np.float64), float(factors.get("sun_radius_deg", 0.0)))
+        idx, srays = K.gather_shadow_rays(own, buffers.rays, buffers.t, buffers.normal, L,
+                                          np.float32(_PEEL), disk, np.uint64(pseed ^ 0x5D15C))
+        occ = rayscene.test_occlusions(srays) if len(idx) else np.zeros(0, bool)
+        vis = np.where(occ, np.float32(0.0), np.float32(1.0)).astype(np.float32)
+        if textured and occ.any():  # dappled light through crowns: blocked by trees only?
+            blocked = np.flatnonzero(occ)
+            solid = rayscene.test_occlusions(srays[blocked], ignore=("tree",))
+            leafy = blocked[~solid]
+            if len(leafy):
+                vis[leafy] = _crown_gaps(srays[leafy], tiles)
+        mark("shadow_rays")
+        sig = (0.5 + 6.0 * oc) if oc > 0.02 else (0.6 if disk.any() else 0.0)
+        if sig <= 0 and _SPREAD_IN_COMPOSE:  # nothing blurs lit: compose reads the samples
+            K.scatter_values(idx, vis, lit)
+            lit_step = step
+        elif nearest:
+            K.spread_shadow_nearest(h, w, step, own, ndl, src, idx, vis, lit)
+        else:
+            K.spread_shadow(h, w, step, own, ndl, idx, vis, lit)
+        if sig > 0:  # sun-disk samples: a smooth penumbra; overcast: a wide, soft edge
+            lit = cv2.GaussianBlur(lit.reshape(h, w), (0, 0), sig).reshape(-1)
+        mark("shadow_spread")
+    return lit, lit_step
+
+
+def _ao_pass(rayscene, camera, buffers, ao_cfg, pseed, mark):
+    """Ambient occlusion per pixel (rays cast per block where something rises nearby,
+    spread over each surface); a (1,) array of ones without ``ao_cfg``."""
+    has_ao = bool(ao_cfg)
+    h, w = buffers.height_px, buffers.width_px
+    n = h * w
+    ao = np.ones(n if has_ao else 1, np.float32)
+    if has_ao:
+        ao_step, n_dirs = int(ao_cfg["step_px"]), int(ao_cfg["rays"])
+        radius = float(ao_cfg["radius_m"])
+        bh, bw = -(-h // ao_step), -(-w // ao_step)
+        # only blocks with something rising > 0.15 m above their sample within the radius
+        # (seen in the image) can be occluded: the others get 1 without casting
+        zmax, zs, hit = K.ao_blocks(h, w, ao_step, buffers.rays, buffers.t, buffers.face)
+        d = buffers.depth[::16, ::16]
+        d = d[d > 0]
+        px_m = float(np.median(d)) / float(camera.K[0][0]) if len(d) else 0.1
+        kr = int(min(math.ceil(radius / max(px_m * ao_step, 1e-3)), 32))
+        zn = cv2.dilate(zmax.reshape(bh, bw), np.ones((2 * kr + 1, 2 * kr + 1), np.uint8))
+        need = hit & (zn.reshape(-1) - zs > np.float32(0.15))
+        blocks, arays = K.gather_ao_rays(h, w, ao_step, buffers.rays, buffers.t,
+                                         buffers.normal, buffers.face, need, n_dirs,
+                                         np.float32(_PEEL), np.uint64(pseed ^ 0xA0))
+        aocc = (rayscene.test_occlusions(arays, tfar=radius)
+                if len(blocks) else np.zeros(0, bool))
+        low = np.where(hit, np.float32(1.0), np.float32(-1.0)).astype(np.float32)
+        if len(blocks):
+            low[blocks] = 1.0 - aocc.reshape(-1, n_dirs).mean(axis=1)
+        K.spread_ao(h, w, ao_step, low, buffers.semantic.reshape(-1),
+                    buffers.depth.reshape(-1), ao)
+        mark("ambient_occlusion")
+    return ao
+
+
+def _camera_pass(lin, factors, h, w):
+    """The camera: white balance and tint, auto (metered) or fixed exposure, saturation, the
+    tone curve, a panchromatic frame; (H, W, 3) uint8. Adds ``exposure_gain`` and
+    ``tone_power`` to ``factors``."""
+    wb = float(factors["white_balance"])  # log(R gain / B gain)
+    tint = float(factors.get("tint", 0.0))  # log G gain
+    gains = np.array([math.exp(wb / 2), math.exp(tint), math.exp(-wb / 2)])
+    gains /= float(_LUMA @ gains)
+    shoulder = float(factors.get("tone_shoulder", 0.25))
+    if factors.get("exposure_mode", "fixed") == "auto":
+        # meter what the sensor records: the luma softened by the frame's optical blur
+        # (metering sharp pixels overestimated the final gray sd by ~2.5 on average)
+        y = cv2.transform(lin, (_LUMA * gains).reshape(1, 3).astype(np.float32))
+        if factors["blur_sigma_px"] > 0.05:
+            y = cv2.GaussianBlur(y, (0, 0), float(factors["blur_sigma_px"]))
+        sub = y[::4, ::4].reshape(-1).astype(np.float64)
+        gain, power = solve_tone(sub, float(factors["key_gray"]),
+                                 float(factors["target_gray_sd"]), shoulder)
+    else:
+        gain, power = float(factors["exposure"]), 1.0 / 2.2
+    factors["exposure_gain"] = float(gain)
+    factors["tone_power"] = float(power)
+    rgb = np.empty((h, w, 3), np.uint8)
+    K.tone(lin, (gains * gain).astype(np.float32),
+           np.float32(factors.get("saturation", 1.0)), tone_lut(shoulder, power), rgb)
+    if factors.get("grayscale"):  # a panchromatic product (like several DOTA images)
+        g = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
+        rgb = np.ascontiguousarray(np.repeat(g[..., None], 3, axis=2))
+    return rgb
+
+
+def _sensor_pass(rgb, factors, pseed):
+    """The sensor: chromatic blur and noise growing with brightness."""
+    sig = factors["blur_sigma_px"]
+    ca = float(factors.get("chromatic_blur", 0.0))
+    if sig > 0.05:
+        if ca > 0.01:  # lateral colour: red and blue a little softer than green
+            chans = [cv2.GaussianBlur(ch, (0, 0), sig * f)
+                     for ch, f in zip(cv2.split(rgb), (1.0 + ca, 1.0, 1.0 + 1.5 * ca))]
+            rgb = cv2.merge(chans)  # split / merge: the same bytes as numpy slices and stack
+        else:
+            rgb = cv2.GaussianBlur(rgb, (0, 0), sig)
+    ns = factors["noise_sigma"]
+    shot = float(factors.get("shot_noise", 0.0))
+    if ns > 0 or shot > 0:
+        K.add_noise(rgb, np.uint64(pseed ^ 0x4E015E), np.float32(ns * 255.0),
+                    np.float32(shot * 255.0), _normal_quantiles())
+    return rgb
+
+
 def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | None = None,
           timings: dict | None = None, shadow_step: int | None = None,
           before_compose=None) -> np.ndarray:
@@ -611,12 +500,6 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
                   (before compose); :func:`.frame.render_frame` starts visibility there,
                   so it runs beside the less parallel stages that follow.
     """
-    import time
-
-    import cv2
-
-    from . import _kernels as K
-
     tick = [time.perf_counter()]
 
     def mark(name):
@@ -651,74 +534,14 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
     mark("surface")
 
     has_lit = bool(factors.get("shadows", True))
-    lit = np.ones(n if has_lit else 1, np.float32)
-    lit_step = 0  # 0: lit holds every pixel's value; k: only the own pixels' (K.compose)
-    if has_lit:
-        disk = _disk_vectors(L.astype(np.float64), float(factors.get("sun_radius_deg", 0.0)))
-        idx, srays = K.gather_shadow_rays(own, buffers.rays, buffers.t, buffers.normal, L,
-                                          np.float32(_PEEL), disk, np.uint64(pseed ^ 0x5D15C))
-        occ = rayscene.test_occlusions(srays) if len(idx) else np.zeros(0, bool)
-        vis = np.where(occ, np.float32(0.0), np.float32(1.0)).astype(np.float32)
-        if textured and occ.any():  # dappled light through crowns: blocked by trees only?
-            blocked = np.flatnonzero(occ)
-            solid = rayscene.test_occlusions(srays[blocked], ignore=("tree",))
-            leafy = blocked[~solid]
-            if len(leafy):
-                vis[leafy] = _crown_gaps(srays[leafy], tiles)
-        mark("shadow_rays")
-        sig = (0.5 + 6.0 * oc) if oc > 0.02 else (0.6 if disk.any() else 0.0)
-        if sig <= 0 and _SPREAD_IN_COMPOSE:  # nothing blurs lit: compose reads the samples
-            K.scatter_values(idx, vis, lit)
-            lit_step = step
-        elif nearest:
-            K.spread_shadow_nearest(h, w, step, own, ndl, src, idx, vis, lit)
-        else:
-            K.spread_shadow(h, w, step, own, ndl, idx, vis, lit)
-        if sig > 0:  # sun-disk samples: a smooth penumbra; overcast: a wide, soft edge
-            lit = cv2.GaussianBlur(lit.reshape(h, w), (0, 0), sig).reshape(-1)
-        mark("shadow_spread")
+    lit, lit_step = _shadow_pass(rayscene, buffers, factors, has_lit, own, ndl, src, L, tiles,
+                                 textured, nearest, step, oc, pseed, mark)
 
     ao_cfg = factors.get("ambient_occlusion")
     has_ao = bool(ao_cfg)
-    ao = np.ones(n if has_ao else 1, np.float32)
-    if has_ao:
-        ao_step, n_dirs = int(ao_cfg["step_px"]), int(ao_cfg["rays"])
-        radius = float(ao_cfg["radius_m"])
-        bh, bw = -(-h // ao_step), -(-w // ao_step)
-        # only blocks with something rising > 0.15 m above their sample within the radius
-        # (seen in the image) can be occluded: the others get 1 without casting
-        zmax, zs, hit = K.ao_blocks(h, w, ao_step, buffers.rays, buffers.t, buffers.face)
-        d = buffers.depth[::16, ::16]
-        d = d[d > 0]
-        px_m = float(np.median(d)) / float(camera.K[0][0]) if len(d) else 0.1
-        kr = int(min(math.ceil(radius / max(px_m * ao_step, 1e-3)), 32))
-        zn = cv2.dilate(zmax.reshape(bh, bw), np.ones((2 * kr + 1, 2 * kr + 1), np.uint8))
-        need = hit & (zn.reshape(-1) - zs > np.float32(0.15))
-        blocks, arays = K.gather_ao_rays(h, w, ao_step, buffers.rays, buffers.t,
-                                         buffers.normal, buffers.face, need, n_dirs,
-                                         np.float32(_PEEL), np.uint64(pseed ^ 0xA0))
-        aocc = (rayscene.test_occlusions(arays, tfar=radius)
-                if len(blocks) else np.zeros(0, bool))
-        low = np.where(hit, np.float32(1.0), np.float32(-1.0)).astype(np.float32)
-        if len(blocks):
-            low[blocks] = 1.0 - aocc.reshape(-1, n_dirs).mean(axis=1)
-        K.spread_ao(h, w, ao_step, low, buffers.semantic.reshape(-1),
-                    buffers.depth.reshape(-1), ao)
-        mark("ambient_occlusion")
+    ao = _ao_pass(rayscene, camera, buffers, ao_cfg, pseed, mark)
 
-    elev = math.radians(factors["sun_elevation_deg"])
-    warm = max(0.0, 1.0 - elev / math.radians(45.0))
-    sun_col = np.array([1.0, 0.96 - 0.05 * warm, 0.90 - 0.12 * warm], np.float32)
-    sky_col = np.array([0.60, 0.68, 0.85], np.float32)  # blue sky light: shadows turn blue
-    if factors.get("sun_rgb") is not None:  # domain randomisation
-        sun_col = np.asarray(factors["sun_rgb"], np.float32)
-        sky_col = np.asarray(factors["sky_rgb"], np.float32)
-    sky_col = sky_col + np.float32(oc) * (np.array([0.85, 0.86, 0.88], np.float32) - sky_col)
-    e_sun = np.float32(1.15 * (1.0 - 0.85 * oc))
-    # sky light (diffuse share of the irradiance: turbidity, bounce light from the
-    # surroundings); a clear-sky shadow keeps ~25 % (x1) to ~45 % (x2) of the sunlit level
-    e_sky = np.float32((0.30 + 0.45 * oc) * float(factors.get("sky_light", 1.0)))
-    veil = _haze_colour(float(factors.get("haze_tint", 0.0)), float(e_sky))
+    sun_col, sky_col, e_sun, e_sky, veil = _light(factors, oc)
     alt = max(float(camera.altitude_m), 1.0)
     gains_m = material_gains(factors)
     has_refl = bool(factors.get("wet_reflections", False)) and float(wet) > 0
@@ -743,48 +566,10 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
               np.float32(0.72 * (1.0 - oc)), lin)
     mark("compose")
 
-    # ---------------------------------------------------------------- camera
-    wb = float(factors["white_balance"])  # log(R gain / B gain)
-    tint = float(factors.get("tint", 0.0))  # log G gain
-    gains = np.array([math.exp(wb / 2), math.exp(tint), math.exp(-wb / 2)])
-    gains /= float(_LUMA @ gains)
-    shoulder = float(factors.get("tone_shoulder", 0.25))
-    if factors.get("exposure_mode", "fixed") == "auto":
-        # meter what the sensor records: the luma softened by the frame's optical blur
-        # (metering sharp pixels overestimated the final gray sd by ~2.5 on average)
-        y = cv2.transform(lin, (_LUMA * gains).reshape(1, 3).astype(np.float32))
-        if factors["blur_sigma_px"] > 0.05:
-            y = cv2.GaussianBlur(y, (0, 0), float(factors["blur_sigma_px"]))
-        sub = y[::4, ::4].reshape(-1).astype(np.float64)
-        gain, power = solve_tone(sub, float(factors["key_gray"]),
-                                 float(factors["target_gray_sd"]), shoulder)
-    else:
-        gain, power = float(factors["exposure"]), 1.0 / 2.2
-    factors["exposure_gain"] = float(gain)
-    factors["tone_power"] = float(power)
-    rgb = np.empty((h, w, 3), np.uint8)
-    K.tone(lin, (gains * gain).astype(np.float32),
-           np.float32(factors.get("saturation", 1.0)), tone_lut(shoulder, power), rgb)
-    if factors.get("grayscale"):  # a panchromatic product (like several DOTA images)
-        g = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
-        rgb = np.ascontiguousarray(np.repeat(g[..., None], 3, axis=2))
+    rgb = _camera_pass(lin, factors, h, w)
     mark("tone")
 
-    # ---------------------------------------------------------------- sensor
-    sig = factors["blur_sigma_px"]
-    ca = float(factors.get("chromatic_blur", 0.0))
-    if sig > 0.05:
-        if ca > 0.01:  # lateral colour: red and blue a little softer than green
-            chans = [cv2.GaussianBlur(ch, (0, 0), sig * f)
-                     for ch, f in zip(cv2.split(rgb), (1.0 + ca, 1.0, 1.0 + 1.5 * ca))]
-            rgb = cv2.merge(chans)  # split / merge: the same bytes as numpy slices and stack
-        else:
-            rgb = cv2.GaussianBlur(rgb, (0, 0), sig)
-    ns = factors["noise_sigma"]
-    shot = float(factors.get("shot_noise", 0.0))
-    if ns > 0 or shot > 0:
-        K.add_noise(rgb, np.uint64(pseed ^ 0x4E015E), np.float32(ns * 255.0),
-                    np.float32(shot * 255.0), _normal_quantiles())
+    rgb = _sensor_pass(rgb, factors, pseed)
     mark("sensor")
     q = factors.get("jpeg_quality")
     if q:

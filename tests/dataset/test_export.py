@@ -98,10 +98,10 @@ def test_coco_masks_decode_to_instance_masks(exported, tiny_scene):
     c = COCO(str(out / "coco" / "annotations" / "instances_train.json"))
     assert sorted(c.getCatIds()) == [1, 2]
     # Re-render image 0 from its recorded parameters and compare masks.
-    from aerial_synth.dataset.export import _Worker
+    from aerial_synth.dataset.worker import ImageWorker
 
     cfg = _cfg(tiny_scene)
-    w = _Worker(cfg, out)
+    w = ImageWorker.for_config(cfg, out)
     w._ensure_group(0)
     from aerial_synth.camera import sample_pose_targeted
     from aerial_synth.render import RenderConfig, render_frame
@@ -213,11 +213,11 @@ def test_kill_and_resume_identical(exported, tiny_scene, tmp_path):
 
 _ORPHAN = r"""
 import os, sys
-from aerial_synth.dataset.worker import _watch_parent
+from aerial_synth.dataset.parent import watch_parent
 r, w = os.pipe()
 os.close(r)  # the reader (the exporter's result handler) is gone
 if sys.argv[1] == "watched":
-    _watch_parent(os.getppid())
+    watch_parent(os.getppid())
 os.write(w, b"result")  # what a pool worker does with a finished task's result
 print("still running", file=sys.stderr)
 """
@@ -585,12 +585,12 @@ def test_pool_workers_fork_from_a_preloading_server():
     import multiprocessing as mp
 
     from aerial_synth.dataset import _server_guard
-    from aerial_synth.dataset.export import _WORKER_MODULES, pool_context
+    from aerial_synth.dataset.pool import WORKER_MODULES, pool_context
 
     ctx = pool_context()
     if "forkserver" in mp.get_all_start_methods():
         assert ctx.get_start_method() == "forkserver"
-        assert _WORKER_MODULES[0] == "aerial_synth.dataset._server_guard"
+        assert WORKER_MODULES[0] == "aerial_synth.dataset._server_guard"
     else:
         assert ctx.get_start_method() == "spawn"
     assert _server_guard.GUARDED is False  # imported here, in no fork server: no prctl
@@ -651,8 +651,10 @@ def test_fork_server_workers_are_ready_and_light():
 
     viewer = sys.modules.get("open3d.visualization.draw_plotly")
     assert viewer is None or "stub" not in (viewer.__doc__ or "")
+    from aerial_synth._open3d import _absent
+
     with pytest.raises(RuntimeError, match="not loaded"):
-        _server_open3d._absent()
+        _absent()
 
 
 def test_meta_records_our_warnings_not_a_library_s(tiny_scene, tmp_path, monkeypatch):
@@ -662,17 +664,17 @@ def test_meta_records_our_warnings_not_a_library_s(tiny_scene, tmp_path, monkeyp
     killed-and-resumed export differed from a clean one). Our own warnings stay."""
     import warnings
 
-    import aerial_synth.placement as placement_pkg
+    import aerial_synth.dataset.worker as worker_module
     from aerial_synth.placement.traffic import PlacementWarning
 
-    real = placement_pkg.place
+    real = worker_module.place
 
     def noisy_place(*a, **kw):
         warnings.warn("a third-party library warns once per process", UserWarning, stacklevel=2)
         warnings.warn("ours: a placement warning", PlacementWarning, stacklevel=2)
         return real(*a, **kw)
 
-    monkeypatch.setattr(placement_pkg, "place", noisy_place)
+    monkeypatch.setattr(worker_module, "place", noisy_place)
     out = tmp_path / "ds"
     export_dataset(_cfg(tiny_scene, images=1, formats="dota"), out, workers=1, progress=False)
     metas = list((out / "meta").glob("*.json"))

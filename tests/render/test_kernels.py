@@ -6,8 +6,9 @@ import pytest
 from aerial_synth.camera import Camera, CameraConfig
 from aerial_synth.render import RenderConfig, render_frame
 from aerial_synth.render import _kernels as K
-from aerial_synth.render.raycast import _box_exit_t, _box_frames
+from aerial_synth.render import _vis_kernels as V
 from aerial_synth.render.shading import _normal_quantiles
+from aerial_synth.render.visibility import _box_exit_t, _box_frames
 
 from .worlds import make_placement, make_world, with_threads
 
@@ -54,7 +55,7 @@ def test_instance_boxes_match_numpy():
     inst[5, 5] = 1000  # an id not asked for is skipped
     inst[60:63, 2:9] = 3_000_000_000  # a tiled world's id: memory follows the ids asked for
     ids = np.array(list(range(1, 40)) + [3_000_000_000, 4_000_000_000], np.uint32)
-    counts, boxes = K.instance_boxes(inst, ids)
+    counts, boxes = V.instance_boxes(inst, ids)
     assert counts.shape == (len(ids),) and boxes.shape == (len(ids), 4)
     for j, vid in enumerate(ids):
         rows, cols = np.nonzero(inst == vid)
@@ -72,7 +73,7 @@ def test_box_union_pixels_match_a_canvas():
     y0 = rng.integers(-20, 100, 12)
     x1 = x0 + rng.integers(1, 40, 12)
     y1 = y0 + rng.integers(1, 40, 12)
-    rows, cols, multi = K.box_union_pixels(x0, y0, x1, y1)
+    rows, cols, multi = V.box_union_pixels(x0, y0, x1, y1)
     cover = np.zeros((200, 200), int)
     for a, b, c, d in zip(x0, y0, x1, y1):
         cover[b + 50 : d + 50, a + 50 : c + 50] += 1
@@ -131,8 +132,9 @@ def test_frame_is_identical_for_any_thread_count():
 def test_block_shadow_sampling_matches_one_ray_per_pixel():
     # trees and a house cast shadows on road, grass and vehicles; one shadow ray per 2 x 2
     # block (plus object edges) must reproduce the per-pixel image almost everywhere
-    from aerial_synth.render.raycast import cast_buffers
-    from aerial_synth.render.shading import sample_factors, shade
+    from aerial_synth.render.buffers import cast_buffers
+    from aerial_synth.render.config import sample_factors
+    from aerial_synth.render.shading import shade
 
     spec = [(1, 22.0, 0.0, 0.3, 4.5, 1.8, 1.5), (2, 30.0, -2.0, 0.0, 9.0, 2.5, 3.5)]
     rs, pl = make_world(spec, crown_at=(26.0, 3.0))
@@ -214,7 +216,7 @@ def _nearest_reference(h, w, step, face, ndl, semantic, depth, lit_rays):
 @pytest.mark.parametrize("step", [2, 4])
 def test_nearest_shadow_edges_match_a_plain_reference(step):
     from aerial_synth.render import shading
-    from aerial_synth.render.raycast import cast_buffers
+    from aerial_synth.render.buffers import cast_buffers
 
     spec = [(1, 22.0, 0.0, 0.3, 4.5, 1.8, 1.5), (2, 30.0, -2.0, 0.0, 9.0, 2.5, 3.5)]
     rs, pl = make_world(spec, crown_at=(26.0, 3.0))
@@ -296,7 +298,7 @@ def test_tone_histogram_equals_numpy():
 def test_visibility_beside_shading_gives_the_same_frame(monkeypatch, preset):
     # render_frame runs visibility in a second thread while shading: the same frame as one
     # stage after the other, and an error in visibility reaches the caller
-    from aerial_synth.render import frame as F
+    from aerial_synth.render.backends import raycast as F
 
     spec = [(1, 0.0, 0.0, 0.3, 4.5, 1.8, 1.5), (2, 6.0, -2.0, 0.0, 9.0, 2.5, 3.5)]
     rs, pl = make_world(spec, crown_at=(3.0, 3.0))
@@ -329,7 +331,8 @@ def test_shadow_spread_inside_compose_equals_the_spread_pass(monkeypatch, step):
     # unblurred shadows (point sun, no overcast): compose reads the block samples itself;
     # the image must be the one of spread_shadow's pass over the image, byte for byte
     from aerial_synth.render import shading
-    from aerial_synth.render.raycast import cast_buffers
+    from aerial_synth.render.buffers import cast_buffers
+    from aerial_synth.render.config import sample_factors
 
     spec = [(1, 22.0, 0.0, 0.3, 4.5, 1.8, 1.5), (2, 30.0, -2.0, 0.0, 9.0, 2.5, 3.5)]
     rs, pl = make_world(spec, crown_at=(26.0, 3.0))
@@ -339,7 +342,7 @@ def test_shadow_spread_inside_compose_equals_the_spread_pass(monkeypatch, step):
         cfg = RenderConfig.preset(preset, soft_shadows=False, overcast_probability=0,
                                   jpeg_probability=0, shadow_step=step,
                                   shadow_edges=edges)
-        factors = shading.sample_factors(cfg, np.random.default_rng(3))
+        factors = sample_factors(cfg, np.random.default_rng(3))
         out = {}
         for fused in (True, False):
             monkeypatch.setattr(shading, "_SPREAD_IN_COMPOSE", fused)
