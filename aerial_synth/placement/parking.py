@@ -10,7 +10,7 @@ slope of the edge distances) and place each edge (median). The bay layout is the
 lot hint when the scene carries one for that lot (``Scene.meta["parking_lots"]``: a
 procedural lot's painted layout), else it is read from the painted lines
 (:func:`_layout_from_markings`), else the scenario's default (2.5 x 5.0 m bays, 6 m aisles, rows parallel to the
-rectangle), laid out by :func:`aerial_synth.scene.procedural.parking.layout_bays`, the
+rectangle), laid out by :func:`aerial_synth.scene.parking_layout.layout_bays`, the
 function that painted the lines. A bay is kept only when traces over a 3 x 3 grid inside it
 all land on the lot.
 
@@ -114,7 +114,7 @@ def find_lots(rayscene, cfg: ParkingConfig | None = None) -> list[Lot]:
     import cv2
     import shapely
 
-    from ..scene.procedural.parking import LotFrame, LotLayout, layout_bays, lot_frame
+    from ..scene.parking_layout import LotFrame, LotLayout, layout_bays, lot_frame
 
     cfg = cfg or ParkingConfig()
     rs = rayscene
@@ -225,7 +225,7 @@ def _bays_from_spaces(spaces, fr):
     no space lies in the lot."""
     import shapely
 
-    from ..scene.procedural.parking import Bays
+    from ..scene.parking_layout import Bays
 
     if not spaces:
         return None
@@ -278,7 +278,7 @@ def _layout_from_markings(rs, fr, res: float = 0.1):
     (readable) markings. The layout is accepted only when its predicted lines cover the
     traced ones (both ways, 60 %)."""
     from ..errors import SceneError
-    from ..scene.procedural.parking import BAY_ANGLES_DEG, LotLayout, bay_markings, layout_bays
+    from ..scene.parking_layout import BAY_ANGLES_DEG, LotLayout, bay_markings, layout_bays
 
     nu, nv = int(fr.long_m / res), int(fr.short_m / res)
     if nu < 10 or nv < 10 or nu * nv > 4_000_000:
@@ -409,7 +409,7 @@ def find_kerbs(rayscene, cfg: ParkingConfig, rng: np.random.Generator, probe=Non
     """Kerb lines with their parallel bays (see the module doc)."""
     import shapely
 
-    from ..scene.procedural.parking import Bays
+    from ..scene.parking_layout import Bays
     from .config import ProbeConfig
     from .linetrace import Prober, unit
 

@@ -58,7 +58,7 @@ class ParkingConfig:
                       when those are all 0); only vehicles that fit a bay are drawn
     depot_mix       : the same for bays at least depot_bay_min_m long (bus and truck bays)
     layout          : bay layout of lots that carry none (OSM lots, meshes): bay size, angle,
-                      aisle (scene/procedural/parking.py LotLayout; default 2.5 x 5.0 m,
+                      aisle (scene/parking_layout.py LotLayout; default 2.5 x 5.0 m,
                       90 degrees, 6 m aisles)
     grid_m          : spacing of the vertical traces that find lots, (0.05, 5] m
     min_lot_m       : surfaces narrower than this (driveways, entrances) are no lot, m
@@ -121,7 +121,7 @@ class ParkingConfig:
     def lot_layout(self):
         """The default :class:`LotLayout` (lots that carry none)."""
         from ..errors import SceneError
-        from ..scene.procedural.parking import parse_layout
+        from ..scene.parking_layout import parse_layout
 
         try:
             return parse_layout(self.layout or None, "parking.layout")

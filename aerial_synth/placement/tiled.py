@@ -30,13 +30,26 @@ from __future__ import annotations
 import dataclasses
 import time
 import warnings
+from typing import Mapping
 
 import numpy as np
 
 from ..errors import PlacementError
+from ..vehicles import load_catalog
 from .model import Placement
 
-__all__ = ["BorderMerge", "place_tiled", "tile_seed"]
+__all__ = ["BorderMerge", "min_tile_m", "place_tiled", "tile_seed"]
+
+
+def min_tile_m(catalog=None) -> float:
+    """The smallest allowed tile edge: the longest vehicle of the catalog (metres; the
+    bundled catalog when None)."""
+    if catalog is None:
+        catalog = load_catalog()
+    models = getattr(catalog, "models", None)
+    if isinstance(models, Mapping):
+        models = list(models.values())
+    return float(max(m.length_m for m in models))
 
 
 def tile_seed(seed, i: int, j: int, n_tiles: int) -> np.random.SeedSequence | int | None:
@@ -75,13 +88,10 @@ def place_tiled(
            world, or one machine's share of it (seeds are those of the whole grid)
     Raises PlacementError when the grid's tiles are smaller than the longest vehicle.
     """
-    from ..scene.tiles import min_tile_m
     from .config import load_scenario
     from .traffic import PlacementWarning
 
     if catalog is None:
-        from ..vehicles import load_catalog
-
         catalog = load_catalog()
     longest = min_tile_m(catalog)
     if grid.tile_m < longest:
@@ -215,8 +225,7 @@ def _place_tile(job) -> dict:
     """Place one tile: its window's scene, ``place()`` with the tile's seed, and the vehicles
     its core owns. Runs in the caller's process or in a pool worker."""
     from ..scene.raycast import RayScene
-    from . import place
-    from .traffic import PlacementWarning
+    from .traffic import PlacementWarning, place
 
     world, grid, tile, cfg, seed, want, catalog, nthreads, by_core = job
     ts = time.perf_counter()

@@ -51,9 +51,9 @@ def run(args: argparse.Namespace) -> int:
 
     from ..errors import PlacementError
     from ..io_utils import atomic_write_bytes, check_output_dir
-    from ..scene.tiles import TiledWorld, min_tile_m
+    from ..scene.tiles import TiledWorld
     from .config import load_scenario
-    from .tiled import place_tiled
+    from .tiled import min_tile_m, place_tiled
     from .traffic import PlacementWarning
 
     out = check_output_dir(args.out, "--out")

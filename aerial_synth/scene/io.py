@@ -47,6 +47,7 @@ __all__ = [
     "load_mesh_scene",
     "list_scenes",
     "export_glb",
+    "read_yaml",
 ]
 
 #: Folder of the bundled scene specs (the package is installed editable).
@@ -179,7 +180,9 @@ def _default_rule_objects() -> tuple[LabelRule, ...]:
     return tuple(LabelRule(m, lab) for m, lab in DEFAULT_RULES)
 
 
-def _read_yaml(path: Path, what: str) -> Any:
+def read_yaml(path: Path, what: str) -> Any:
+    """The YAML file ``path``; SceneError naming ``what`` and the file when it is missing,
+    unreadable or broken."""
     import yaml
 
     try:
@@ -202,7 +205,7 @@ def load_rules(path: str | Path | None) -> LabelRules:
     if path is None:
         return LabelRules(rules=_default_rule_objects())
     path = Path(path)
-    data = _read_yaml(path, "label rules")
+    data = read_yaml(path, "label rules")
     try:
         return _rules_from_mapping(data, str(path))
     except AerialSynthError as exc:
@@ -590,7 +593,7 @@ def list_scenes() -> list[str]:
 def _load_spec(path: Path, seed: int | None) -> Scene:
     from .procedural import generate
 
-    data = _read_yaml(path, "scene spec")
+    data = read_yaml(path, "scene spec")
     if not isinstance(data, Mapping):
         raise SceneError(f"scene spec {path}: expected a mapping, got {type(data).__name__}")
     return generate(data, seed=seed, source=str(path))

@@ -6,10 +6,11 @@ import warnings
 import numpy as np
 
 from aerial_synth.camera import CameraConfig, sample_pose_targeted
+from aerial_synth.dataset.world import world_for_camera
 from aerial_synth.placement import place
 from aerial_synth.render import add_placement, render_frame
 from aerial_synth.scene.raycast import RayScene
-from aerial_synth.scene.tiles import TiledWorld, world_for_camera
+from aerial_synth.scene.tiles import TiledWorld
 
 
 def test_frame_from_touched_tiles_equals_whole_world(small_city_spec, small_city_scene):

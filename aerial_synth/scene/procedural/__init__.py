@@ -53,7 +53,7 @@ def generate(spec: Mapping, seed: int | None = None, source: str = "") -> Scene:
         raise SceneError(f"{where}: expected a mapping, got {type(spec).__name__}")
     kind = spec.get("generator")
     spec = with_size_m(spec, where)  # size_km (the city generator) -> size_m
-    spec, s = check_spec(spec, where, seed)
+    spec, s = check_spec(spec, where, GENERATORS, seed)
     size = spec["size_m"]
     from shapely.errors import ShapelyError
 

@@ -237,7 +237,7 @@ LAKE = section({
     "road_clear_m": nonneg(1e3),
 }, required=("center", "radii_m"), allow_none=False)
 def _lot_layout(f: str, v: Any):
-    """A lot's bay layout (procedural/parking.py validates it; the value is kept as given)."""
+    """A lot's bay layout (scene/parking_layout.py validates it; the value is kept as given)."""
     from .parking import parse_layout
 
     parse_layout(v, f)
@@ -334,16 +334,16 @@ def check_seed(field: str, value: Any) -> int:
     return V.integer(field, value, 0, None, error=E)
 
 
-def check_spec(spec: Any, where: str, seed: Any = None) -> tuple[dict, int]:
+def check_spec(spec: Any, where: str, generators: Mapping, seed: Any = None) -> tuple[dict, int]:
     """Validate ``spec`` (a parsed YAML mapping) for its generator.
 
+    ``generators`` : the known generator names (the package's ``GENERATORS`` registry,
+    passed in so this module does not import its package back).
     Returns (normalised spec, seed); ``seed`` (when not None) overrides the spec's seed and
     is validated the same way. Raises SceneError: ``<where>: <field>: expected ..., got ...``.
     """
-    from . import GENERATORS
-
     try:
-        return _check(spec, seed, GENERATORS)
+        return _check(spec, seed, generators)
     except SceneError as exc:
         raise SceneError(f"{where}: {exc}") from None
 
