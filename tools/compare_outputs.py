@@ -53,9 +53,12 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 SEED = 7
-#: (scene, scenario) pairs: three scenes x three scenarios, plus the depot's lots.
-COMBOS = [(s, c) for s in ("city_park", "suburb") for c in ("jam", "parking", "sparse")] + [
-    ("highway", "jam"), ("highway", "normal"), ("highway", "sparse"), ("depot", "parking")]
+#: (scene, scenario) pairs: three scenarios on each of three scenes, plus the depot's lots
+#: (the parking scenario needs painted lots: suburb and depot have them).
+COMBOS = [("city_park", "jam"), ("city_park", "sparse"), ("city_park", "street-parking"),
+          ("suburb", "jam"), ("suburb", "parking"), ("suburb", "sparse"),
+          ("highway", "jam"), ("highway", "normal"), ("highway", "sparse"),
+          ("depot", "parking")]
 QUICK_COMBOS = [("city_park", "jam"), ("suburb", "parking"), ("highway", "sparse")]
 EXPORT_ARGS = ["--images", "2", "--size", "512", "--images-per-placement", "2",
                "--seed", str(SEED), "--no-progress", "--workers", "1"]
@@ -132,11 +135,16 @@ def _hash_tree(root: Path, prefix: str, norm: Normaliser, out: dict) -> None:
             out[f"{prefix}/{p.relative_to(root).as_posix()}"] = _sha(norm.file_bytes(p))
 
 
-def _run_ok(args: list[str], work: Path) -> None:
+def _run_ok(args: list[str], work: Path, norm: Normaliser, out: dict, key: str) -> bool:
+    """Run the CLI; a failure is recorded as ``<key>/FAILED`` (exit status and stderr) and
+    reported, so a run that starts or stops failing shows as a difference."""
     r = _cli(args, work)
     if r.returncode != 0:
-        raise SystemExit(f"compare_outputs: aerial-synth {' '.join(args)} failed "
-                         f"({r.returncode}): {r.stderr.strip()[-2000:]}")
+        print(f"compare_outputs: aerial-synth {' '.join(args)} failed ({r.returncode}): "
+              f"{r.stderr.strip()[-500:]}", file=sys.stderr, flush=True)
+        out[f"{key}/FAILED"] = _sha(f"{r.returncode}\n{norm.text(r.stderr)}".encode())
+        return False
+    return True
 
 
 def scene_hashes(out: dict) -> None:
@@ -150,17 +158,21 @@ def scene_hashes(out: dict) -> None:
 
 def place(scene: str, scenario: str, work: Path, norm: Normaliser, out: dict) -> None:
     d = work / "place" / scene / scenario
-    _run_ok(["place", "--scene", scene, "--scenario", scenario, "--seed", str(SEED),
-             "--out", str(d)], work)
-    _hash_tree(d, f"place/{scene}/{scenario}", norm, out)
+    key = f"place/{scene}/{scenario}"
+    if _run_ok(["place", "--scene", scene, "--scenario", scenario, "--seed", str(SEED),
+                "--out", str(d)], work, norm, out, key):
+        _hash_tree(d, key, norm, out)
 
 
-def export(scene: str, scenario: str, preset: str, work: Path, norm: Normaliser, out: dict) -> Path:
+def export(scene: str, scenario: str, preset: str, work: Path, norm: Normaliser,
+           out: dict) -> Path | None:
     d = work / f"export-{preset}" / scene / scenario
     formats = "dota,eagle,yolo-obb,coco" if preset == "full" else "dota"
-    _run_ok(["export", "--scene", scene, "--scenario", scenario, "--preset", preset,
-             "--format", formats, "--out", str(d), *EXPORT_ARGS], work)
-    _hash_tree(d, f"export-{preset}/{scene}/{scenario}", norm, out)
+    key = f"export-{preset}/{scene}/{scenario}"
+    if not _run_ok(["export", "--scene", scene, "--scenario", scenario, "--preset", preset,
+                    "--format", formats, "--out", str(d), *EXPORT_ARGS], work, norm, out, key):
+        return None
+    _hash_tree(d, key, norm, out)
     return d
 
 
@@ -194,9 +206,9 @@ def evaluate(export_dir: Path, work: Path, norm: Normaliser, out: dict) -> None:
     _hash_tree(pred, "eval/pred", norm, out)
     for metric in ("voc07", "coco"):
         d = work / "eval" / metric
-        _run_ok(["eval", "--gt", str(export_dir), "--pred", str(pred), "--split", "train",
-                 "--metric", metric, "--out", str(d)], work)
-        _hash_tree(d, f"eval/{metric}", norm, out)
+        if _run_ok(["eval", "--gt", str(export_dir), "--pred", str(pred), "--split", "train",
+                    "--metric", metric, "--out", str(d)], work, norm, out, f"eval/{metric}"):
+            _hash_tree(d, f"eval/{metric}", norm, out)
 
 
 def expected_error(work: Path, norm: Normaliser, out: dict) -> None:
@@ -217,7 +229,8 @@ def run_all(work: Path, quick: bool) -> dict:
         d = export(scene, scenario, "full", work, norm, out)
         first = first or d
         export(scene, scenario, "fast", work, norm, out)
-    evaluate(first, work, norm, out)
+    if first is not None:
+        evaluate(first, work, norm, out)
     expected_error(work, norm, out)
     return dict(sorted(out.items()))
 
