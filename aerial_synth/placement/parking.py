@@ -42,8 +42,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConfigError, PlacementError
+from ..errors import ConfigError, PlacementError, SceneError
 from ..scene.model import LABEL_IDS
+from ..scene.parking_layout import (
+    BAY_ANGLES_DEG,
+    Bays,
+    LotFrame,
+    LotLayout,
+    bay_markings,
+    layout_bays,
+    lot_frame,
+)
+from ..vehicles.catalog import stream_key
+from .config import ProbeConfig
+from .linetrace import Prober, unit
 from .model import PlacedVehicle, Placement, footprint_corners_xy, with_lonlat
 from .parking_config import PARKING_KINDS, ParkingConfig
 
@@ -114,7 +126,6 @@ def find_lots(rayscene, cfg: ParkingConfig | None = None) -> list[Lot]:
     import cv2
     import shapely
 
-    from ..scene.parking_layout import LotFrame, LotLayout, layout_bays, lot_frame
 
     cfg = cfg or ParkingConfig()
     rs = rayscene
@@ -225,7 +236,6 @@ def _bays_from_spaces(spaces, fr):
     no space lies in the lot."""
     import shapely
 
-    from ..scene.parking_layout import Bays
 
     if not spaces:
         return None
@@ -277,9 +287,6 @@ def _layout_from_markings(rs, fr, res: float = 0.1):
     drift across the row the bay angle. Returns a LotLayout, or None when the lot has no
     (readable) markings. The layout is accepted only when its predicted lines cover the
     traced ones (both ways, 60 %)."""
-    from ..errors import SceneError
-    from ..scene.parking_layout import BAY_ANGLES_DEG, LotLayout, bay_markings, layout_bays
-
     nu, nv = int(fr.long_m / res), int(fr.short_m / res)
     if nu < 10 or nv < 10 or nu * nv > 4_000_000:
         return None
@@ -408,10 +415,6 @@ def find_kerbs(rayscene, cfg: ParkingConfig, rng: np.random.Generator, probe=Non
                traffic: str = "right") -> list[Kerb]:
     """Kerb lines with their parallel bays (see the module doc)."""
     import shapely
-
-    from ..scene.parking_layout import Bays
-    from .config import ProbeConfig
-    from .linetrace import Prober, unit
 
     rs = rayscene
     pr = Prober(rs, probe or ProbeConfig())
@@ -683,7 +686,6 @@ def fill_bays(sites: list, cfg: ParkingConfig, catalog, rng: np.random.Generator
     ci = rng.choice(len(catalog.colors), size=N, p=catalog.color_probabilities)
     # trim options (roof racks, sunroofs, ...) as in traffic, from a stream of their own:
     # ``rng`` advances exactly as without them
-    from ..vehicles.catalog import stream_key
 
     dressed = catalog.draw_options(model_idx, stream_key(rng))
     L = np.array([all_models[j].length_m if j >= 0 else 0.0 for j in model_idx])

@@ -12,7 +12,8 @@ from dataclasses import asdict, dataclass, field, fields
 from typing import Any, Mapping
 
 from .. import validators as V
-from ..errors import ConfigError
+from ..errors import ConfigError, SceneError
+from ..scene.parking_layout import parse_layout
 
 __all__ = ["ParkingConfig", "parse_parking", "PARKING_KINDS", "PARKING_KEYS", "DEFAULT_DEPOT_MIX"]
 
@@ -120,9 +121,6 @@ class ParkingConfig:
 
     def lot_layout(self):
         """The default :class:`LotLayout` (lots that carry none)."""
-        from ..errors import SceneError
-        from ..scene.parking_layout import parse_layout
-
         try:
             return parse_layout(self.layout or None, "parking.layout")
         except SceneError as exc:

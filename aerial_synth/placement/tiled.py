@@ -35,8 +35,13 @@ from typing import Mapping
 import numpy as np
 
 from ..errors import PlacementError
+from ..scene.raycast import RayScene
 from ..vehicles import load_catalog
+from .config import load_scenario
+from .footprints import FootprintIndex
 from .model import Placement
+from .parking_config import PARKING_KINDS
+from .traffic import PlacementWarning, lane_rule, place
 
 __all__ = ["BorderMerge", "min_tile_m", "place_tiled", "tile_seed"]
 
@@ -88,9 +93,6 @@ def place_tiled(
            world, or one machine's share of it (seeds are those of the whole grid)
     Raises PlacementError when the grid's tiles are smaller than the longest vehicle.
     """
-    from .config import load_scenario
-    from .traffic import PlacementWarning
-
     if catalog is None:
         catalog = load_catalog()
     longest = min_tile_m(catalog)
@@ -113,7 +115,6 @@ def place_tiled(
     single_stats = None
     t_scene = t_place = c_scene = c_place = 0.0
     t0 = time.perf_counter()
-    from .parking_config import PARKING_KINDS
 
     # traffic: a tile seeds its lines in its core and counts the vehicles its core owns, so it
     # asks for its core's share; parking scenarios fill the window and ask for its share
@@ -194,9 +195,6 @@ class BorderMerge:
     (:mod:`aerial_synth.dataset.tiled`), so both decide every border alike."""
 
     def __init__(self, cfg, longest_m: float, n_tiles: int):
-        from .footprints import FootprintIndex
-        from .traffic import lane_rule
-
         rule = lane_rule(cfg)
         self.index = FootprintIndex(cfg.gap_m, cfg.min_center_distance_m, lane_spacing=rule)
         reach = longest_m + max(cfg.gap_m, 0.0) + float(cfg.min_center_distance_m or 0.0)
@@ -224,9 +222,6 @@ class BorderMerge:
 def _place_tile(job) -> dict:
     """Place one tile: its window's scene, ``place()`` with the tile's seed, and the vehicles
     its core owns. Runs in the caller's process or in a pool worker."""
-    from ..scene.raycast import RayScene
-    from .traffic import PlacementWarning, place
-
     world, grid, tile, cfg, seed, want, catalog, nthreads, by_core = job
     ts = time.perf_counter()
     cs = _cpu()

@@ -19,11 +19,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import validators as V
 from ..errors import PlacementError
+from ..scene.hints import road_hints
+from ..vehicles import load_catalog
 from .config import ScenarioConfig, load_scenario
 from .footprints import FootprintIndex, footprint_points
 from .linetrace import Prober, unit
 from .model import PlacedVehicle, Placement, with_lonlat
+from .parking import place_parking
 from .parking_config import PARKING_KINDS
 
 # Direction hints (OSM scenes, aerial_synth.scene.hints): the few hooks that read them are
@@ -146,7 +150,6 @@ class _Engine:
         area_ha = float(np.prod(np.maximum(self.xy_hi - self.xy_lo, 0.0))) / 1e4
         #: random traces seeding may draw: max_seed_attempts, or more on a large scene
         self.seed_budget = max(int(cfg.max_seed_attempts), int(np.ceil(cfg.seed_attempts_per_ha * area_ha)))
-        from ..scene.hints import road_hints  # direction hints: None for most scenes
 
         self.hints = road_hints(rayscene.scene)
 
@@ -829,7 +832,6 @@ def place(
     """
     if n_vehicles is not None and n_lines is not None:
         raise PlacementError("give either a vehicle count or a line count, not both")
-    from .. import validators as V
 
     n_vehicles = None if n_vehicles is None else V.integer("--vehicles", n_vehicles, 1, error=PlacementError)
     n_lines = None if n_lines is None else V.integer("--lines", n_lines, 1, error=PlacementError)
@@ -838,11 +840,8 @@ def place(
     if rng is None:
         rng = np.random.default_rng(seed)
     if catalog is None:
-        from ..vehicles import load_catalog
-
         catalog = load_catalog()
     if cfg.kind in PARKING_KINDS:  # parking, street-parking, mixed: placement/parking.py
-        from .parking import place_parking
 
         return place_parking(rayscene, cfg, rng, catalog, seed=seed, scene_name=scene_name,
                              n_vehicles=n_vehicles, n_lines=n_lines, place_traffic=place)

@@ -23,7 +23,19 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .. import validators as V
 from ..errors import AerialSynthError, SceneError
+from ..io_utils import atomic_write_bytes
+from .georef import (
+    FAR_M,
+    SceneWarning,
+    check_crs,
+    choose_origin,
+    float32_step_m,
+    origin_fits,
+    parse_origin,
+)
+from .hints import extras_for, meta_from_extras
 from .model import (
     DEFAULT_COLOR_FOR_MATERIAL,
     DEFAULT_MATERIAL_FOR_LABEL,
@@ -35,6 +47,9 @@ from .model import (
     Scene,
     SceneObject,
 )
+from .osm import load_osm_scene
+from .osm.read import is_osm_path
+from .procedural import generate
 
 __all__ = [
     "SCENES_DIR",
@@ -217,8 +232,6 @@ def load_rules(path: str | Path | None) -> LabelRules:
 
 def _rules_from_mapping(data: Any, where: str) -> LabelRules:
     """Validate every field of a parsed label-rules file (messages name the field)."""
-    from .. import validators as V
-
     E = SceneError
     if data is None:
         data = {}
@@ -293,8 +306,6 @@ def _rules_from_mapping(data: Any, where: str) -> LabelRules:
         raise SceneError(f"default_label: expected one of {', '.join(LABELS)}, got {V.show(default_label)}")
     crs = data.get("crs")
     if crs is not None:
-        from .georef import check_crs
-
         crs = check_crs(crs, "crs")
     return LabelRules(
         rules=tuple(rules),
@@ -389,15 +400,6 @@ def _georeference(path: Path, tscene, rules, items, raw_max_m: float, ext: str):
     """
     import warnings
 
-    from .georef import (
-        FAR_M,
-        SceneWarning,
-        check_crs,
-        choose_origin,
-        float32_step_m,
-        origin_fits,
-        parse_origin,
-    )
 
     pts = [v.min(axis=0) + t for _, _, v, t, *_ in items if len(v)]
     pts += [v.max(axis=0) + t for _, _, v, t, *_ in items if len(v)]
@@ -573,7 +575,6 @@ def load_mesh_scene(path: str | Path, labels: str | Path | None = None) -> Scene
         "unmatched": unmatched,
         "n_unmatched": len(unmatched),
     }
-    from .hints import meta_from_extras
 
     meta.update(meta_from_extras(getattr(tscene, "metadata", None), origin, f"scene file {path}"))
     return Scene(
@@ -591,8 +592,6 @@ def list_scenes() -> list[str]:
 
 
 def _load_spec(path: Path, seed: int | None) -> Scene:
-    from .procedural import generate
-
     data = read_yaml(path, "scene spec")
     if not isinstance(data, Mapping):
         raise SceneError(f"scene spec {path}: expected a mapping, got {type(data).__name__}")
@@ -618,11 +617,8 @@ def load_scene(
     """
     s = str(name_or_path)
     p = Path(s)
-    from .osm.read import is_osm_path
 
     if is_osm_path(s):
-        from .osm import load_osm_scene
-
         if labels is not None:
             raise SceneError(f"--labels {labels}: label rules apply to mesh files; {s!r} is an "
                              f"OSM extract whose features are labelled by their tags; drop --labels")
@@ -675,7 +671,6 @@ def export_glb(scene: Scene, path: str | Path) -> Path:
     """
     import trimesh
 
-    from ..io_utils import atomic_write_bytes
 
     path = Path(path)
     ts = trimesh.Scene()
@@ -691,7 +686,6 @@ def export_glb(scene: Scene, path: str | Path) -> Path:
         georef["crs"] = scene.crs
     if georef:
         ts.metadata[GLTF_EXTRAS_KEY] = georef
-    from .hints import extras_for
 
     ts.metadata.update(extras_for(scene))  # OSM direction hints and attribution (hints.py)
     for o in scene.objects:

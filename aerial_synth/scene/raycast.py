@@ -517,7 +517,7 @@ class RayScene:
         m, -(r + 0.5) m)``): :meth:`trace_down` over a grid, answered by a top-down z-buffer
         (:mod:`.zgrid`, ~10x faster; the same labels but where a trace grazes an edge).
         ignore : as :meth:`trace_down`."""
-        from .zgrid import trace_grid
+        from .zgrid import trace_grid  # lazy: numba (zgrid compiles its kernels at import)
 
         ign = self.label_config.ignore if ignore is None else frozenset(ignore)
         face, _ = trace_grid(self, origin_xy, m_per_px, width, height, ign)

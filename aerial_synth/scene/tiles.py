@@ -32,7 +32,11 @@ from typing import Mapping
 import numpy as np
 
 from ..errors import SceneError
-from .model import Scene
+from .io import SCENES_DIR, load_scene, read_yaml
+from .model import Scene, SceneObject
+from .procedural import generate
+from .procedural.builder import Z_GROUND, Z_MARKING
+from .procedural.city import city_max_height_m, with_size_m
 
 __all__ = ["Tile", "TileGrid", "TiledWorld", "cut_scene"]
 
@@ -147,8 +151,6 @@ class TiledWorld:
     @classmethod
     def from_spec(cls, spec: Mapping, seed: int | None = None) -> "TiledWorld":
         """A procedural world whose generator supports ``window_m`` (the ``city``)."""
-        from .procedural.city import with_size_m
-
         spec = with_size_m(spec)
         if not isinstance(spec, Mapping) or spec.get("generator") != "city":
             got = spec.get("generator") if isinstance(spec, Mapping) else type(spec).__name__
@@ -167,7 +169,6 @@ class TiledWorld:
         everything else is loaded once and cut. bbox/crs: OSM extracts only (load_scene)."""
         from pathlib import Path
 
-        from .io import SCENES_DIR, load_scene, read_yaml
 
         if bbox is not None or crs is not None:  # an OSM extract (load_scene refuses others)
             return cls.from_scene(load_scene(name_or_path, seed=seed, bbox=bbox, crs=crs))
@@ -187,8 +188,6 @@ class TiledWorld:
         ``city`` spec's bound from its parameters (:func:`~.procedural.city.city_max_height_m`:
         tallest building with roof details, trees, poles), a scene's z extent otherwise."""
         if self._spec is not None:
-            from .procedural.city import city_max_height_m
-
             return city_max_height_m(self._spec)
         b = self._scene.bounds()
         return max(float(b[1, 2] - b[0, 2]), 0.0)
@@ -199,8 +198,6 @@ class TiledWorld:
         surface (``label_config.drivable``) above its lowest vertex (its z extent when it
         has none)."""
         if self._spec is not None:
-            from .procedural.builder import Z_GROUND, Z_MARKING
-
             return Z_MARKING - Z_GROUND
         sc = self._scene
         drivable = sc.label_config.drivable
@@ -236,8 +233,6 @@ class TiledWorld:
         x0, y0, x1, y1 = (float(v) for v in rect)
         self.windows_built += 1
         if self._spec is not None:
-            from .procedural import generate
-
             spec = dict(self._spec)
             if not self.covers_world((x0, y0, x1, y1)):
                 spec["window_m"] = [x0, y0, x1, y1]
@@ -270,7 +265,6 @@ def cut_scene(scene: Scene, rect: Rect) -> Scene:
     none are dropped; vertices are compacted)."""
     x0, y0, x1, y1 = rect
     objs = []
-    from .model import SceneObject
 
     for o in scene.objects:
         v, f = o.vertices, o.faces

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..scene.model import Scene, SceneObject
+from ..scene.raycast import RayScene
 from .catalog import Catalog
 from .meshes import build_mesh
 from .model import VehicleVariant
@@ -41,9 +43,6 @@ def render_top_down(
                  image y = -world y (north up)
     gsd_m      : metres per pixel
     """
-    from ..scene.model import Scene, SceneObject
-    from ..scene.raycast import RayScene
-
     xmin, ymin, xmax, ymax = extent_xy
     w = int(round((xmax - xmin) / gsd_m))
     h = int(round((ymax - ymin) / gsd_m))

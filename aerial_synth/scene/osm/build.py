@@ -18,9 +18,10 @@ import time
 import numpy as np
 
 from ...errors import SceneError
-from ..build import flat_polygon
+from ..build import flat_polygon, merge_meshes
 from ..hints import META_KEY, HintRoad, RoadHints
 from ..model import RoadTruth, Scene, SceneObject, SceneTruth
+from ..procedural.roofs import ROOF_MATERIALS, covering_from_tags
 from .read import OsmData
 from .tags import (
     EDGE_LINE_CLASSES,
@@ -483,9 +484,6 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
         n_buildings = int(len(np.unique(pidx)))
         if len(parts):
             h = np.array([building_height_m(data.areas[i][2]) for i in bsel])[pidx]
-            from ..build import merge_meshes
-            from ..procedural.roofs import ROOF_MATERIALS, covering_from_tags
-
             cov = np.array([covering_from_tags(data.areas[i][2]) for i in bsel])[pidx]
             walls = []
             for mat in ROOF_MATERIALS:  # one roof object per covering, from the tags

@@ -17,6 +17,7 @@ import numpy as np
 from ... import validators as V
 from ...errors import ConfigError, SceneError
 from ..parking_layout import bay_markings, layout_bays, lot_frame, parse_layout
+from .roads import Road
 
 __all__ = [
     "lot_entrance",
@@ -133,7 +134,6 @@ def generate_depot(b, spec: Mapping):
     import shapely
     from shapely.geometry import LineString
 
-    from .roads import Road
 
     W, H = (float(v) for v in spec["size_m"])
     rw = float(spec.get("road_width_m", 8.0))

@@ -21,6 +21,9 @@ from typing import Any, Callable, Mapping
 
 from ... import validators as V
 from ...errors import SceneError
+from ..parking_layout import parse_layout
+from .city import CITY_DEFAULTS
+from .trees import species_weights
 
 __all__ = ["check_spec", "check_seed", "MAX_SIZE_M", "MAX_COUNT"]
 
@@ -191,8 +194,6 @@ BUILDINGS = section({
 })
 def species(f: str, v: Any) -> dict:
     """A tree species mix ``{broadleaf: 0.7, conifer: 0.3}`` (procedural/trees.py)."""
-    from .trees import species_weights
-
     species_weights(v, f)
     return {str(k): float(x) for k, x in v.items()}
 
@@ -238,8 +239,6 @@ LAKE = section({
 }, required=("center", "radii_m"), allow_none=False)
 def _lot_layout(f: str, v: Any):
     """A lot's bay layout (scene/parking_layout.py validates it; the value is kept as given)."""
-    from .parking import parse_layout
-
     parse_layout(v, f)
     return v
 
@@ -375,7 +374,6 @@ def _check(spec: Any, seed: Any, generators) -> tuple[dict, int]:
     if "tracks" in spec:
         out["tracks"] = TRACKS("tracks", spec["tracks"])
     if kind == "city":  # procedural/city.py checks its values; here: no unknown keys
-        from .city import CITY_DEFAULTS
 
         V.known_keys("top level", spec, _COMMON + ("size_km", "window_m") + tuple(CITY_DEFAULTS),
                      error=E)
