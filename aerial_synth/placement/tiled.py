@@ -119,21 +119,10 @@ def place_tiled(
     # traffic: a tile seeds its lines in its core and counts the vehicles its core owns, so it
     # asks for its core's share; parking scenarios fill the window and ask for its share
     by_core = cfg.kind not in PARKING_KINDS and n_tiles > 1
-    wants = []
-    for tile in tiles:
-        want = None
-        if n_vehicles is not None:
-            x0, y0, x1, y1 = tile.core if by_core else tile.window
-            want = n_vehicles if n_tiles == 1 else max(1, int(round(n_vehicles * (x1 - x0) * (y1 - y0) / world_area)))
-        wants.append(want)
+    wants = _tile_wants(tiles, n_vehicles, n_tiles, by_core, world_area)
     jobs = [(world, grid, tile, cfg, tile_seed(seed, tile.i, tile.j, n_tiles), want, catalog, 0, by_core)
             for tile, want in zip(tiles, wants)]
-    if executor is not None:
-        results = executor.map(_place_tile, jobs)
-    elif workers > 1 and n_tiles > 1:
-        results = _pool_map(jobs, workers)
-    else:
-        results = map(_place_tile, jobs)
+    results = _run_tiles(jobs, executor, workers, n_tiles)
     for k, (tile, res) in enumerate(zip(tiles, results)):
         warned += res["warnings"]
         t_scene += res["scene_s"]
@@ -157,17 +146,10 @@ def place_tiled(
         if n_tiles == 1 and res["stats"] is not None:
             single_stats = dict(res["stats"])
     elapsed = time.perf_counter() - t0
-    if single_stats is not None:
-        stats = single_stats
-    else:
-        stats = {"vehicles": len(kept), "requested_vehicles": n_vehicles}
-    stats["tiles"] = {
-        "grid": list(grid.shape),
-        "tile_m": grid.tile_m,
-        "margin_m": grid.margin_m,
-        "dropped_at_borders": merge.dropped,
-        "per_tile": per_tile,
-    }
+    stats = single_stats if single_stats is not None else {"vehicles": len(kept),
+                                                           "requested_vehicles": n_vehicles}
+    stats["tiles"] = {"grid": list(grid.shape), "tile_m": grid.tile_m, "margin_m": grid.margin_m,
+                      "dropped_at_borders": merge.dropped, "per_tile": per_tile}
     if not kept and not any(t["placed"] for t in per_tile):
         raise PlacementError(f"tiled world {world.name!r}: no tile held a road to place vehicles on")
     out = Placement(
@@ -185,6 +167,29 @@ def place_tiled(
         warnings.warn(warned[0], PlacementWarning, stacklevel=2)
     return out
 
+
+
+def _tile_wants(tiles, n_vehicles, n_tiles: int, by_core: bool, world_area: float) -> list:
+    """Vehicles each tile asks for (None: the scenario's amount): its core's (traffic) or
+    window's (parking) share of ``n_vehicles``."""
+    wants = []
+    for tile in tiles:
+        want = None
+        if n_vehicles is not None:
+            x0, y0, x1, y1 = tile.core if by_core else tile.window
+            want = n_vehicles if n_tiles == 1 else max(1, int(round(n_vehicles * (x1 - x0) * (y1 - y0) / world_area)))
+        wants.append(want)
+    return wants
+
+
+def _run_tiles(jobs: list, executor, workers: int, n_tiles: int):
+    """The results of :func:`_place_tile` over ``jobs``, in order: on ``executor``, a
+    process pool of ``workers`` or here."""
+    if executor is not None:
+        return executor.map(_place_tile, jobs)
+    if workers > 1 and n_tiles > 1:
+        return _pool_map(jobs, workers)
+    return map(_place_tile, jobs)
 
 class BorderMerge:
     """The border rule of a tiled placement. Tiles are merged in raster order; a vehicle
