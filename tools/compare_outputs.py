@@ -9,7 +9,8 @@ The first form runs the CLI of the checkout this script lies in (``python -m
 aerial_synth.cli`` with that checkout first on ``PYTHONPATH``) with fixed seeds and small
 outputs, and writes one JSON object ``{artifact: sha256}``:
 
-- ``scene/<name>``: :meth:`Scene.vertex_hash` of every bundled scene (``list_scenes()``);
+- ``scene/<name>``: :meth:`Scene.vertex_hash` of every bundled scene (``list_scenes()``)
+  and of the OSM test town (``scene/osm-town``, built from ``tests/scene/osm_town.py``);
 - ``place/<scene>/<scenario>/...``: ``placement.json``, ``placement.png`` and the summary
   of ``aerial-synth place``;
 - ``export-full/<scene>/<scenario>/...``: every file of ``aerial-synth export`` with
@@ -147,11 +148,27 @@ def _run_ok(args: list[str], work: Path, norm: Normaliser, out: dict, key: str) 
     return True
 
 
+_SCENES_CODE = """
+import json, sys, tempfile
+from pathlib import Path
+from aerial_synth.scene import load_scene, list_scenes
+out = {n: load_scene(n).vertex_hash() for n in list_scenes()}
+sys.path.insert(0, sys.argv[1])  # the checkout's tests/: the OSM test town
+from scene.osm_town import make_town
+from aerial_synth.scene.osm import build_osm_scene
+with tempfile.TemporaryDirectory() as d:
+    town = make_town().write(Path(d) / "town.osm")
+    out["osm-town"] = build_osm_scene(town).vertex_hash()
+print(json.dumps(out))
+"""
+
+
 def scene_hashes(out: dict) -> None:
-    code = ("import json; from aerial_synth.scene import load_scene, list_scenes; "
-            "print(json.dumps({n: load_scene(n).vertex_hash() for n in list_scenes()}))")
-    r = subprocess.run([sys.executable, "-c", code], env=_env(), capture_output=True, text=True,
-                       check=True)
+    """Vertex hashes of every bundled scene and of the OSM test town (tests/scene/osm_town.py)."""
+    r = subprocess.run([sys.executable, "-c", _SCENES_CODE, str(REPO / "tests")], env=_env(),
+                       capture_output=True, text=True, cwd=tempfile.gettempdir())
+    if r.returncode != 0:
+        raise SystemExit(f"compare_outputs: scene hashes failed: {r.stderr.strip()[-2000:]}")
     for name, h in json.loads(r.stdout.strip().splitlines()[-1]).items():
         out[f"scene/{name}"] = h
 
@@ -217,10 +234,12 @@ def expected_error(work: Path, norm: Normaliser, out: dict) -> None:
     out["error/highway-parking"] = _sha(f"{r.returncode}\n{norm.text(r.stderr)}".encode())
 
 
-def run_all(work: Path, quick: bool) -> dict:
+def run_all(work: Path, quick: bool, scenes_only: bool = False) -> dict:
     norm = Normaliser(work, _version())
     out: dict[str, str] = {}
     scene_hashes(out)
+    if scenes_only:
+        return dict(sorted(out.items()))
     combos = QUICK_COMBOS if quick else COMBOS
     first = None
     for scene, scenario in combos:
@@ -262,6 +281,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, help="write {artifact: sha256} JSON here")
     p.add_argument("--work", type=Path, help="keep the outputs in this folder (default: a temp folder)")
     p.add_argument("--quick", action="store_true", help=f"only {len(QUICK_COMBOS)} scene x scenario pairs")
+    p.add_argument("--scenes-only", action="store_true", help="only the scene vertex hashes (seconds)")
     p.add_argument("--compare", nargs=2, type=Path, metavar=("A.json", "B.json"))
     args = p.parse_args(argv)
     if args.compare:
@@ -278,7 +298,7 @@ def main(argv: list[str] | None = None) -> int:
             shutil.rmtree(work)
         work.mkdir(parents=True)
     try:
-        hashes = run_all(work, args.quick)
+        hashes = run_all(work, args.quick, args.scenes_only)
     finally:
         if tmp is not None:
             shutil.rmtree(tmp, ignore_errors=True)
