@@ -1,4 +1,5 @@
-"""Instance masks -> oriented boxes with heading-aware corner order and flags (METHOD.md §9).
+"""Instance masks -> oriented boxes with heading-aware corner order and flags (docs/formats.md,
+"Box extraction").
 
 Image frame everywhere: pixels, origin at the top-left corner of the image, x right, y down,
 pixel (col j, row i) covers [j, j+1] x [i, i+1] so its centre is (j + 0.5, i + 0.5) (the same
@@ -312,7 +313,7 @@ def mask_to_rect_corners(
     fit: str = "pixels",
     grow_px: float = 0.25,
 ) -> np.ndarray | None:
-    """Minimum-area rectangle of the largest region of a mask (METHOD.md §9).
+    """Minimum-area rectangle of the largest region of a mask (docs/formats.md, "Box extraction").
 
     mask          : (h, w) bool, the instance's bounding crop
     offset_xy_px  : (x0, y0) int, the crop's top-left pixel in the image

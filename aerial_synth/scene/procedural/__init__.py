@@ -43,7 +43,8 @@ GENERATORS = {"city_park": generate_city_park, "suburb": generate_suburb, "highw
 def generate(spec: Mapping, seed: int | None = None, source: str = "") -> Scene:
     """Build a procedural scene from a spec mapping.
 
-    spec : mapping with ``generator`` (city_park | suburb | highway), ``name``, ``seed``,
+    spec : mapping with ``generator`` (one of :data:`GENERATORS`: city_park | suburb |
+           highway | city | depot), ``name``, ``seed``,
            ``size_m`` [w, h] and the generator's parameters (see docs/scenes.md)
     seed : overrides ``spec["seed"]`` when given (0 is a valid seed)
     source : provenance string stored in ``Scene.source``
