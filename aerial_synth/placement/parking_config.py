@@ -13,7 +13,6 @@ from typing import Any, Mapping
 
 from .. import validators as V
 from ..errors import ConfigError, SceneError
-from ..scene.parking_layout import parse_layout
 
 __all__ = ["ParkingConfig", "parse_parking", "PARKING_KINDS", "PARKING_KEYS", "DEFAULT_DEPOT_MIX"]
 
@@ -122,6 +121,8 @@ class ParkingConfig:
     def lot_layout(self):
         """The default :class:`LotLayout` (lots that carry none)."""
         try:
+            from ..scene.parking_layout import parse_layout  # lazy: --help imports this module
+
             return parse_layout(self.layout or None, "parking.layout")
         except SceneError as exc:
             raise ConfigError(str(exc)) from None

@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 
 from ..errors import ConfigError
-from ..io_utils import atomic_write_bytes, check_output_file
 from ..validators import arg_float
 from .catalog import load_catalog
 
@@ -82,19 +81,8 @@ def _cmd_list(args: argparse.Namespace) -> int:
 def _cmd_preview(args: argparse.Namespace) -> int:
     if not str(args.out).lower().endswith(".png"):
         raise ConfigError(f"--out: expected a .png file name, got {args.out!r}")
-    check_output_file(args.out)
-    cat = load_catalog(args.catalog)
+    from .preview import write_contact_sheet  # lazy: ray casting, meshes; not for --help
 
-    import cv2
-
-    from .preview import render_contact_sheet  # lazy: preview + scene.raycast; --help loads none
-
-    sheet = render_contact_sheet(cat, gsd_m=args.gsd)
-    ok, buf = cv2.imencode(".png", sheet, [cv2.IMWRITE_PNG_COMPRESSION, 9])
-    if not ok:  # pragma: no cover - OpenCV failure
-        raise RuntimeError("PNG encoding failed")
-    atomic_write_bytes(args.out, buf.tobytes())
-    n = len(cat.models) * len(cat.colors)
-    h, w = sheet.shape[:2]
+    n, w, h = write_contact_sheet(args.out, args.catalog, args.gsd)
     print(f"wrote {args.out}: {n} variants, {w}x{h} px at {args.gsd} m/px")
     return 0
