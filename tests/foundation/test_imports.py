@@ -261,3 +261,42 @@ def test_order_check_sees_upward_sideways_private_and_package_edges():
         "aerial_synth.scene.procedural.spec -> aerial_synth.scene.procedural",
         "aerial_synth.scene.tiles -> aerial_synth.scene.io:_read_yaml",
     ]
+
+
+#: Packages whose function-local imports of our own modules are all justified (issue 26:
+#: at most 40 in the whole package, each with a reason). PART B's packages join after merging.
+LAZY_CHECKED = ("scene", "vehicles", "placement", "annotate", "errors", "validators", "io_utils",
+                "png", "numba_setup", "_open3d", "camera_rays")
+
+
+def _local_own_imports(path: Path):
+    """(line, has a '# lazy:' reason) of each import of our own modules inside a function."""
+    text = path.read_text(encoding="utf-8")
+    lines = text.splitlines()
+    seen = set()
+    for fn in ast.walk(ast.parse(text)):
+        if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            continue
+        for node in ast.walk(fn):
+            own = (isinstance(node, ast.ImportFrom) and (node.level > 0 or (node.module or "")
+                                                           .startswith("aerial_synth"))) or \
+                  (isinstance(node, ast.Import) and any(a.name.startswith("aerial_synth") for a in node.names))
+            if own and node.lineno not in seen:
+                seen.add(node.lineno)
+                around = lines[max(node.lineno - 2, 0):node.end_lineno]
+                yield node.lineno, any("# lazy:" in line for line in around)
+
+
+def test_function_local_imports_of_our_modules_say_why():
+    found, bad = 0, []
+    for name, path in sorted(_modules().items()):
+        parts = name.split(".")
+        if len(parts) < 2 or parts[1] not in LAZY_CHECKED:
+            continue
+        for line, ok in _local_own_imports(path):
+            found += 1
+            if not ok:
+                bad.append(f"{path.relative_to(PKG_DIR.parent)}:{line}")
+    assert bad == [], "imports of our own modules inside functions without a '# lazy: <why>' " \
+        "comment (move them to module level, or say what stays unloaded):\n" + "\n".join(bad)
+    assert 0 < found <= 15  # scene, vehicles, placement: 9 at the end of issue 26's PART A
