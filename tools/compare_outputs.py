@@ -36,7 +36,8 @@ Normalised before hashing (they vary legitimately between runs or checkouts):
 Every other byte is hashed as written: our own PNGs, label text, JSON key order.
 
 ``--compare A.json B.json`` lists the artifacts missing on either side and those whose
-hashes differ, and exits 1 on any difference (0 when identical).
+hashes differ, and exits 1 on any difference (0 when identical); with ``--subset``, B may
+be a ``--quick`` or ``--scenes-only`` run (only the artifacts it has are compared).
 """
 
 from __future__ import annotations
@@ -254,10 +255,10 @@ def run_all(work: Path, quick: bool, scenes_only: bool = False) -> dict:
     return dict(sorted(out.items()))
 
 
-def compare(a_path: Path, b_path: Path) -> int:
+def compare(a_path: Path, b_path: Path, subset: bool = False) -> int:
     a = json.loads(a_path.read_text(encoding="utf-8"))
     b = json.loads(b_path.read_text(encoding="utf-8"))
-    quick_b = set(b) < set(a)
+    quick_b = subset and set(b) <= set(a)
     diffs = []
     for k in sorted(set(a) | set(b)):
         if k not in b:
@@ -271,7 +272,7 @@ def compare(a_path: Path, b_path: Path) -> int:
     for line in diffs:
         print(line)
     if quick_b and not diffs:
-        print(f"{b_path.name} is a subset (a --quick run) of {a_path.name}")
+        print(f"{b_path.name} (a --quick or --scenes-only run) is a subset of {a_path.name}")
     print(f"{compared} artifacts compared, {len(diffs)} difference(s)")
     return 1 if diffs else 0
 
@@ -283,9 +284,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--quick", action="store_true", help=f"only {len(QUICK_COMBOS)} scene x scenario pairs")
     p.add_argument("--scenes-only", action="store_true", help="only the scene vertex hashes (seconds)")
     p.add_argument("--compare", nargs=2, type=Path, metavar=("A.json", "B.json"))
+    p.add_argument("--subset", action="store_true",
+                   help="with --compare: B is a --quick or --scenes-only run (A's other artifacts "
+                   "are not missing)")
     args = p.parse_args(argv)
     if args.compare:
-        return compare(*args.compare)
+        return compare(*args.compare, subset=args.subset)
     if args.out is None:
         p.error("--out is required unless --compare")
     tmp = None
