@@ -1,4 +1,5 @@
-"""Instance masks -> oriented boxes with heading-aware corner order and flags (METHOD.md §9).
+"""Instance masks -> oriented boxes with heading-aware corner order and flags (docs/formats.md,
+"Box extraction").
 
 Image frame everywhere: pixels, origin at the top-left corner of the image, x right, y down,
 pixel (col j, row i) covers [j, j+1] x [i, i+1] so its centre is (j + 0.5, i + 0.5) (the same
@@ -312,7 +313,7 @@ def mask_to_rect_corners(
     fit: str = "pixels",
     grow_px: float = 0.25,
 ) -> np.ndarray | None:
-    """Minimum-area rectangle of the largest region of a mask (METHOD.md §9).
+    """Minimum-area rectangle of the largest region of a mask (docs/formats.md, "Box extraction").
 
     mask          : (h, w) bool, the instance's bounding crop
     offset_xy_px  : (x0, y0) int, the crop's top-left pixel in the image
@@ -467,6 +468,34 @@ def instance_slices(inst: np.ndarray) -> dict[int, tuple[slice, slice]]:
     return {int(ids[i + 1]): s for i, s in enumerate(found) if s is not None}
 
 
+def _drop_reasons(visible_px: int, fraction: float, config: BoxConfig) -> list[str]:
+    """Why a vehicle in view gets no box (empty: it gets one)."""
+    drop = []
+    if visible_px == 0:
+        drop.append("not_visible")
+    else:
+        if visible_px < config.min_visible_px:
+            drop.append("too_few_pixels")
+        if fraction < config.min_visible_fraction:
+            drop.append("low_visible_fraction")
+    return drop
+
+
+def _box_rect(config: BoxConfig, crop, xy0, vid: int, veh, project, amodal_mask):
+    """The rectangle corners (4, 2) px of a kept vehicle's box, or None: of the visible
+    mask ``crop`` at ``xy0`` (``box="visible"``), else of the amodal mask or, without
+    one, of the projected 3-D cuboid."""
+    if config.box == "visible":
+        return mask_to_rect_corners(crop, xy0, config.kernel_px, config.fit, config.grow_px)
+    rect = None
+    if amodal_mask is not None:
+        am, (ax0, ay0) = amodal_mask(vid)
+        rect = mask_to_rect_corners(am, (ax0, ay0), config.kernel_px, config.fit, config.grow_px)
+    if rect is None:
+        rect = points_to_rect_corners(project(cuboid_corners_xyz(veh)))
+    return rect
+
+
 def annotate_instances(
     instance: np.ndarray,
     vehicles: Mapping[int, object],
@@ -522,38 +551,14 @@ def annotate_instances(
             truncated = sl is not None and _crop_touches_border(sl, inst.shape)
         forward = image_forward(project, veh)
         heading = heading_deg_from_vector(forward)
-        common = dict(
-            vehicle_id=vid,
-            cls=str(veh.cls),
-            heading_img_deg=heading,
-            visible_px=visible_px,
-            amodal_px=amodal_px,
-            visible_fraction=fraction,
-            truncated=truncated,
-        )
-        drop = []
-        if visible_px == 0:
-            drop.append("not_visible")
-        else:
-            if visible_px < config.min_visible_px:
-                drop.append("too_few_pixels")
-            if fraction < config.min_visible_fraction:
-                drop.append("low_visible_fraction")
+        common = dict(vehicle_id=vid, cls=str(veh.cls), heading_img_deg=heading, visible_px=visible_px,
+                      amodal_px=amodal_px, visible_fraction=fraction, truncated=truncated)
+        drop = _drop_reasons(visible_px, fraction, config)
         if drop:
             out.append(VehicleAnnotation(status="dropped", reasons=tuple(drop), **common))
             continue
         x0, y0 = sl[1].start, sl[0].start
-        if config.box == "visible":
-            rect = mask_to_rect_corners(crop, (x0, y0), config.kernel_px, config.fit, config.grow_px)
-        else:
-            rect = None
-            if amodal_mask is not None:
-                am, (ax0, ay0) = amodal_mask(vid)
-                rect = mask_to_rect_corners(
-                    am, (ax0, ay0), config.kernel_px, config.fit, config.grow_px
-                )
-            if rect is None:
-                rect = points_to_rect_corners(project(cuboid_corners_xyz(veh)))
+        rect = _box_rect(config, crop, (x0, y0), vid, veh, project, amodal_mask)
         if rect is None:
             out.append(VehicleAnnotation(status="dropped", reasons=("no_region",), **common))
             continue

@@ -284,7 +284,7 @@ def check_tiled_config(cfg) -> float:
     """Validate the tiled options of an ExportConfig; returns the placement margin to use
     (:data:`DEFAULT_MARGIN_M` when ``margin_m`` is None)."""
     from .. import validators as v
-    from ..scene.tiles import min_tile_m
+    from ..placement.tiled import min_tile_m
 
     E = ExportError
     tile = v.in_range("--tile-m", cfg.tile_m, 0.0, 1e9, lo_open=True, error=E)

@@ -22,13 +22,13 @@ __all__ = [
 
 def place(*args, **kwargs):
     """See :func:`aerial_synth.placement.traffic.place`."""
-    from .traffic import place as _place
+    from .traffic import place as _place  # lazy: the line-trace engine; --help imports this package
 
     return _place(*args, **kwargs)
 
 
 def validate_placement(*args, **kwargs):
     """See :func:`aerial_synth.placement.footprints.validate_placement`."""
-    from .footprints import validate_placement as _v
+    from .footprints import validate_placement as _v  # lazy: as place()
 
     return _v(*args, **kwargs)

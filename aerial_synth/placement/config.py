@@ -22,7 +22,7 @@ import numpy as np
 
 from .. import validators as V
 from ..errors import ConfigError, PlacementError
-from .parking_config import PARKING_KEYS, PARKING_KINDS, ParkingConfig, parse_parking
+from .parking_config import PARKING_KINDS, ParkingConfig, parse_parking
 from .spacing import SpacingSampler
 
 __all__ = [
@@ -302,14 +302,6 @@ def _num(lo=None, hi=None, lo_open=False, hi_open=False, nullable=False):
     return check
 
 
-def _int(lo=None, hi=None, nullable=False):
-    def check(name, v):
-        if v is None and nullable:
-            return None
-        return V.integer(name, v, lo, hi)
-    return check
-
-
 _SPACING_CHECKS = {
     "skewness": _num(-1000.0, 1000.0),
     "mean_m": _num(0.0, lo_open=True),  # below max_m, checked by the sampler
@@ -506,13 +498,3 @@ def load_scenario(name_or_path: str | ScenarioConfig, overrides: Mapping | None 
 #: export loads its scenario once per placement group). Keyed by the text, so an edited
 #: file is parsed again.
 _PARSED: dict[tuple, ScenarioConfig] = {}
-
-
-def describe_keys() -> str:
-    """Every key ``--set`` accepts, for help texts."""
-    keys = []
-    for k in _SCENARIO_KEYS:
-        sub = {"spacing": _SPACING_KEYS, "vehicles_per_line": _LINES_KEYS, "probe": _PROBE_KEYS,
-               "parking": PARKING_KEYS}.get(k)
-        keys += [f"{k}.{s}" for s in sub] if sub else [k]
-    return ", ".join(keys)

@@ -12,7 +12,7 @@ from dataclasses import asdict, dataclass, field, fields
 from typing import Any, Mapping
 
 from .. import validators as V
-from ..errors import ConfigError
+from ..errors import ConfigError, SceneError
 
 __all__ = ["ParkingConfig", "parse_parking", "PARKING_KINDS", "PARKING_KEYS", "DEFAULT_DEPOT_MIX"]
 
@@ -60,7 +60,7 @@ class ParkingConfig:
                       when those are all 0); only vehicles that fit a bay are drawn
     depot_mix       : the same for bays at least depot_bay_min_m long (bus and truck bays)
     layout          : bay layout of lots that carry none (OSM lots, meshes): bay size, angle,
-                      aisle (scene/procedural/parking.py LotLayout; default 2.5 x 5.0 m,
+                      aisle (scene/parking_layout.py LotLayout; default 2.5 x 5.0 m,
                       90 degrees, 6 m aisles)
     grid_m          : spacing of the vertical traces that find lots, (0.05, 5] m
     min_lot_m       : surfaces narrower than this (driveways, entrances) are no lot, m
@@ -122,10 +122,9 @@ class ParkingConfig:
 
     def lot_layout(self):
         """The default :class:`LotLayout` (lots that carry none)."""
-        from ..errors import SceneError
-        from ..scene.procedural.parking import parse_layout
-
         try:
+            from ..scene.parking_layout import parse_layout  # lazy: --help imports this module
+
             return parse_layout(self.layout or None, "parking.layout")
         except SceneError as exc:
             raise ConfigError(str(exc)) from None

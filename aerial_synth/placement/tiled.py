@@ -30,13 +30,31 @@ from __future__ import annotations
 import dataclasses
 import time
 import warnings
+from typing import Mapping
 
 import numpy as np
 
 from ..errors import PlacementError
+from ..scene.raycast import RayScene
+from ..vehicles import load_catalog
+from .config import load_scenario
+from .footprints import FootprintIndex
 from .model import Placement
+from .parking_config import PARKING_KINDS
+from .traffic import PlacementWarning, lane_rule, place
 
-__all__ = ["BorderMerge", "place_tiled", "tile_seed"]
+__all__ = ["BorderMerge", "min_tile_m", "place_tiled", "tile_seed"]
+
+
+def min_tile_m(catalog=None) -> float:
+    """The smallest allowed tile edge: the longest vehicle of the catalog (metres; the
+    bundled catalog when None)."""
+    if catalog is None:
+        catalog = load_catalog()
+    models = getattr(catalog, "models", None)
+    if isinstance(models, Mapping):
+        models = list(models.values())
+    return float(max(m.length_m for m in models))
 
 
 def tile_seed(seed, i: int, j: int, n_tiles: int) -> np.random.SeedSequence | int | None:
@@ -75,13 +93,7 @@ def place_tiled(
            world, or one machine's share of it (seeds are those of the whole grid)
     Raises PlacementError when the grid's tiles are smaller than the longest vehicle.
     """
-    from ..scene.tiles import min_tile_m
-    from .config import load_scenario
-    from .traffic import PlacementWarning
-
     if catalog is None:
-        from ..vehicles import load_catalog
-
         catalog = load_catalog()
     longest = min_tile_m(catalog)
     if grid.tile_m < longest:
@@ -103,26 +115,14 @@ def place_tiled(
     single_stats = None
     t_scene = t_place = c_scene = c_place = 0.0
     t0 = time.perf_counter()
-    from .parking_config import PARKING_KINDS
 
     # traffic: a tile seeds its lines in its core and counts the vehicles its core owns, so it
     # asks for its core's share; parking scenarios fill the window and ask for its share
     by_core = cfg.kind not in PARKING_KINDS and n_tiles > 1
-    wants = []
-    for tile in tiles:
-        want = None
-        if n_vehicles is not None:
-            x0, y0, x1, y1 = tile.core if by_core else tile.window
-            want = n_vehicles if n_tiles == 1 else max(1, int(round(n_vehicles * (x1 - x0) * (y1 - y0) / world_area)))
-        wants.append(want)
+    wants = _tile_wants(tiles, n_vehicles, n_tiles, by_core, world_area)
     jobs = [(world, grid, tile, cfg, tile_seed(seed, tile.i, tile.j, n_tiles), want, catalog, 0, by_core)
             for tile, want in zip(tiles, wants)]
-    if executor is not None:
-        results = executor.map(_place_tile, jobs)
-    elif workers > 1 and n_tiles > 1:
-        results = _pool_map(jobs, workers)
-    else:
-        results = map(_place_tile, jobs)
+    results = _run_tiles(jobs, executor, workers, n_tiles)
     for k, (tile, res) in enumerate(zip(tiles, results)):
         warned += res["warnings"]
         t_scene += res["scene_s"]
@@ -146,17 +146,10 @@ def place_tiled(
         if n_tiles == 1 and res["stats"] is not None:
             single_stats = dict(res["stats"])
     elapsed = time.perf_counter() - t0
-    if single_stats is not None:
-        stats = single_stats
-    else:
-        stats = {"vehicles": len(kept), "requested_vehicles": n_vehicles}
-    stats["tiles"] = {
-        "grid": list(grid.shape),
-        "tile_m": grid.tile_m,
-        "margin_m": grid.margin_m,
-        "dropped_at_borders": merge.dropped,
-        "per_tile": per_tile,
-    }
+    stats = single_stats if single_stats is not None else {"vehicles": len(kept),
+                                                           "requested_vehicles": n_vehicles}
+    stats["tiles"] = {"grid": list(grid.shape), "tile_m": grid.tile_m, "margin_m": grid.margin_m,
+                      "dropped_at_borders": merge.dropped, "per_tile": per_tile}
     if not kept and not any(t["placed"] for t in per_tile):
         raise PlacementError(f"tiled world {world.name!r}: no tile held a road to place vehicles on")
     out = Placement(
@@ -175,6 +168,29 @@ def place_tiled(
     return out
 
 
+
+def _tile_wants(tiles, n_vehicles, n_tiles: int, by_core: bool, world_area: float) -> list:
+    """Vehicles each tile asks for (None: the scenario's amount): its core's (traffic) or
+    window's (parking) share of ``n_vehicles``."""
+    wants = []
+    for tile in tiles:
+        want = None
+        if n_vehicles is not None:
+            x0, y0, x1, y1 = tile.core if by_core else tile.window
+            want = n_vehicles if n_tiles == 1 else max(1, int(round(n_vehicles * (x1 - x0) * (y1 - y0) / world_area)))
+        wants.append(want)
+    return wants
+
+
+def _run_tiles(jobs: list, executor, workers: int, n_tiles: int):
+    """The results of :func:`_place_tile` over ``jobs``, in order: on ``executor``, a
+    process pool of ``workers`` or here."""
+    if executor is not None:
+        return executor.map(_place_tile, jobs)
+    if workers > 1 and n_tiles > 1:
+        return _pool_map(jobs, workers)
+    return map(_place_tile, jobs)
+
 class BorderMerge:
     """The border rule of a tiled placement. Tiles are merged in raster order; a vehicle
     whose centre lies within ``reach`` of its tile core's edge is dropped when it collides
@@ -184,9 +200,6 @@ class BorderMerge:
     (:mod:`aerial_synth.dataset.tiled`), so both decide every border alike."""
 
     def __init__(self, cfg, longest_m: float, n_tiles: int):
-        from .footprints import FootprintIndex
-        from .traffic import lane_rule
-
         rule = lane_rule(cfg)
         self.index = FootprintIndex(cfg.gap_m, cfg.min_center_distance_m, lane_spacing=rule)
         reach = longest_m + max(cfg.gap_m, 0.0) + float(cfg.min_center_distance_m or 0.0)
@@ -214,10 +227,6 @@ class BorderMerge:
 def _place_tile(job) -> dict:
     """Place one tile: its window's scene, ``place()`` with the tile's seed, and the vehicles
     its core owns. Runs in the caller's process or in a pool worker."""
-    from ..scene.raycast import RayScene
-    from . import place
-    from .traffic import PlacementWarning
-
     world, grid, tile, cfg, seed, want, catalog, nthreads, by_core = job
     ts = time.perf_counter()
     cs = _cpu()

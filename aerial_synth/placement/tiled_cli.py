@@ -6,14 +6,14 @@ Light at import (the CLI imports every command module to build its parser).
 from __future__ import annotations
 
 import argparse
-import sys
+
+from ..scene.cli import add_osm_args
+from ..validators import arg_float, arg_int
 
 __all__ = ["register", "run"]
 
 
 def register(sub) -> None:
-    from ..validators import arg_float, arg_int
-
     p = sub.add_parser(
         "place-tiled",
         help="place vehicles tile by tile on a large world (city of size_km, big meshes)",
@@ -24,8 +24,6 @@ def register(sub) -> None:
     p.add_argument("--scene", default="city_2km", metavar="NAME|FILE",
                    help="a city spec (generated per window) or any scene (cut per window) (city_2km)")
     p.add_argument("--scene-seed", type=arg_int("--scene-seed", 0), default=None, metavar="N")
-    from ..scene.cli import add_osm_args
-
     add_osm_args(p)  # --bbox/--crs for an OSM extract as --scene
     p.add_argument("--scenario", default="jam", metavar="NAME|FILE", help="traffic scenario (jam)")
     p.add_argument("--seed", type=arg_int("--seed", 0), default=0, metavar="S")
@@ -45,68 +43,7 @@ def register(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import resource
-    import time
-    import warnings
+    """``aerial-synth place-tiled`` (:func:`aerial_synth.placement.commands.run_place_tiled`)."""
+    from . import commands  # lazy: placement, scene and ray-casting modules; --help loads none
 
-    from ..errors import PlacementError
-    from ..io_utils import atomic_write_bytes, check_output_dir
-    from ..scene.tiles import TiledWorld, min_tile_m
-    from .config import load_scenario
-    from .tiled import place_tiled
-    from .traffic import PlacementWarning
-
-    out = check_output_dir(args.out, "--out")
-    cfg = load_scenario(args.scenario)
-    longest = min_tile_m()
-    if args.tile_m < longest:
-        raise PlacementError(
-            f"--tile-m: expected a tile size of at least the longest vehicle ({longest:g} m), got {args.tile_m:g}")
-    client = _dask_client(args) if args.dask else None
-    t0 = time.perf_counter()
-    world = TiledWorld.load(args.scene, seed=args.scene_seed, bbox=args.bbox, crs=args.crs)
-    grid = world.grid(args.tile_m, args.margin_m)
-
-    def progress(done, n, kept):
-        print(f"\rtile {done}/{n}: {kept} vehicles", end="", file=sys.stderr, flush=True)
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", PlacementWarning)
-        pl = place_tiled(world, grid, cfg, seed=args.seed, n_vehicles=args.vehicles,
-                         progress=progress if sys.stderr.isatty() else None, workers=args.workers,
-                         executor=client.get_executor() if client is not None else None)
-    if client is not None:
-        client.close()
-    wall = time.perf_counter() - t0
-    if sys.stderr.isatty():
-        print(file=sys.stderr)
-    out.mkdir(parents=True, exist_ok=True)
-    atomic_write_bytes(out / "placement.json", pl.to_json().encode("utf-8"))
-    t = pl.stats["tiles"]
-    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-    print(f"world {world.name}: {t['grid'][0]} x {t['grid'][1]} tiles of {t['tile_m']:g} m (margin "
-          f"{t['margin_m']:g} m); {len(pl.vehicles)} vehicles ({t['dropped_at_borders']} dropped at borders); "
-          f"{wall:.1f} s; peak RSS {rss:.0f} MB")
-    print(f"wrote {out / 'placement.json'}")
-    return 0
-
-
-def _dask_client(args):
-    """A client of the running scheduler ``--dask``; one-line PlacementError otherwise."""
-    import re
-
-    from ..errors import PlacementError
-
-    if args.workers != 1:
-        raise PlacementError(f"--dask and --workers: choose one, got --workers {args.workers}")
-    addr = str(args.dask).strip()
-    if not re.match(r"^(tcp|tls)://[^\s/:]+:\d+$", addr):
-        raise PlacementError(f"--dask: expected tcp://HOST:PORT of a running dask scheduler, got {args.dask!r}")
-    try:
-        from distributed import Client
-    except ImportError:
-        raise PlacementError("--dask: needs Dask distributed; pip install 'aerial-synth[dask]'") from None
-    try:
-        return Client(addr, timeout="6s")
-    except (OSError, TimeoutError) as exc:
-        raise PlacementError(f"--dask {addr}: cannot reach a Dask scheduler there ({type(exc).__name__})") from None
+    return commands.run_place_tiled(args)

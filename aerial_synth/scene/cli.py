@@ -1,13 +1,12 @@
 """``aerial-synth scene ...`` commands and the shared ``--scene`` / ``--labels`` options.
 
-Imports nothing heavy at import time: the scene is loaded inside the command functions.
+Imports nothing heavy at import time: the command bodies live in
+:mod:`aerial_synth.scene.commands`, imported when a command runs.
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
-from pathlib import Path
 
 from ..validators import arg_float, arg_int
 
@@ -53,143 +52,32 @@ def add_osm_args(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _commands():
+    from . import commands  # lazy: numpy, PyYAML and the scene modules; --help loads none
+
+    return commands
+
+
 def scene_from_args(args: argparse.Namespace):
-    """Load the scene named by :func:`add_scene_args` options. Returns a Scene.
-
-    Scene warnings (e.g. a georeferenced glTF whose float32 vertices are far from 0) are
-    printed as one line each on stderr.
-    """
-    from .io import load_scene
-
-    return _load_warning_once(
-        lambda: load_scene(args.scene, labels=args.labels, seed=getattr(args, "scene_seed", None),
-                           bbox=getattr(args, "bbox", None), crs=getattr(args, "crs", None))
-    )
-
-
-def _load_warning_once(load):
-    """Run ``load()``; print each SceneWarning it raised as one ``aerial-synth: warning:`` line."""
-    import warnings
-
-    from .georef import SceneWarning
-
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", SceneWarning)
-        scene = load()
-    for w in caught:
-        if issubclass(w.category, SceneWarning):
-            print(f"aerial-synth: warning: {' '.join(str(w.message).split())}", file=sys.stderr)
-        else:
-            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
-    return scene
-
-
-def _summary(scene) -> str:
-    from collections import Counter
-
-    tri = Counter()
-    for o in scene.objects:
-        tri[o.label] += o.n_triangles
-    b = scene.bounds()
-    parts = ", ".join(f"{k} {v}" for k, v in sorted(tri.items()))
-    size = f"{b[1, 0] - b[0, 0]:.0f} m x {b[1, 1] - b[0, 1]:.0f} m"
-    geo = ""
-    if any(scene.origin) or scene.crs:
-        o = ", ".join(f"{c + 0.0:.3f}".rstrip("0").rstrip(".") for c in scene.origin)
-        geo = f"; local frame origin ({o}) m" + (f" in {scene.crs}" if scene.crs else "")
-    return (f"{scene.name}: {len(scene.objects)} objects, {scene.n_triangles} triangles, {size} "
-            f"({parts}){geo}")
-
-
-def _warn_unmatched(scene) -> None:
-    n = int(scene.meta.get("n_unmatched", 0) or 0)
-    if n:
-        names = ", ".join(scene.meta["unmatched"][:5]) + (" ..." if n > 5 else "")
-        print(
-            f"aerial-synth: warning: {n} mesh name(s) matched no label rule and are labelled "
-            f"'unknown' (treated as obstacles): {names}",
-            file=sys.stderr,
-        )
+    """Load the scene named by :func:`add_scene_args` options. Returns a Scene (see
+    :func:`aerial_synth.scene.commands.scene_from_args`)."""
+    return _commands().scene_from_args(args)
 
 
 def _cmd_list(args: argparse.Namespace) -> int:
-    import yaml
-
-    from ..errors import SceneError
-    from .io import SCENES_DIR, list_scenes
-    from .procedural import checked_spec
-
-    for name in list_scenes():
-        path = SCENES_DIR / f"{name}.yaml"
-        try:  # the checks `scene show` applies (size_km -> size_m included), not a raw read
-            spec, seed = checked_spec(yaml.safe_load(path.read_text(encoding="utf-8")), path.name)
-            w, h = spec["size_m"]
-            desc = f"{spec['generator']}, {w:g} m x {h:g} m, seed {seed}"
-        except (OSError, yaml.YAMLError, SceneError) as exc:  # a broken bundled spec still gets listed
-            desc = f"(invalid spec: {str(exc).splitlines()[0][:80]})"
-        print(f"{name:14s} {desc}")
-    return 0
+    return _commands().cmd_list(args)
 
 
 def _cmd_show(args: argparse.Namespace) -> int:
-    from ..io_utils import check_output_file
-    from .io import load_scene
-    from .mapview import render_map, save_png
-
-    check_output_file(args.out, "--out")
-    scene = _load_warning_once(lambda: load_scene(args.scene, labels=args.labels, seed=args.scene_seed,
-                                                  bbox=args.bbox, crs=args.crs))
-    _warn_unmatched(scene)
-    view = render_map(scene, m_per_px=args.m_per_px)
-    save_png(args.out, view.image)
-    w, h = view.size_wh
-    print(_summary(scene))
-    print(f"wrote {args.out} ({w}x{h} px, {args.m_per_px:g} m/px)")
-    return 0
+    return _commands().cmd_show(args)
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
-    from ..errors import OutputError
-    from ..io_utils import check_output_file
-    from .io import export_glb, load_scene
-
-    if Path(args.out).suffix.lower() != ".glb":
-        raise OutputError(f"--out {args.out}: expected an output path ending in .glb")
-    check_output_file(args.out, "--out")
-    scene = _load_warning_once(lambda: load_scene(args.scene, labels=args.labels, seed=args.scene_seed,
-                                                  bbox=args.bbox, crs=args.crs))
-    _warn_unmatched(scene)
-    export_glb(scene, args.out)
-    print(_summary(scene))
-    print(f"wrote {args.out}")
-    return 0
+    return _commands().cmd_export(args)
 
 
 def _cmd_from_osm(args: argparse.Namespace) -> int:
-    import time
-
-    from ..errors import OutputError
-    from ..io_utils import check_output_file
-    from .io import export_glb
-    from .osm import ATTRIBUTION, load_osm_scene
-
-    if Path(args.out).suffix.lower() != ".glb":
-        raise OutputError(f"--out {args.out}: expected an output path ending in .glb")
-    check_output_file(args.out, "--out")
-    t0 = time.perf_counter()
-    scene = load_osm_scene(args.file, bbox=args.bbox, crs=args.crs,
-                           seed=0 if args.scene_seed is None else args.scene_seed,
-                           use_cache=not args.no_cache)
-    t_build = time.perf_counter() - t0
-    export_glb(scene, args.out)
-    osm = scene.meta.get("osm", {})
-    print(_summary(scene))
-    print(f"{osm.get('roads', 0)} roads ({osm.get('oneway_roads', 0)} one-way), "
-          f"{osm.get('buildings', 0)} buildings, {osm.get('trees', 0)} trees; crs {scene.crs}, "
-          f"origin {scene.origin[0]:.0f} {scene.origin[1]:.0f}; built in {t_build:.2f} s"
-          + (" (cached)" if scene.meta.get("cache") and t_build < 0.5 else ""))
-    print(f"wrote {args.out}  (map data {ATTRIBUTION}, ODbL)")
-    return 0
+    return _commands().cmd_from_osm(args)
 
 
 def register(sub) -> None:

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import SceneError
+from ..validators import show
 
 __all__ = [
     "FAR_M",
@@ -84,8 +85,6 @@ def parse_origin(value: Any, where: str) -> tuple[float, float, float]:
         or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
         or not all(math.isfinite(float(v)) for v in value)
     ):
-        from ..validators import show
-
         raise SceneError(f"{where}: expected [x, y, z] as 3 finite numbers (metres), got {show(value)}")
     return (float(value[0]), float(value[1]), float(value[2]))
 
@@ -95,8 +94,6 @@ def check_crs(value: Any, where: str) -> str:
 
     Returns it stripped, as written. Raises SceneError naming ``where``.
     """
-    from ..validators import show
-
     if not isinstance(value, str) or not value.strip():
         raise SceneError(f"{where}: expected a CRS string such as 'EPSG:32632', got {show(value)}")
     text = value.strip()

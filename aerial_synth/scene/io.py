@@ -5,48 +5,52 @@ Loading never changes the data: trimesh is called with ``process=False`` and
 with each node's world transform; then units are scaled to metres and a y-up file is turned
 z-up: (x, y, z)_file -> (x, -z, y)_world.
 
-Label rules (YAML, see docs/scenes.md) map node/mesh names to labels with case-insensitive
-globs or ``re:`` regular expressions; the first matching rule wins. A name that starts with
-``<label>__`` (what :func:`export_glb` writes) takes that label before any rule. Names no
-rule matches get the label ``unknown``; they are counted in ``scene.meta["unmatched"]`` and,
-unless the rules file gives its own ``label_config``, ``unknown`` is added to the obstacle
-set so placement keeps away from unlabelled geometry.
+Label rules (:mod:`.label_rules`, docs/scenes.md) map node/mesh names to labels; names no
+rule matches get the label ``unknown``.
 """
 
 from __future__ import annotations
 
-import fnmatch
-import re
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
 from ..errors import AerialSynthError, SceneError
+from ..io_utils import atomic_write_bytes
+from .georef import (
+    FAR_M,
+    SceneWarning,
+    check_crs,
+    choose_origin,
+    float32_step_m,
+    origin_fits,
+    parse_origin,
+)
+from .hints import extras_for, meta_from_extras
+from .label_rules import load_rules, read_yaml
 from .model import (
     DEFAULT_COLOR_FOR_MATERIAL,
     DEFAULT_MATERIAL_FOR_LABEL,
     LABEL_IDS,
-    LABELS,
     MATERIAL_IDS,
-    MATERIALS,
     LabelConfig,
     Scene,
     SceneObject,
 )
+from .osm import load_osm_scene
+from .osm.read import is_osm_path
+from .procedural import generate
 
 __all__ = [
     "SCENES_DIR",
     "MESH_EXTENSIONS",
-    "DEFAULT_RULES",
-    "LabelRule",
-    "LabelRules",
     "load_rules",
     "load_scene",
     "load_mesh_scene",
     "list_scenes",
     "export_glb",
+    "read_yaml",
 ]
 
 #: Folder of the bundled scene specs (the package is installed editable).
@@ -57,254 +61,6 @@ SCENES_DIR = Path(__file__).resolve().parents[1] / "data" / "scenes"
 MESH_EXTENSIONS = (".glb", ".gltf", ".obj", ".ply")
 SPEC_EXTENSIONS = (".yaml", ".yml")
 
-#: Built-in rules, tried in order after any user rules (case-insensitive globs).
-DEFAULT_RULES: tuple[tuple[str, str], ...] = (
-    ("lane_marking*", "lane_marking"),
-    ("marking*", "lane_marking"),
-    ("lane*", "lane_marking"),
-    ("crosswalk*", "lane_marking"),
-    ("road*", "road"),
-    ("street*", "road"),
-    ("asphalt*", "road"),
-    ("highway*", "road"),
-    ("sidewalk*", "sidewalk"),
-    ("pavement*", "sidewalk"),
-    ("footpath*", "sidewalk"),
-    ("kerb*", "sidewalk"),
-    ("curb*", "sidewalk"),
-    ("parking*", "parking"),
-    ("driveway*", "parking"),
-    ("building*", "building"),
-    ("house*", "building"),
-    ("roof*", "building"),
-    ("wall*", "building"),
-    ("trunk*", "trunk"),
-    ("tree*", "tree"),
-    ("crown*", "tree"),
-    ("foliage*", "tree"),
-    ("leaves*", "tree"),
-    ("bush*", "tree"),
-    ("grass*", "ground"),
-    ("ground*", "ground"),
-    ("terrain*", "ground"),
-    ("lawn*", "ground"),
-    ("soil*", "ground"),
-    ("water*", "water"),
-    ("lake*", "water"),
-    ("pond*", "water"),
-    ("river*", "water"),
-    ("pole*", "pole"),
-    ("lamp*", "pole"),
-    ("post*", "pole"),
-    ("sign*", "pole"),
-    ("vehicle*", "vehicle"),
-    ("car*", "vehicle"),
-)
-
-_UNITS = {"m": 1.0, "metre": 1.0, "meter": 1.0, "cm": 0.01, "mm": 0.001, "km": 1000.0,
-          "ft": 0.3048, "in": 0.0254}
-_RULE_KEYS = {"match", "label", "material", "color"}
-_TOP_KEYS = {"units", "up_axis", "rules", "include_defaults", "label_config", "default_label",
-             "crs"}
-
-
-@dataclass(frozen=True)
-class LabelRule:
-    """One rule: a glob (case-insensitive) or ``re:`` pattern -> label (+ material/colour)."""
-
-    match: str
-    label: str
-    material: str | None = None
-    color: tuple[float, float, float] | None = None
-
-    def __post_init__(self) -> None:
-        if self.label not in LABEL_IDS:
-            raise SceneError(
-                f"label rule {self.match!r}: unknown label {self.label!r}; expected one of "
-                f"{', '.join(LABELS)}"
-            )
-        if self.material is not None and self.material not in MATERIAL_IDS:
-            raise SceneError(
-                f"label rule {self.match!r}: unknown material {self.material!r}; expected one "
-                f"of {', '.join(sorted(MATERIAL_IDS))}"
-            )
-        if self.match.startswith("re:"):
-            try:
-                pat = re.compile(self.match[3:], re.IGNORECASE)
-            except re.error as exc:
-                raise SceneError(f"label rule {self.match!r}: bad regular expression ({exc})") from None
-        else:
-            pat = re.compile(fnmatch.translate(self.match), re.IGNORECASE)
-        object.__setattr__(self, "_pattern", pat)
-
-    def matches(self, name: str) -> bool:
-        pat = self._pattern  # type: ignore[attr-defined]
-        if self.match.startswith("re:"):
-            return pat.search(name) is not None
-        return pat.match(name) is not None
-
-
-@dataclass(frozen=True)
-class LabelRules:
-    """A parsed label-rules file.
-
-    rules : user rules first, then (unless include_defaults is false) the built-in ones
-    units_m : metres per file unit (None = the file's own convention: 1.0)
-    up_axis : "y" or "z" (None = y for glTF/GLB, z for OBJ/PLY)
-    label_config : probing sets, or None for the default (+ ``unknown`` as obstacle)
-    default_label : label for names no rule matches
-    crs : the CRS of the file's coordinates (e.g. ``EPSG:32632``), or None
-    """
-
-    rules: tuple[LabelRule, ...]
-    units_m: float | None = None
-    up_axis: str | None = None
-    label_config: LabelConfig | None = None
-    default_label: str = "unknown"
-    crs: str | None = None
-    source: str = "built-in rules"
-
-    def label_for(self, name: str) -> LabelRule | None:
-        """The first rule matching ``name`` (a ``<label>__`` prefix wins), or None."""
-        head, sep, _ = name.partition("__")
-        if sep and head.lower() in LABEL_IDS:
-            return LabelRule(match=f"{head}__*", label=head.lower())
-        for r in self.rules:
-            if r.matches(name):
-                return r
-        return None
-
-
-def _default_rule_objects() -> tuple[LabelRule, ...]:
-    return tuple(LabelRule(m, lab) for m, lab in DEFAULT_RULES)
-
-
-def _read_yaml(path: Path, what: str) -> Any:
-    import yaml
-
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise SceneError(f"{what} {path}: file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SceneError(f"{what} {path}: cannot read ({exc})") from None
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        problem = getattr(exc, "problem", None) or " ".join(str(exc).split())
-        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark is not None else ""
-        raise SceneError(f"{what} {path}: broken YAML ({where}{problem})") from None
-
-
-def load_rules(path: str | Path | None) -> LabelRules:
-    """Parse a label-rules YAML file; None gives the built-in rules."""
-    if path is None:
-        return LabelRules(rules=_default_rule_objects())
-    path = Path(path)
-    data = _read_yaml(path, "label rules")
-    try:
-        return _rules_from_mapping(data, str(path))
-    except AerialSynthError as exc:
-        msg = str(exc)
-        if str(path) not in msg:
-            msg = f"label rules {path}: {msg}"
-        raise SceneError(msg) from None
-
-
-def _rules_from_mapping(data: Any, where: str) -> LabelRules:
-    """Validate every field of a parsed label-rules file (messages name the field)."""
-    from .. import validators as V
-
-    E = SceneError
-    if data is None:
-        data = {}
-    if not isinstance(data, Mapping):
-        raise SceneError(
-            f"expected a mapping with keys such as 'rules', got {V.show(data)}"
-        )
-    V.known_keys("top level", data, sorted(_TOP_KEYS), error=E)
-    raw = data.get("rules")
-    items: list[tuple[str, Any]] = []
-    if raw is None:
-        pass
-    elif isinstance(raw, Mapping):  # compact form {pattern: label}
-        for k, v in raw.items():
-            items.append((f"rules[{k!r}]", {"match": k, "label": v}))
-    elif isinstance(raw, list):
-        items = [(f"rules[{i}]", it) for i, it in enumerate(raw)]
-    else:
-        raise SceneError(f"rules: expected a list of rules or a mapping pattern: label, got {V.show(raw)}")
-    rules = []
-    for field, it in items:
-        if not isinstance(it, Mapping):
-            raise SceneError(f"{field}: expected a mapping with 'match' and 'label', got {V.show(it)}")
-        V.known_keys(field, it, sorted(_RULE_KEYS), error=E)
-        for key in ("match", "label"):
-            if key not in it:
-                raise SceneError(f"{field}: missing key {key!r}; expected 'match' and 'label'")
-        match = it["match"]
-        if not isinstance(match, str) or not match:
-            raise SceneError(f"{field}.match: expected a glob or 're:' pattern (text), got {V.show(match)}")
-        label = it["label"]
-        if not isinstance(label, str) or label not in LABEL_IDS:
-            raise SceneError(f"{field}.label: expected one of {', '.join(LABELS)}, got {V.show(label)}")
-        material = it.get("material")
-        if material is not None and (not isinstance(material, str) or material not in MATERIAL_IDS):
-            raise SceneError(
-                f"{field}.material: expected one of {', '.join(MATERIALS)}, got {V.show(material)}"
-            )
-        col = it.get("color")
-        if col is not None:
-            col = V.sequence_of_numbers(f"{field}.color", col, 3, error=E)
-            if not all(0.0 <= c <= 1.0 for c in col):
-                raise SceneError(f"{field}.color: expected [r, g, b] in 0..1, got {V.show(it['color'])}")
-        rules.append(LabelRule(match, label, material, col))
-    if V.boolean("include_defaults", data.get("include_defaults", True), error=E):
-        rules.extend(_default_rule_objects())
-    units = data.get("units")
-    units_m = None
-    if units is not None:
-        if isinstance(units, str) and units.strip().lower() in _UNITS:
-            units_m = _UNITS[units.strip().lower()]
-        else:
-            try:
-                units_m = V.in_range("units", units, 0.0, 1e6, lo_open=True, error=E)
-            except SceneError:
-                raise SceneError(
-                    f"units: expected a number of metres per file unit (> 0) or one of "
-                    f"{', '.join(sorted(_UNITS))}, got {V.show(units)}"
-                ) from None
-    up = data.get("up_axis")
-    if up is not None:
-        if not isinstance(up, str) or up.strip().lower() not in ("y", "z"):
-            raise SceneError(f"up_axis: expected y or z, got {V.show(up)}")
-        up = up.strip().lower()
-    lc = data.get("label_config")
-    label_config = None
-    if lc is not None:
-        V.mapping("label_config", lc, error=E)
-        label_config = LabelConfig.from_mapping(lc) if lc else None
-    default_label = data.get("default_label", "unknown")
-    if not isinstance(default_label, str) or default_label not in LABEL_IDS:
-        raise SceneError(f"default_label: expected one of {', '.join(LABELS)}, got {V.show(default_label)}")
-    crs = data.get("crs")
-    if crs is not None:
-        from .georef import check_crs
-
-        crs = check_crs(crs, "crs")
-    return LabelRules(
-        rules=tuple(rules),
-        units_m=units_m,
-        up_axis=up,
-        label_config=label_config,
-        default_label=default_label,
-        crs=crs,
-        source=where,
-    )
-
-
-# --------------------------------------------------------------------------- meshes
 def _yup_to_zup(v: np.ndarray) -> np.ndarray:
     """(n, 3) y-up (glTF) -> z-up world: (x, y, z) -> (x, -z, y)."""
     return np.column_stack([v[:, 0], -v[:, 2], v[:, 1]])
@@ -386,15 +142,6 @@ def _georeference(path: Path, tscene, rules, items, raw_max_m: float, ext: str):
     """
     import warnings
 
-    from .georef import (
-        FAR_M,
-        SceneWarning,
-        check_crs,
-        choose_origin,
-        float32_step_m,
-        origin_fits,
-        parse_origin,
-    )
 
     pts = [v.min(axis=0) + t for _, _, v, t, *_ in items if len(v)]
     pts += [v.max(axis=0) + t for _, _, v, t, *_ in items if len(v)]
@@ -465,6 +212,46 @@ def load_mesh_scene(path: str | Path, labels: str | Path | None = None) -> Scene
     # (float64), and the translation apart, so the origin can be taken off the translation
     # before the two meet: a georeferenced glTF (float32 vertices near 0, the UTM offset in
     # a float64 node translation) then loads bit-identically to the unshifted file.
+    items, raw_max = _mesh_items(path, tscene, up, scale)
+    origin, crs = _georeference(path, tscene, rules, items, raw_max * scale, ext)
+
+    # pass 2: labels, names and the local vertices
+    objects, unmatched = _labelled_objects(path, items, origin, rules)
+    if not any(o.label == "road" for o in objects):
+        names = ", ".join(sorted({o.name for o in objects})[:6]) or "(no meshes)"
+        raise SceneError(
+            f"scene file {path}: no 'road' geometry after applying {rules.source}; expected at "
+            f"least one node/mesh labelled road (names seen: {names})"
+        )
+    lc = rules.label_config
+    if lc is None:
+        base = LabelConfig()
+        lc = LabelConfig(
+            road=base.road,
+            drivable=base.drivable,
+            obstacles=base.obstacles | {"unknown"},
+            ignore=base.ignore,
+        )
+    meta = {
+        "file": str(path),
+        "labels_file": str(labels) if labels is not None else None,
+        "up_axis": up,
+        "units_m": scale,
+        "unmatched": unmatched,
+        "n_unmatched": len(unmatched),
+    }
+
+    meta.update(meta_from_extras(getattr(tscene, "metadata", None), origin, f"scene file {path}"))
+    return Scene(
+        name=path.stem, objects=objects, source=str(path), label_config=lc, meta=meta,
+        origin=origin, crs=crs,
+    )
+
+
+def _mesh_items(path: Path, tscene, up: str, scale: float) -> tuple[list, float]:
+    """Every node's mesh of ``tscene``: ``(geometry name, node name, vertices (n, 3) float64
+    in the z-up metre frame without the node's translation, translation (3,), faces (m, 3),
+    material, colour)``, and the largest absolute raw vertex coordinate (file units)."""
     items = []
     raw_max = 0.0
     geom_names = list(tscene.geometry)
@@ -513,9 +300,12 @@ def load_mesh_scene(path: str | Path, labels: str | Path | None = None) -> Scene
             if np.linalg.det(R) < 0:
                 faces = faces[:, ::-1]  # mirrored node: keep counter-clockwise winding
             items.append((g, name, v, t, faces, mat_name, col))
-    origin, crs = _georeference(path, tscene, rules, items, raw_max * scale, ext)
+    return items, raw_max
 
-    # pass 2: labels, names and the local vertices
+
+def _labelled_objects(path: Path, items: list, origin, rules) -> tuple[list, list]:
+    """The scene objects of :func:`_mesh_items`' items (local frame: ``origin`` taken off),
+    labelled by ``rules``; and the names no rule matched."""
     objects: list[SceneObject] = []
     unmatched: list[str] = []
     used: set[str] = set()
@@ -547,36 +337,7 @@ def load_mesh_scene(path: str | Path, labels: str | Path | None = None) -> Scene
             objects.append(SceneObject(oname, label, v, faces, material, color))
         except AerialSynthError as exc:
             raise SceneError(f"scene file {path}: {exc}") from None
-    if not any(o.label == "road" for o in objects):
-        names = ", ".join(sorted({o.name for o in objects})[:6]) or "(no meshes)"
-        raise SceneError(
-            f"scene file {path}: no 'road' geometry after applying {rules.source}; expected at "
-            f"least one node/mesh labelled road (names seen: {names})"
-        )
-    lc = rules.label_config
-    if lc is None:
-        base = LabelConfig()
-        lc = LabelConfig(
-            road=base.road,
-            drivable=base.drivable,
-            obstacles=base.obstacles | {"unknown"},
-            ignore=base.ignore,
-        )
-    meta = {
-        "file": str(path),
-        "labels_file": str(labels) if labels is not None else None,
-        "up_axis": up,
-        "units_m": scale,
-        "unmatched": unmatched,
-        "n_unmatched": len(unmatched),
-    }
-    from .hints import meta_from_extras
-
-    meta.update(meta_from_extras(getattr(tscene, "metadata", None), origin, f"scene file {path}"))
-    return Scene(
-        name=path.stem, objects=objects, source=str(path), label_config=lc, meta=meta,
-        origin=origin, crs=crs,
-    )
+    return objects, unmatched
 
 
 # --------------------------------------------------------------------------- specs
@@ -588,9 +349,7 @@ def list_scenes() -> list[str]:
 
 
 def _load_spec(path: Path, seed: int | None) -> Scene:
-    from .procedural import generate
-
-    data = _read_yaml(path, "scene spec")
+    data = read_yaml(path, "scene spec")
     if not isinstance(data, Mapping):
         raise SceneError(f"scene spec {path}: expected a mapping, got {type(data).__name__}")
     return generate(data, seed=seed, source=str(path))
@@ -615,11 +374,8 @@ def load_scene(
     """
     s = str(name_or_path)
     p = Path(s)
-    from .osm.read import is_osm_path
 
     if is_osm_path(s):
-        from .osm import load_osm_scene
-
         if labels is not None:
             raise SceneError(f"--labels {labels}: label rules apply to mesh files; {s!r} is an "
                              f"OSM extract whose features are labelled by their tags; drop --labels")
@@ -672,7 +428,6 @@ def export_glb(scene: Scene, path: str | Path) -> Path:
     """
     import trimesh
 
-    from ..io_utils import atomic_write_bytes
 
     path = Path(path)
     ts = trimesh.Scene()
@@ -688,7 +443,6 @@ def export_glb(scene: Scene, path: str | Path) -> Path:
         georef["crs"] = scene.crs
     if georef:
         ts.metadata[GLTF_EXTRAS_KEY] = georef
-    from .hints import extras_for
 
     ts.metadata.update(extras_for(scene))  # OSM direction hints and attribution (hints.py)
     for o in scene.objects:

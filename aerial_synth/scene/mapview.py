@@ -14,7 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import ConfigError, RenderError
+from ..io_utils import atomic_write_bytes
+from ..validators import positive
 from .model import LABEL_IDS, LABELS, Scene
+from .raycast import RayScene
 
 __all__ = ["MapView", "LABEL_COLORS_BGR", "render_map", "save_png"]
 
@@ -95,9 +99,6 @@ def render_map(
     legend   : draw a scale bar and a label legend
     Returns a :class:`MapView` covering the scene's xy bounds.
     """
-    from ..errors import ConfigError
-    from ..validators import positive
-
     m_per_px = positive("--m-per-px", m_per_px)
     b = scene.bounds()
     x0, y0, x1, y1 = b[0, 0], b[0, 1], b[1, 0], b[1, 1]
@@ -111,8 +112,6 @@ def render_map(
             f"(at most {max_px} px a side)"
         )
     if rayscene is None:
-        from .raycast import RayScene
-
         rayscene = RayScene(scene)
     origin = np.array([x0, y1], dtype=np.float64)
     pal = _palette()
@@ -200,9 +199,6 @@ def _draw_legend(view: MapView, present: set[str]) -> None:
 def save_png(path: str | Path, image: np.ndarray) -> Path:
     """Write a BGR (or grey) uint8 image as PNG, atomically."""
     import cv2
-
-    from ..errors import RenderError
-    from ..io_utils import atomic_write_bytes
 
     ok, buf = cv2.imencode(".png", np.ascontiguousarray(image))
     if not ok:

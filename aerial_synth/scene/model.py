@@ -11,6 +11,7 @@ from typing import Iterable, Mapping
 import numpy as np
 
 from ..errors import ConfigError
+from ..validators import known_keys, mapping, show
 
 __all__ = [
     "LABELS",
@@ -181,8 +182,6 @@ class LabelConfig:
     def from_mapping(cls, data: Mapping | None) -> "LabelConfig":
         """Build from a YAML mapping with optional keys road/drivable/obstacles/ignore, each
         a list of label names (null = empty). Raises ConfigError naming the field."""
-        from ..validators import known_keys, mapping, show
-
         if data is None:
             return cls()
         mapping("label_config", data)

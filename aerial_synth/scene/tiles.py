@@ -32,9 +32,13 @@ from typing import Mapping
 import numpy as np
 
 from ..errors import SceneError
-from .model import Scene
+from .io import SCENES_DIR, load_scene, read_yaml
+from .model import Scene, SceneObject
+from .procedural import generate
+from .procedural.builder import Z_GROUND, Z_MARKING
+from .procedural.city import city_max_height_m, with_size_m
 
-__all__ = ["Tile", "TileGrid", "TiledWorld", "min_tile_m"]
+__all__ = ["Tile", "TileGrid", "TiledWorld", "cut_scene"]
 
 Rect = tuple[float, float, float, float]  # x0, y0, x1, y1 (metres, world frame)
 
@@ -51,18 +55,6 @@ class Tile:
     @property
     def key(self) -> tuple[int, int]:
         return (self.i, self.j)
-
-
-def min_tile_m(catalog=None) -> float:
-    """The smallest allowed tile edge: the longest vehicle of the catalog (metres)."""
-    if catalog is None:
-        from ..vehicles import load_catalog
-
-        catalog = load_catalog()
-    models = getattr(catalog, "models", None)
-    if isinstance(models, Mapping):
-        models = list(models.values())
-    return float(max(m.length_m for m in models))
 
 
 class TileGrid:
@@ -159,8 +151,6 @@ class TiledWorld:
     @classmethod
     def from_spec(cls, spec: Mapping, seed: int | None = None) -> "TiledWorld":
         """A procedural world whose generator supports ``window_m`` (the ``city``)."""
-        from .procedural.city import with_size_m
-
         spec = with_size_m(spec)
         if not isinstance(spec, Mapping) or spec.get("generator") != "city":
             got = spec.get("generator") if isinstance(spec, Mapping) else type(spec).__name__
@@ -179,7 +169,6 @@ class TiledWorld:
         everything else is loaded once and cut. bbox/crs: OSM extracts only (load_scene)."""
         from pathlib import Path
 
-        from .io import SCENES_DIR, _read_yaml, load_scene
 
         if bbox is not None or crs is not None:  # an OSM extract (load_scene refuses others)
             return cls.from_scene(load_scene(name_or_path, seed=seed, bbox=bbox, crs=crs))
@@ -189,7 +178,7 @@ class TiledWorld:
         if p.suffix.lower() not in (".yaml", ".yml") and not (p.suffix or "/" in s):
             p = SCENES_DIR / f"{s}.yaml"
         if p.suffix.lower() in (".yaml", ".yml") and p.is_file():
-            data = _read_yaml(p, "scene spec")
+            data = read_yaml(p, "scene spec")
             if isinstance(data, Mapping) and data.get("generator") == "city":
                 return cls.from_spec(data, seed=seed)
         return cls.from_scene(load_scene(name_or_path, seed=seed))
@@ -199,8 +188,6 @@ class TiledWorld:
         ``city`` spec's bound from its parameters (:func:`~.procedural.city.city_max_height_m`:
         tallest building with roof details, trees, poles), a scene's z extent otherwise."""
         if self._spec is not None:
-            from .procedural.city import city_max_height_m
-
             return city_max_height_m(self._spec)
         b = self._scene.bounds()
         return max(float(b[1, 2] - b[0, 2]), 0.0)
@@ -211,8 +198,6 @@ class TiledWorld:
         surface (``label_config.drivable``) above its lowest vertex (its z extent when it
         has none)."""
         if self._spec is not None:
-            from .procedural.builder import Z_GROUND, Z_MARKING
-
             return Z_MARKING - Z_GROUND
         sc = self._scene
         drivable = sc.label_config.drivable
@@ -248,8 +233,6 @@ class TiledWorld:
         x0, y0, x1, y1 = (float(v) for v in rect)
         self.windows_built += 1
         if self._spec is not None:
-            from .procedural import generate
-
             spec = dict(self._spec)
             if not self.covers_world((x0, y0, x1, y1)):
                 spec["window_m"] = [x0, y0, x1, y1]
@@ -282,7 +265,6 @@ def cut_scene(scene: Scene, rect: Rect) -> Scene:
     none are dropped; vertices are compacted)."""
     x0, y0, x1, y1 = rect
     objs = []
-    from .model import SceneObject
 
     for o in scene.objects:
         v, f = o.vertices, o.faces
@@ -302,27 +284,3 @@ def cut_scene(scene: Scene, rect: Rect) -> Scene:
     return Scene(name=scene.name, objects=objs, source=scene.source, truth=None, label_config=scene.label_config,
                  meta={**scene.meta, "window_m": [float(c) for c in rect]}, origin=scene.origin, crs=scene.crs)
 
-
-def world_for_camera(world: TiledWorld, grid: TileGrid, placement, camera, ground_z: float = 0.0,
-                     pad_m: float = 30.0, catalog=None, simple_boxes: bool = False):
-    """What one render task needs and nothing more: the RayScene of the tiles the camera's
-    ground footprint touches (see :meth:`TiledWorld.scene_for_xy`) holding the placement's
-    vehicles that stand in that window.
-
-    Returns (rayscene, placement of those vehicles, tiles). The vehicles keep their ids, so
-    the frame's instance buffer carries the ids of the whole world's placement."""
-    import dataclasses
-
-    from ..render import add_placement
-    from .raycast import RayScene
-
-    fp = camera.ground_footprint_xy(ground_z)
-    scene, tiles = world.scene_for_xy(grid, fp, pad_m)
-    b = scene.bounds()
-    lo, hi = b[0, :2], b[1, :2]
-    vs = [v for v in placement.vehicles
-          if lo[0] - v.length_m <= v.x_m <= hi[0] + v.length_m and lo[1] - v.length_m <= v.y_m <= hi[1] + v.length_m]
-    sub = dataclasses.replace(placement, vehicles=vs)
-    rs = RayScene(scene)
-    add_placement(rs, sub, catalog, simple_boxes=simple_boxes)
-    return rs, sub, tiles

@@ -23,6 +23,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..numba_setup import KERNEL_OPTIONS
+from .model import LABEL_IDS
 
 __all__ = ["bin_rows", "edge_weights", "row_columns", "span", "store_box", "trace_grid"]
 
@@ -235,8 +236,6 @@ def trace_grid(rayscene, origin_xy, m_per_px: float, width: int, height: int,
     pixel of a north-up grid: pixel (r, c) is centred on ``origin_xy + ((c + 0.5) m,
     -(r + 0.5) m)`` (``origin_xy`` the top-left corner). ``ignore``: labels to pass
     through (the vehicles too if it holds "vehicle"), as :meth:`RayScene.trace_down`."""
-    from .model import LABEL_IDS
-
     rayscene.refresh()
     sv, sf = rayscene._static_vertices, rayscene._static_faces
     vv = np.ascontiguousarray(rayscene._veh_vertices, np.float32)

@@ -22,7 +22,6 @@ from .catalog import (
     bundled_catalog_path,
     load_catalog,
 )
-from .meshes import VehicleMesh, build_mesh
 
 __all__ = [
     "BODY_TYPES",
@@ -36,3 +35,15 @@ __all__ = [
     "bundled_catalog_path",
     "load_catalog",
 ]
+
+
+def __getattr__(name: str):
+    """``VehicleMesh`` and ``build_mesh`` load the mesh modules on first use: reading the
+    catalog (and ``aerial-synth --help``, which imports this package) needs none of them."""
+    if name in ("VehicleMesh", "build_mesh"):
+        from . import meshes  # lazy: the mesh builders; --help and catalog reads load none
+
+        value = getattr(meshes, name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'aerial_synth.vehicles' has no attribute {name!r}")

@@ -37,6 +37,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .. import validators as v
 from ..errors import AssetError
 from .bodies import CAR_PROFILES
 from .model import (
@@ -48,6 +49,7 @@ from .model import (
     VehicleModel,
     VehicleVariant,
 )
+from .user_mesh import load_user_mesh_parts
 
 __all__ = [
     "CLASSES",
@@ -364,8 +366,6 @@ def _entry_name(kind: str, i: int, entry: Any) -> str:
 
 def _number(where: str, ent: str, entry: Mapping, key: str, default=None, positive=False,
             non_negative=False) -> float:
-    from .. import validators as v
-
     val = entry.get(key, default)
     name = f"{where}: {ent} field {key}"
     if val is None:
@@ -472,7 +472,6 @@ def _parse_model(where: str, folder: Path, i: int, entry: Any) -> VehicleModel:
     if not isinstance(paint, str):
         raise AssetError(f"{where}: {ent} field paint_material: expected a string, got {paint!r}")
 
-    from .user_mesh import load_user_mesh_parts  # trimesh: only when a user mesh is used
 
     try:
         parts = load_user_mesh_parts(mesh_path, scale=scale, forward=forward, up=up)

@@ -1,18 +1,22 @@
 """``aerial-synth assets list`` and ``aerial-synth assets preview``.
 
-Nothing heavy is imported at module import time (the top-level ``--help`` stays instant).
+Nothing heavy is imported at module import time (the top-level ``--help`` stays instant):
+the catalog module is light (numpy, PyYAML when a catalog is read); the contact sheet's
+renderer is imported when it runs.
 """
 
 from __future__ import annotations
 
 import argparse
 
+from ..errors import ConfigError
+from ..validators import arg_float
+from .catalog import load_catalog
+
 __all__ = ["register", "format_table"]
 
 
 def register(subparsers) -> None:
-    from ..validators import arg_float
-
     p = subparsers.add_parser(
         "assets",
         help="vehicle catalog: list models, draw a contact sheet of every variant",
@@ -70,33 +74,15 @@ def format_table(catalog) -> str:
 
 
 def _cmd_list(args: argparse.Namespace) -> int:
-    from .catalog import load_catalog
-
     print(format_table(load_catalog(args.catalog)))
     return 0
 
 
 def _cmd_preview(args: argparse.Namespace) -> int:
-    from ..errors import ConfigError
-    from ..io_utils import check_output_file
-    from .catalog import load_catalog
-
     if not str(args.out).lower().endswith(".png"):
         raise ConfigError(f"--out: expected a .png file name, got {args.out!r}")
-    check_output_file(args.out)
-    cat = load_catalog(args.catalog)
+    from .preview import write_contact_sheet  # lazy: ray casting, meshes; not for --help
 
-    import cv2
-
-    from ..io_utils import atomic_write_bytes
-    from .preview import render_contact_sheet
-
-    sheet = render_contact_sheet(cat, gsd_m=args.gsd)
-    ok, buf = cv2.imencode(".png", sheet, [cv2.IMWRITE_PNG_COMPRESSION, 9])
-    if not ok:  # pragma: no cover - OpenCV failure
-        raise RuntimeError("PNG encoding failed")
-    atomic_write_bytes(args.out, buf.tobytes())
-    n = len(cat.models) * len(cat.colors)
-    h, w = sheet.shape[:2]
+    n, w, h = write_contact_sheet(args.out, args.catalog, args.gsd)
     print(f"wrote {args.out}: {n} variants, {w}x{h} px at {args.gsd} m/px")
     return 0

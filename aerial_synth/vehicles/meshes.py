@@ -8,6 +8,8 @@ outermost surface first, so overlaps never show.
 
 Procedural parts are designed in real metres from the catalog's length, width and height,
 then scaled by a factor close to 1 so the mesh bounds equal the catalog size exactly.
+The parts and their shape helpers are :mod:`.parts`, the trim options :mod:`.options`, the
+buses and trucks :mod:`.large`.
 """
 
 from __future__ import annotations
@@ -25,6 +27,8 @@ from .bodies import CAR_PROFILES, car_kwargs
 from .catalog import OPTION_RISE_M
 from .large import LARGE_BUILDERS
 from .model import VehicleColor, VehicleModel
+from .options import OPTIONS
+from .parts import Part, fit_to_size, glass_slab, sym, wheel
 from .towed import TOWED_BUILDERS
 from .user_mesh import load_user_mesh_parts
 
@@ -125,7 +129,7 @@ def _build_mesh_cached(model: VehicleModel, color: VehicleColor) -> VehicleMesh:
 
 
 @lru_cache(maxsize=256)
-def _model_parts(model: VehicleModel) -> tuple["_Part", ...]:
+def _model_parts(model: VehicleModel) -> tuple["Part", ...]:
     """The parts of one model, whatever its colour (paint parts have ``rgb=None``): the
     geometry is built once per model and each colour only fills the albedo column."""
     if model.is_procedural:
@@ -134,9 +138,9 @@ def _model_parts(model: VehicleModel) -> tuple["_Part", ...]:
         # the base model's to the bit)
         h0 = round(model.height_m - sum(OPTION_RISE_M[o] for o in model.options), 9)
         parts = _procedural_parts(model, h0)
-        parts = _fit_to_size(parts, model.length_m, model.width_m, h0)
+        parts = fit_to_size(parts, model.length_m, model.width_m, h0)
         for opt in model.options:
-            parts = _OPTIONS[opt](parts, model.length_m, model.width_m, h0, model.body)
+            parts = OPTIONS[opt](parts, model.length_m, model.width_m, h0, model.body)
     else:
         user = load_user_mesh_parts(
             model.mesh_path, scale=model.scale, forward=model.forward, up=model.up
@@ -145,7 +149,7 @@ def _model_parts(model: VehicleModel) -> tuple["_Part", ...]:
         for p in user:
             painted = bool(model.paint_material) and p.material_name == model.paint_material
             parts.append(
-                _Part(
+                Part(
                     name=p.name,
                     material="paint" if painted else p.material,
                     rgb=None if painted else p.rgb,
@@ -160,15 +164,6 @@ def _model_parts(model: VehicleModel) -> tuple["_Part", ...]:
 
 
 # --------------------------------------------------------------------------- parts
-@dataclass
-class _Part:
-    name: str
-    material: str
-    rgb: tuple[float, float, float] | None  # None = the variant's paint colour
-    v: np.ndarray
-    f: np.ndarray
-
-
 def _assemble(parts, color: VehicleColor, model_name: str) -> VehicleMesh:
     names: list[str] = []
     vs, fs, mats, albs, pids = [], [], [], [], []
@@ -194,54 +189,6 @@ def _assemble(parts, color: VehicleColor, model_name: str) -> VehicleMesh:
         model=model_name,
         color=color.name,
     )
-
-
-def _fit_to_size(parts: list[_Part], length: float, width: float, height: float) -> list[_Part]:
-    """Scale (per axis, factors close to 1) and shift so the bounds are exactly
-    [-L/2, L/2] x [-W/2, W/2] x [0, H]."""
-    allv = np.concatenate([p.v for p in parts])
-    lo, hi = allv.min(axis=0), allv.max(axis=0)
-    scale = np.array([length, width, height]) / (hi - lo)
-    centre = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
-    shift = np.array([0.0, 0.0, 0.0])
-    out = []
-    for p in parts:
-        v = (p.v - centre) * scale + shift
-        out.append(_Part(p.name, p.material, p.rgb, v, p.f))
-    return out
-
-
-def _sym(points_xhz) -> list[tuple[float, float, float]]:
-    """Mirror (x, half_width, z) points to both sides: [(x, +hw, z), (x, -hw, z), ...]."""
-    out = []
-    for x, hw, z in points_xhz:
-        out.append((x, hw, z))
-        out.append((x, -hw, z))
-    return out
-
-
-def _wheel(x, y, r, width, sections=14) -> tuple[np.ndarray, np.ndarray]:
-    """A closed cylinder with its axis along y, standing on the ground (z from 0 to 2r)."""
-    # start at the bottom so a vertex touches z = 0
-    ang = -np.pi / 2 + np.linspace(0.0, 2 * np.pi, sections, endpoint=False)
-    ring = np.column_stack([x + r * np.cos(ang), r + r * np.sin(ang)])
-    pts = [(px, y + s * width / 2, pz) for px, pz in ring for s in (-1, 1)]
-    return _hull(pts)
-
-
-def _glass_slab(quad, inside_point, offset=0.012, thickness=0.012, inset=0.05):
-    """A thin slab lying on a planar quad (4, 3), pushed ``offset`` outward (away from
-    ``inside_point``) and shrunk by ``inset`` toward the quad centre."""
-    q = np.asarray(quad, np.float64)
-    c = q.mean(axis=0)
-    q = c + (q - c) * (1.0 - inset)
-    n = np.cross(q[1] - q[0], q[2] - q[0])
-    n /= np.linalg.norm(n)
-    if np.dot(n, c - np.asarray(inside_point, float)) < 0:
-        n = -n
-    a = q + n * offset
-    b = q + n * (offset + thickness)
-    return _hull(np.concatenate([a, b]))
 
 
 @dataclass
@@ -277,7 +224,7 @@ class _CarSpec:
     body_material: str = "paint"
 
 
-def _car_like(s: _CarSpec) -> list[_Part]:
+def _car_like(s: _CarSpec) -> list[Part]:
     """Body, greenhouse, roof, windscreen, rear window, front and rear lights."""
     hw = s.half_w
     c = s.corner
@@ -285,7 +232,7 @@ def _car_like(s: _CarSpec) -> list[_Part]:
     # panels), so an oblique view sees the ground in the body's shade under them: the
     # dark contact line real cars show along their sides
     tk, sill = 0.06, s.clear + 0.14
-    body_pts = _sym(
+    body_pts = sym(
         [
             (s.x_rear, hw - c, s.tail_bot),
             (s.x_rear, hw - c, s.tail_top - 0.04),
@@ -305,13 +252,13 @@ def _car_like(s: _CarSpec) -> list[_Part]:
             (s.x_front, hw - c, s.nose_top - 0.05),
         ]
     )
-    parts = [_Part("body", s.body_material, s.body_rgb, *_hull(body_pts))]
+    parts = [Part("body", s.body_material, s.body_rgb, *_hull(body_pts))]
     # panel line: the dark cowl (scuttle) strip where the bonnet meets the windscreen, 7 cm
     # of black plastic and the bonnet's shut line; about half a pixel at 0.12 m GSD
     cw0 = s.ws_base + 0.005
     cw1 = min(s.ws_base + 0.075, s.x_front - 0.05)
     slope = (s.belt - s.nose_top) / max(s.x_front - s.ws_base, 1e-3)
-    parts.append(_Part("cowl", "trim", COWL_RGB,
+    parts.append(Part("cowl", "trim", COWL_RGB,
                        *_box(cw0, cw1, -(hw - 0.16), hw - 0.16, s.belt - 0.04 - slope * 0.075,
                              s.belt + 0.006)))
 
@@ -319,7 +266,7 @@ def _car_like(s: _CarSpec) -> list[_Part]:
     g_top = s.roof - roof_t * 0.6
     hb = hw - 0.04
     ht = hw - s.tumble
-    gh_pts = _sym(
+    gh_pts = sym(
         [
             (s.rw_base, hb, s.belt - 0.06),
             (s.ws_base, hb, s.belt - 0.06),
@@ -329,20 +276,20 @@ def _car_like(s: _CarSpec) -> list[_Part]:
             (s.ws_top, ht, g_top),
         ]
     )
-    parts.append(_Part("greenhouse", "glass", DEFAULT_COLOR_FOR_MATERIAL["glass"], *_hull(gh_pts)))
+    parts.append(Part("greenhouse", "glass", DEFAULT_COLOR_FOR_MATERIAL["glass"], *_hull(gh_pts)))
     inside = np.array([(s.rw_base + s.ws_base) / 2, 0.0, (s.belt + g_top) / 2])
     ws = [(s.ws_base, -hb, s.belt), (s.ws_base, hb, s.belt),
           (s.ws_top, ht, g_top), (s.ws_top, -ht, g_top)]
-    parts.append(_Part("windscreen", "glass", WINDSCREEN_RGB, *_glass_slab(ws, inside)))
+    parts.append(Part("windscreen", "glass", WINDSCREEN_RGB, *glass_slab(ws, inside)))
     rw = [(s.rw_base, hb, s.belt), (s.rw_base, -hb, s.belt),
           (s.rw_top, -ht, g_top), (s.rw_top, ht, g_top)]
     # a near-vertical back (truck cab, campervan cab) gets a panel lying closer to it
     off = 0.012 if s.rw_top - s.rw_base > 0.05 else 0.005
-    rear = _glass_slab(rw, inside, offset=off)
-    parts.append(_Part("rear_window", "glass", WINDSCREEN_RGB, *rear))
+    rear = glass_slab(rw, inside, offset=off)
+    parts.append(Part("rear_window", "glass", WINDSCREEN_RGB, *rear))
     # roof panel: covers the greenhouse top, slightly rounded edges
     r0, r1 = s.rw_top + 0.01, s.ws_top - 0.01
-    roof_pts = _sym(
+    roof_pts = sym(
         [
             (r0, ht + 0.01, s.roof - roof_t),
             (r1, ht + 0.01, s.roof - roof_t),
@@ -350,7 +297,7 @@ def _car_like(s: _CarSpec) -> list[_Part]:
             (r1 - 0.04, ht - 0.03, s.roof),
         ]
     )
-    parts.append(_Part("roof", "paint", s.body_rgb, *_hull(roof_pts)))
+    parts.append(Part("roof", "paint", s.body_rgb, *_hull(roof_pts)))
 
     # lights: small blocks standing proud of the nose / tail tops
     lx = 0.16
@@ -358,7 +305,7 @@ def _car_like(s: _CarSpec) -> list[_Part]:
     for side in (1, -1):
         y0, y1 = sorted((side * ly0, side * ly1))
         parts.append(
-            _Part(
+            Part(
                 "light_front",
                 "light_front",
                 DEFAULT_COLOR_FOR_MATERIAL["light_front"],
@@ -368,7 +315,7 @@ def _car_like(s: _CarSpec) -> list[_Part]:
         )
         if s.rear_lights:
             parts.append(
-                _Part(
+                Part(
                     "light_rear",
                     "light_rear",
                     DEFAULT_COLOR_FOR_MATERIAL["light_rear"],
@@ -379,20 +326,20 @@ def _car_like(s: _CarSpec) -> list[_Part]:
     return parts
 
 
-def _wheels(axles, half_w, r, width, inset=0.06, dual_rear=False) -> list[_Part]:
+def _wheels(axles, half_w, r, width, inset=0.06, dual_rear=False) -> list[Part]:
     """Tyres at the given axle x positions, their outer face ``inset`` inside half_w."""
     parts = []
     for k, x in enumerate(axles):
         w = width * (1.8 if (dual_rear and k > 0) else 1.0)
         y = half_w - inset - w / 2
         for side in (1, -1):
-            tyre = _wheel(x, side * y, r, w)
-            parts.append(_Part("wheels", "tyre", DEFAULT_COLOR_FOR_MATERIAL["tyre"], *tyre))
+            tyre = wheel(x, side * y, r, w)
+            parts.append(Part("wheels", "tyre", DEFAULT_COLOR_FOR_MATERIAL["tyre"], *tyre))
     return parts
 
 
 # ----------------------------------------------------------------- body types
-def _procedural_parts(model: VehicleModel, height_m: float | None = None) -> list[_Part]:
+def _procedural_parts(model: VehicleModel, height_m: float | None = None) -> list[Part]:
     builder = _BUILDERS.get(model.body)
     if builder is None:  # the catalog validates body types; this guards hand-made models
         raise AssetError(
@@ -402,7 +349,7 @@ def _procedural_parts(model: VehicleModel, height_m: float | None = None) -> lis
 
 
 def _car(L, W, H, *, bonnet, ws_run, rw_top_from_rear, rw_base_from_rear, belt, nose_top,
-         tail_top, wheel_r, tumble=0.16, clear=0.16, rails=False) -> list[_Part]:
+         tail_top, wheel_r, tumble=0.16, clear=0.16, rails=False) -> list[Part]:
     """A passenger car. Lengths in metres; bonnet = nose to windscreen base; ws_run =
     horizontal run of the windscreen; rw_* = rear window edges measured from the tail.
     tumble: the side glass leans in by 16 cm at the roof (a 1.8 m car's roof is ~1.3 m
@@ -435,7 +382,7 @@ def _car(L, W, H, *, bonnet, ws_run, rw_top_from_rear, rw_base_from_rear, belt, 
         for side in (1, -1):
             y0, y1 = sorted((side * (ht - 0.10), side * (ht - 0.04)))
             parts.append(
-                _Part("roof_rails", "trim", DEFAULT_COLOR_FOR_MATERIAL["trim"],
+                Part("roof_rails", "trim", DEFAULT_COLOR_FOR_MATERIAL["trim"],
                       *_box(spec.rw_top + 0.10, spec.ws_top - 0.12, y0, y1, roof_h - 0.02, H))
             )
     return parts
@@ -497,16 +444,16 @@ def _pickup(L, W, H):
     top = belt - 0.02
     wt = 0.07
     hw = W / 2 - 0.02
-    parts.append(_Part("bed", "paint", None, *_box(b0 + 0.02, b1, -hw, hw, clear + 0.05, floor)))
+    parts.append(Part("bed", "paint", None, *_box(b0 + 0.02, b1, -hw, hw, clear + 0.05, floor)))
     liner = _box(b0 + wt, b1 - wt, -hw + wt, hw - wt, floor, floor + 0.02)
-    parts.append(_Part("bed_floor", "trim", BED_LINER_RGB, *liner))
-    parts.append(_Part("bed", "paint", None, *_box(b0 + 0.02, b1, hw - wt, hw, floor, top)))
-    parts.append(_Part("bed", "paint", None, *_box(b0 + 0.02, b1, -hw, -hw + wt, floor, top)))
-    parts.append(_Part("bed", "paint", None, *_box(b1 - wt, b1, -hw, hw, floor, top)))
-    parts.append(_Part("tailgate", "paint", None, *_box(b0, b0 + wt, -hw, hw, floor - 0.05, top)))
+    parts.append(Part("bed_floor", "trim", BED_LINER_RGB, *liner))
+    parts.append(Part("bed", "paint", None, *_box(b0 + 0.02, b1, hw - wt, hw, floor, top)))
+    parts.append(Part("bed", "paint", None, *_box(b0 + 0.02, b1, -hw, -hw + wt, floor, top)))
+    parts.append(Part("bed", "paint", None, *_box(b1 - wt, b1, -hw, hw, floor, top)))
+    parts.append(Part("tailgate", "paint", None, *_box(b0, b0 + wt, -hw, hw, floor - 0.05, top)))
     for side in (1, -1):
         y0, y1 = sorted((side * (hw - 0.02), side * (hw - 0.30)))
-        parts.append(_Part("light_rear", "light_rear", DEFAULT_COLOR_FOR_MATERIAL["light_rear"],
+        parts.append(Part("light_rear", "light_rear", DEFAULT_COLOR_FOR_MATERIAL["light_rear"],
                            *_box(b0 - 0.0, b0 + 0.08, y0, y1, top - 0.30, top + 0.004)))
     parts += _wheels([x1 - 0.18 * L, x0 + 0.24 * L], W / 2, 0.39, 0.25)
     return parts
@@ -539,20 +486,20 @@ def _box_truck(L, W, H):
     )
     parts = _car_like(spec)
     box0, box1 = x0, cab_back - 0.10
-    parts.append(_Part("chassis", "trim", DEFAULT_COLOR_FOR_MATERIAL["trim"],
+    parts.append(Part("chassis", "trim", DEFAULT_COLOR_FOR_MATERIAL["trim"],
                        *_box(x0 + 0.25, cab_back + 0.3, -0.5, 0.5, 0.55, 0.95)))
-    parts.append(_Part("cargo_box", "cargo", DEFAULT_COLOR_FOR_MATERIAL["cargo"],
+    parts.append(Part("cargo_box", "cargo", DEFAULT_COLOR_FOR_MATERIAL["cargo"],
                        *_box(box0 + 0.03, box1, -W / 2, W / 2, 0.98, H)))
     # roof panel seams on the box: thin raised strips every ~1.2 m (read as a box from above)
     n_seams = max(2, int((box1 - box0) / 1.3))
     for xs in np.linspace(box0 + 0.6, box1 - 0.6, n_seams):
-        parts.append(_Part("cargo_box_ribs", "metal", (0.70, 0.71, 0.72),
+        parts.append(Part("cargo_box_ribs", "metal", (0.70, 0.71, 0.72),
                            *_box(xs - 0.03, xs + 0.03, -W / 2 + 0.04, W / 2 - 0.04, H - 0.02, H)))
-    parts.append(_Part("bumper_rear", "trim", DEFAULT_COLOR_FOR_MATERIAL["trim"],
+    parts.append(Part("bumper_rear", "trim", DEFAULT_COLOR_FOR_MATERIAL["trim"],
                        *_box(x0, x0 + 0.12, -W / 2 + 0.05, W / 2 - 0.05, 0.55, 0.75)))
     for side in (1, -1):
         y0, y1 = sorted((side * (W / 2 - 0.08), side * (W / 2 - 0.38)))
-        parts.append(_Part("light_rear", "light_rear", DEFAULT_COLOR_FOR_MATERIAL["light_rear"],
+        parts.append(Part("light_rear", "light_rear", DEFAULT_COLOR_FOR_MATERIAL["light_rear"],
                            *_box(x0 + 0.0, x0 + 0.10, y0, y1, 0.75, 0.93)))
     parts += _wheels([x1 - 1.15, x0 + 0.30 * L], W / 2, 0.46, 0.28, dual_rear=True)
     return parts
@@ -587,7 +534,7 @@ def _campervan(L, W, H):
     parts = _car_like(spec)
     # living box: full width, sloped "aero" front over the cab roof
     hw = W / 2
-    box_pts = _sym(
+    box_pts = sym(
         [
             (x0 + 0.04, hw, 0.50),
             (x0 + 0.04, hw, box_h),
@@ -596,20 +543,20 @@ def _campervan(L, W, H):
             (cab_back - 0.05, hw, 0.50),
         ]
     )
-    parts.append(_Part("living_box", "cargo", (0.88, 0.88, 0.86), *_hull(box_pts)))
+    parts.append(Part("living_box", "cargo", (0.88, 0.88, 0.86), *_hull(box_pts)))
     # roof fittings: two skylights, a solar panel, an air conditioner
     for xc, sx, sy in ((x1 - 2.45, 0.45, 0.45), (x0 + 1.0, 0.45, 0.45)):
-        parts.append(_Part("skylight", "glass", (0.10, 0.11, 0.12),
+        parts.append(Part("skylight", "glass", (0.10, 0.11, 0.12),
                            *_box(xc - sx / 2, xc + sx / 2, -sy / 2, sy / 2,
                                  box_h - 0.01, box_h + 0.06)))
     xs = (x1 - 2.45 + x0 + 1.0) / 2
-    parts.append(_Part("solar_panel", "glass", SOLAR_RGB,
+    parts.append(Part("solar_panel", "glass", SOLAR_RGB,
                        *_box(xs - 0.90, xs + 0.10, -0.05, hw - 0.18, box_h - 0.01, box_h + 0.05)))
-    parts.append(_Part("air_conditioner", "metal", (0.78, 0.78, 0.76),
+    parts.append(Part("air_conditioner", "metal", (0.78, 0.78, 0.76),
                        *_box(xs + 0.35, xs + 1.05, -hw + 0.40, -0.05, box_h - 0.01, H)))
     for side in (1, -1):
         y0, y1 = sorted((side * (hw - 0.05), side * (hw - 0.30)))
-        parts.append(_Part("light_rear", "light_rear", DEFAULT_COLOR_FOR_MATERIAL["light_rear"],
+        parts.append(Part("light_rear", "light_rear", DEFAULT_COLOR_FOR_MATERIAL["light_rear"],
                            *_box(x0, x0 + 0.08, y0, y1, 0.55, 0.95)))
     parts += _wheels([x1 - 0.95, x0 + 0.34 * L], hw, 0.36, 0.24, inset=0.17, dual_rear=False)
     return parts
@@ -628,7 +575,7 @@ _BUILDERS = {
 
 def _wrap_large(fn):
     def build(L, W, H):
-        return [_Part(name, mat, rgb, v, f) for name, mat, rgb, v, f in fn(L, W, H)]
+        return [Part(name, mat, rgb, v, f) for name, mat, rgb, v, f in fn(L, W, H)]
 
     return build
 
@@ -647,7 +594,7 @@ def _profiled(body: str):
     def build(L, W, H):
         parts = _car(L, W, H, **car_kwargs(prof, L, H))
         if not prof.glass_sides:
-            parts = [_Part(p.name, "paint", None, p.v, p.f) if p.name == "greenhouse" else p
+            parts = [Part(p.name, "paint", None, p.v, p.f) if p.name == "greenhouse" else p
                      for p in parts]
         return parts
 
@@ -656,133 +603,3 @@ def _profiled(body: str):
 
 # compact, estate, mpv, van, minibus (vehicles/bodies.py)
 _BUILDERS.update({body: _profiled(body) for body in CAR_PROFILES})
-
-
-# ----------------------------------------------------------------- trim options
-# Each takes the fitted parts (vehicle frame, bounds [-L/2, L/2] x [-W/2, W/2] x [0, H])
-# and returns them with the option added; nothing reaches past L or W, and nothing above
-# H + OPTION_RISE_M[option].
-SUNROOF_RGB = (0.025, 0.03, 0.04)
-RACK_RGB = (0.06, 0.06, 0.065)
-ROOF_BOX_RGB = (0.09, 0.09, 0.10)
-
-
-def _bounds(parts: list[_Part], name: str) -> np.ndarray:
-    v = np.concatenate([p.v for p in parts if p.name == name])
-    return np.stack([v.min(axis=0), v.max(axis=0)])
-
-
-def _sunroof(parts, L, W, H, body=""):
-    """A dark glass panel over the front half of the roof panel; the roof panel's top is
-    lowered 4 mm so the glass lies proud of it and the height stays H."""
-    (x0, y0, _), (x1, y1, top) = _bounds(parts, "roof")
-    out = []
-    for p in parts:
-        if p.name == "roof":
-            v = p.v.copy()
-            v[v[:, 2] > top - 1e-6, 2] = top - 0.004
-            p = _Part(p.name, p.material, p.rgb, v, p.f)
-        out.append(p)
-    ln, wd = 0.42 * (x1 - x0), 0.56 * (y1 - y0)
-    xc = x0 + 0.6 * (x1 - x0)
-    out.append(_Part("sunroof", "glass", SUNROOF_RGB,
-                     *_box(xc - ln / 2, xc + ln / 2, -wd / 2, wd / 2, top - 0.03, top)))
-    return out
-
-
-def _bars(parts, H, rise=0.04, n=2, span=0.92):
-    """Transverse roof bars standing on the roof (or an SUV's rails), top at H + rise."""
-    (x0, y0, _), (x1, y1, _) = _bounds(parts, "roof")
-    hw = span * (y1 - y0) / 2
-    out = []
-    for k in range(n):
-        xc = x0 + (x1 - x0) * (0.22 + 0.56 * k / max(n - 1, 1))
-        out.append(_Part("roof_rack", "metal", RACK_RGB,
-                         *_box(xc - 0.025, xc + 0.025, -hw, hw, H - 0.03, H + rise)))
-    return out
-
-
-def _roof_rack(parts, L, W, H, body=""):
-    if body == "delivery_van":
-        return _ladder_rack(parts, L, W, H)
-    return parts + _bars(parts, H, rise=OPTION_RISE_M["roof_rack"])
-
-
-def _roof_box(parts, L, W, H, body=""):
-    """Roof bars and a rounded roof box on them (a long, low, dark capsule)."""
-    (x0, y0, _), (x1, y1, _) = _bounds(parts, "roof")
-    bars_top = H + 0.06
-    out = parts + _bars(parts, H, rise=0.06)
-    ln = min(1.9, 0.8 * (x1 - x0))
-    hw = min(0.45, 0.42 * (y1 - y0))
-    xc = (x0 + x1) / 2 - 0.05
-    top = H + OPTION_RISE_M["roof_box"]
-    c = 0.12
-    pts = _sym([(xc - ln / 2, hw - c, bars_top), (xc - ln / 2, hw - c, top - 0.06),
-                (xc - ln / 2 + c, hw, bars_top + 0.03), (xc - ln / 2 + c, hw, top - 0.04),
-                (xc - ln / 2 + 2 * c, hw - 0.03, top), (xc + ln / 2 - c, hw - 0.03, top),
-                (xc + ln / 2 - c, hw, bars_top + 0.03), (xc + ln / 2, hw - c, bars_top + 0.05),
-                (xc + ln / 2, hw - c, top - 0.08)])
-    out.append(_Part("roof_box", "trim", ROOF_BOX_RGB, *_hull(pts)))
-    return out
-
-
-def _ladder_rack(parts, L, W, H, body=""):
-    """Delivery van: a rack of two side rails and cross bars, with a ladder lying on it."""
-    (x0, y0, _), (x1, y1, _) = _bounds(parts, "roof")
-    rise = OPTION_RISE_M["roof_rack"]
-    hw = 0.45 * (y1 - y0)
-    out = list(parts)
-    for side in (1, -1):
-        ya, yb = sorted((side * hw, side * (hw - 0.04)))
-        out.append(_Part("roof_rack", "metal", RACK_RGB, *_box(x0 + 0.05, x1 - 0.05, ya, yb, H - 0.02, H + 0.04)))
-    for xc in np.linspace(x0 + 0.1, x1 - 0.1, 4):
-        out.append(_Part("roof_rack", "metal", RACK_RGB,
-                         *_box(xc - 0.02, xc + 0.02, -hw, hw, H - 0.02, H + 0.04)))
-    # the ladder: two rails and rungs, aluminium, on one side
-    lx0, lx1 = x0 + 0.15, x1 - 0.15
-    for yc in (hw - 0.12, hw - 0.52):
-        out.append(_Part("ladder", "metal", (0.72, 0.73, 0.75),
-                         *_box(lx0, lx1, yc - 0.03, yc + 0.03, H + 0.04, H + rise)))
-    for xc in np.arange(lx0 + 0.15, lx1 - 0.1, 0.3):
-        out.append(_Part("ladder", "metal", (0.72, 0.73, 0.75),
-                         *_box(xc - 0.015, xc + 0.015, hw - 0.52, hw - 0.12, H + 0.05, H + rise - 0.005)))
-    return out
-
-
-def _reefer(parts, L, W, H, body=""):
-    """Box truck: a refrigeration unit on the front face of the box, above the cab."""
-    (bx0, _, _), (bx1, by1, bz1) = _bounds(parts, "cargo_box")
-    cab = _bounds(parts, "roof")[1][2]
-    z0 = max(cab + 0.05, bz1 - 0.85)
-    out = list(parts)
-    out.append(_Part("reefer", "metal", (0.80, 0.81, 0.82),
-                     *_box(bx1 - 0.02, bx1 + 0.04 + 0.0, -0.8, 0.8, z0, bz1 - 0.02)))
-    out.append(_Part("reefer", "trim", (0.15, 0.16, 0.17),
-                     *_box(bx1 - 0.02, bx1 + 0.06, -0.55, 0.55, z0 + 0.1, bz1 - 0.1)))
-    return out
-
-
-def _container(parts, L, W, H, body=""):
-    """Semi-trailer: the box trailer becomes a shipping container in the variant's colour
-    with corrugated roof (dense transverse ribs) and corner castings."""
-    out = []
-    for p in parts:
-        if p.name == "trailer_ribs":
-            continue
-        if p.name == "trailer":
-            p = _Part("container", "paint", None, p.v, p.f)
-        out.append(p)
-    (x0, y0, _), (x1, y1, top) = _bounds(out, "container")
-    for xs in np.arange(x0 + 0.25, x1 - 0.2, 0.28):
-        out.append(_Part("container_ribs", "paint", None,
-                         *_box(xs - 0.05, xs + 0.05, y0 + 0.06, y1 - 0.06, top - 0.02, top)))
-    for xc in (x0 + 0.1, x1 - 0.1):
-        for yc in (y0 + 0.1, y1 - 0.1):
-            out.append(_Part("container_corners", "metal", (0.30, 0.30, 0.32),
-                             *_box(xc - 0.1, xc + 0.1, yc - 0.1, yc + 0.1, top - 0.15, top)))
-    return out
-
-
-_OPTIONS = {"sunroof": _sunroof, "roof_rack": _roof_rack, "roof_box": _roof_box,
-            "reefer": _reefer, "container": _container}

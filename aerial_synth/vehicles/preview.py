@@ -10,11 +10,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from .catalog import Catalog
+from ..io_utils import atomic_write_bytes, check_output_file
+from ..scene.model import Scene, SceneObject
+from ..scene.raycast import RayScene
+from .catalog import Catalog, load_catalog
 from .meshes import build_mesh
 from .model import VehicleVariant
 
-__all__ = ["render_contact_sheet", "render_top_down"]
+__all__ = ["render_contact_sheet", "render_top_down", "write_contact_sheet"]
 
 _GROUND_RGB = (0.42, 0.42, 0.40)
 
@@ -41,9 +44,6 @@ def render_top_down(
                  image y = -world y (north up)
     gsd_m      : metres per pixel
     """
-    from ..scene.model import Scene, SceneObject
-    from ..scene.raycast import RayScene
-
     xmin, ymin, xmax, ymax = extent_xy
     w = int(round((xmax - xmin) / gsd_m))
     h = int(round((ymax - ymin) / gsd_m))
@@ -165,3 +165,20 @@ def render_contact_sheet(
     cv2.putText(sheet, f"{gsd_m * 100:.0f} cm/px, +x forward ->", (8, 24), font, 0.5, (0, 0, 0),
                 1, cv2.LINE_AA)
     return sheet
+
+
+def write_contact_sheet(out, catalog_path=None, gsd_m: float = 0.04) -> tuple[int, int, int]:
+    """``aerial-synth assets preview``: the contact sheet of every variant of the catalog
+    (the bundled one when ``catalog_path`` is None) written atomically as PNG to ``out``.
+    Returns (variants, width px, height px)."""
+    import cv2
+
+    check_output_file(out)
+    cat = load_catalog(catalog_path)
+    sheet = render_contact_sheet(cat, gsd_m=gsd_m)
+    ok, buf = cv2.imencode(".png", sheet, [cv2.IMWRITE_PNG_COMPRESSION, 9])
+    if not ok:  # pragma: no cover - OpenCV failure
+        raise RuntimeError("PNG encoding failed")
+    atomic_write_bytes(out, buf.tobytes())
+    h, w = sheet.shape[:2]
+    return len(cat.models) * len(cat.colors), w, h

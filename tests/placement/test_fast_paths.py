@@ -16,8 +16,7 @@ import shapely
 from shapely.geometry import box
 
 from aerial_synth.placement import footprints as fp_mod
-from aerial_synth.placement import place
-from aerial_synth.placement import traffic as traffic_mod
+from aerial_synth.placement import place, traffic_engine
 from aerial_synth.placement.config import load_scenario, scenario_dir
 from aerial_synth.placement.footprints import FootprintIndex, _unit_samples, footprint_points
 from aerial_synth.placement.linetrace import Prober, unit
@@ -180,7 +179,7 @@ def test_road_end_brackets_decide_what_the_refined_edges_would():
     found = rng.random((n, 3)) < 0.8
     lo[~found] = 128 * step
     offs = rng.choice([1.75, 5.25], n) + rng.integers(-2, 3, n) * step / 2
-    need = traffic_mod._road_end_needs_edges(lo, found, step, offs, 1.75)
+    need = traffic_engine.road_end_needs_edges(lo, found, step, offs, 1.75)
     assert need.any() and not need.all()
     keep = ~need
 
@@ -358,7 +357,7 @@ def test_placements_do_not_depend_on_march_chunks_or_index_rebuilds(catalog, mon
     seeds = (0, 3)
     ref = [run(s) for s in seeds]
     assert all(len(r[0]) > 20 for r in ref)
-    march = traffic_mod.Prober.march
+    march = traffic_engine.Prober.march
 
     def one_step(self, origins, angles, *a, first_only=False, chunk=48, grow=2, **kw):
         if first_only:  # only the chosen direction is used: any chunks give it
@@ -367,7 +366,7 @@ def test_placements_do_not_depend_on_march_chunks_or_index_rebuilds(catalog, mon
 
     for rebuild in (1, 10**9):
         with monkeypatch.context() as m:
-            m.setattr(traffic_mod.Prober, "march", one_step)
+            m.setattr(traffic_engine.Prober, "march", one_step)
             m.setattr(fp_mod.FootprintIndex, "__init__",
                       lambda self, *a, _init=fp_mod.FootprintIndex.__init__, _every=rebuild, **k:
                       _init(self, *a, **{**k, "rebuild_every": _every}))

@@ -9,7 +9,13 @@ import pytest
 import shapely
 from shapely.geometry import LineString, Polygon
 
-from aerial_synth.placement import PlacedVehicle, Placement, place, validate_placement
+from aerial_synth.placement import (
+    PlacedVehicle,
+    Placement,
+    place,
+    traffic_engine,
+    validate_placement,
+)
 from aerial_synth.placement import traffic as traffic_mod
 from aerial_synth.placement.footprints import FootprintIndex, footprint_points, footprint_samples
 from aerial_synth.placement.traffic import PlacementWarning
@@ -158,7 +164,7 @@ def test_placement_refuses_a_footprint_a_building_corner_pokes_into(monkeypatch)
         keep = (start[:, None] + np.arange(5)).ravel()
         return pts[keep], owner[keep], np.arange(len(start)) * 5, np.full(len(start), 5)
 
-    monkeypatch.setattr(traffic_mod, "footprint_points", corners_only)
+    monkeypatch.setattr(traffic_engine, "footprint_points", corners_only)
     hits_old, _, rep_old = run()
     assert hits_old > 0  # the old check accepted bodies crossed by a building corner
     assert rep_old.footprint_drivable < 1.0
@@ -196,4 +202,4 @@ def test_footprint_points_follow_each_vehicle_size():
 
 def test_drivable_ids_include_parking():
     rs = RayScene(layouts.straight())
-    assert LABEL_IDS["parking"] in traffic_mod.Prober(rs, traffic_mod.load_scenario("jam").probe).drivable_ids
+    assert LABEL_IDS["parking"] in traffic_engine.Prober(rs, traffic_mod.load_scenario("jam").probe).drivable_ids

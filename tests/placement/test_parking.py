@@ -16,7 +16,7 @@ from aerial_synth.placement.parking_config import ParkingConfig
 from aerial_synth.scene import RayScene, load_scene
 from aerial_synth.scene.build import polygon_object
 from aerial_synth.scene.model import LABEL_IDS, Scene
-from aerial_synth.scene.procedural.parking import LotLayout, layout_bays, lot_frame
+from aerial_synth.scene.parking_layout import LotLayout, layout_bays, lot_frame
 
 LOT_IDS = [LABEL_IDS["parking"], LABEL_IDS["parking_marking"]]
 

@@ -1,6 +1,7 @@
 """A render task loads only the tiles its footprint touches, and sees what the whole world
 shows there."""
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -9,7 +10,21 @@ from aerial_synth.camera import CameraConfig, sample_pose_targeted
 from aerial_synth.placement import place
 from aerial_synth.render import add_placement, render_frame
 from aerial_synth.scene.raycast import RayScene
-from aerial_synth.scene.tiles import TiledWorld, world_for_camera
+from aerial_synth.scene.tiles import TiledWorld
+
+
+def window_for_camera(world, grid, placement, camera, ground_z=0.0, pad_m=30.0):
+    """The RayScene of the tiles the camera's ground footprint touches, with the vehicles of
+    ``placement`` that stand in that window (ids kept), as a tiled render task builds it."""
+    scene, tiles = world.scene_for_xy(grid, camera.ground_footprint_xy(ground_z), pad_m)
+    b = scene.bounds()
+    lo, hi = b[0, :2], b[1, :2]
+    vs = [v for v in placement.vehicles
+          if lo[0] - v.length_m <= v.x_m <= hi[0] + v.length_m and lo[1] - v.length_m <= v.y_m <= hi[1] + v.length_m]
+    sub = dataclasses.replace(placement, vehicles=vs)
+    rs = RayScene(scene)
+    add_placement(rs, sub, simple_boxes=True)
+    return rs, sub, tiles
 
 
 def test_frame_from_touched_tiles_equals_whole_world(small_city_spec, small_city_scene):
@@ -24,7 +39,7 @@ def test_frame_from_touched_tiles_equals_whole_world(small_city_spec, small_city
     compared = 0
     for k in range(3):
         cam = sample_pose_targeted(cam_cfg, pl, np.random.default_rng(k), within_xy=world.bounds)
-        rs, sub, tiles = world_for_camera(world, grid, pl, cam, ground_z=0.05, simple_boxes=True)
+        rs, sub, tiles = window_for_camera(world, grid, pl, cam, ground_z=0.05)
         assert 1 <= len(tiles) <= 4 < len(grid)  # only the touched tiles, not the world
         a = render_frame(full, cam, pl, np.random.default_rng(9))
         b = render_frame(rs, cam, sub, np.random.default_rng(9))

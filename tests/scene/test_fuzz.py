@@ -22,7 +22,7 @@ from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
 from aerial_synth.errors import AerialSynthError  # noqa: E402
-from aerial_synth.scene.io import _RULE_KEYS, _TOP_KEYS, LabelRules, load_rules  # noqa: E402
+from aerial_synth.scene.label_rules import _RULE_KEYS, _TOP_KEYS, LabelRules, load_rules  # noqa: E402
 from aerial_synth.scene.model import LABELS, MATERIALS, Scene  # noqa: E402
 from aerial_synth.scene.procedural import generate  # noqa: E402
 

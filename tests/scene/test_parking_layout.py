@@ -9,14 +9,14 @@ import shapely
 from aerial_synth.errors import SceneError
 from aerial_synth.scene import RayScene, load_scene
 from aerial_synth.scene.model import LABEL_IDS, LABELS, LabelConfig
-from aerial_synth.scene.procedural import generate
-from aerial_synth.scene.procedural.parking import (
+from aerial_synth.scene.parking_layout import (
     LotLayout,
     bay_markings,
     layout_bays,
     lot_frame,
     parse_layout,
 )
+from aerial_synth.scene.procedural import generate
 
 
 def _bays(w=60.0, h=40.0, rot=0.0, **lay):

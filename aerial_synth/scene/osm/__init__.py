@@ -22,8 +22,10 @@ import os
 from pathlib import Path
 
 from ...errors import SceneError
-from .build import ATTRIBUTION
-from .read import OSM_SUFFIXES, is_osm_path
+from ...io_utils import atomic_write_bytes
+from ..model import Scene
+from .build import ATTRIBUTION, build_scene
+from .read import OSM_SUFFIXES, is_osm_path, read_osm
 
 __all__ = [
     "ATTRIBUTION",
@@ -116,9 +118,6 @@ def build_osm_scene(path, bbox=None, crs=None, seed: int = 0):
     """
     import pyproj
 
-    from .build import build_scene
-    from .read import read_osm
-
     path = Path(path)
     bb = parse_bbox(bbox)
     if crs is not None:  # fail fast on a bad CRS, before reading the file
@@ -173,7 +172,6 @@ def _current(scene) -> bool:
     """A cached object is a Scene with every field the current Scene class has."""
     from dataclasses import fields
 
-    from ..model import Scene
 
     return isinstance(scene, Scene) and all(f.name in vars(scene) for f in fields(Scene))
 
@@ -187,7 +185,6 @@ def load_osm_scene(path, bbox=None, crs=None, seed: int = 0, cache: Path | str |
     """
     import pickle
 
-    from ...io_utils import atomic_write_bytes
 
     path = Path(path)
     if not path.is_file():

@@ -18,15 +18,15 @@ import time
 import numpy as np
 
 from ...errors import SceneError
-from ..build import flat_polygon
+from ..build import flat_polygon, merge_meshes
 from ..hints import META_KEY, HintRoad, RoadHints
 from ..model import RoadTruth, Scene, SceneObject, SceneTruth
+from ..procedural.roofs import ROOF_MATERIALS, covering_from_tags
 from .read import OsmData
 from .residential import residential_meta
+from .roads import OsmRoad, find_junctions, road_markings, road_surface, tyre_tracks
 from .tags import (
-    EDGE_LINE_CLASSES,
     SIDEWALK_WIDTH_M,
-    UNMARKED_CLASSES,
     building_height_m,
     kerb_parking,
     parse_metres,
@@ -41,33 +41,9 @@ ATTRIBUTION = "© OpenStreetMap contributors"
 #: surface heights, metres
 Z = {"ground": -0.10, "grass": -0.08, "water": -0.06, "sidewalk": -0.04, "parking": -0.02,
      "road": 0.0, "track": 0.005, "marking": 0.01}
-#: tyre tracks (as procedural/markings.py): strip width, centre distance, extra junction clearance
-TRACK_W_M, TRACK_GAUGE_M, TRACK_JUNCTION_M = 0.6, 1.8, 2.0
-
-#: morphological closing radius of the road surface (fills slivers and cracks in junctions)
-CLOSE_M = 0.5
-#: holes in the road surface thinner than this (metres) are filled
-SLIVER_M = 1.0
-MARKING_W_M = 0.15
-CENTRE_DASH = (3.0, 6.0)
-DIVIDER_DASH = (3.0, 9.0)
-EDGE_INSET_M = 0.3
-JUNCTION_CLEAR_M = 2.0
-MIN_CENTRE_LINE_WIDTH_M = 5.0
 TREE_ROW_SPACING_M = 8.0
 FOREST_SPACING_M = 6.0
 MAX_FOREST_TREES = 30000
-
-
-class _Road:
-    __slots__ = ("osm_id", "tags", "p", "line", "name")
-
-    def __init__(self, osm_id, tags, p, line):
-        self.osm_id = osm_id
-        self.tags = tags
-        self.p = p
-        self.line = line
-        self.name = str(tags.get("name") or tags.get("ref") or p.cls)
 
 
 def _project(geoms: np.ndarray, transformer, origin_xy) -> np.ndarray:
@@ -82,178 +58,6 @@ def _project(geoms: np.ndarray, transformer, origin_xy) -> np.ndarray:
         return np.column_stack([np.asarray(x) - ox, np.asarray(y) - oy])
 
     return shapely.transform(geoms, fn)
-
-
-def _fill_slivers(poly):
-    """Remove holes thinner than SLIVER_M (cracks between way polygons)."""
-    import shapely
-    from shapely.geometry import MultiPolygon, Polygon
-
-    out = []
-    for part in shapely.get_parts(poly):
-        holes = [shapely.Polygon(r) for r in part.interiors]
-        if holes:
-            thin = shapely.is_empty(shapely.buffer(np.array(holes, dtype=object), -SLIVER_M / 2))
-            keep = [h.exterior.coords for h, t in zip(holes, thin) if not t]
-            part = Polygon(part.exterior.coords, keep)
-        out.append(part)
-    return out[0] if len(out) == 1 else MultiPolygon(out)
-
-
-def road_surface(lines, widths, clip=None):
-    """Union of the buffered centre lines (round caps and joins), closed by CLOSE_M and with
-    sliver holes filled, clipped to ``clip``. One connected, crack-free network per component.
-    """
-    import shapely
-
-    bufs = shapely.buffer(np.asarray(lines, dtype=object), np.asarray(widths, float) / 2,
-                          quad_segs=6)
-    area = shapely.union_all(bufs)
-    if CLOSE_M > 0:
-        area = shapely.buffer(shapely.buffer(area, CLOSE_M, quad_segs=4), -CLOSE_M, quad_segs=4)
-    area = _fill_slivers(area)
-    if clip is not None:
-        area = shapely.intersection(area, clip)
-    return shapely.make_valid(area) if not area.is_valid else area
-
-
-def _dashes(curves, dash: float, gap: float):
-    """Straight chords [s, s + dash] every dash + gap metres along each curve."""
-    import shapely
-
-    parts = shapely.get_parts(np.asarray(curves, dtype=object))
-    parts = parts[shapely.get_type_id(parts) == 1] if len(parts) else parts
-    if not len(parts):
-        return np.array([], dtype=object)
-    L = shapely.length(parts)
-    period = dash + gap
-    counts = np.maximum(np.floor((L - dash) / period).astype(int) + 1, 0)
-    counts[L < dash] = 0
-    if counts.sum() == 0:
-        return np.array([], dtype=object)
-    idx = np.repeat(np.arange(len(parts)), counts)
-    k = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
-    phase = (L - (counts - 1) * period - dash) / 2  # centre the pattern on the curve
-    s0 = phase[idx] + k * period
-    a = shapely.get_coordinates(shapely.line_interpolate_point(parts[idx], s0))
-    b = shapely.get_coordinates(shapely.line_interpolate_point(parts[idx], s0 + dash))
-    return shapely.linestrings(np.stack([a, b], axis=1))
-
-
-def _markings(roads: list[_Road], road_area, junctions):
-    """Centre lines (two-way), lane dividers (from lanes), edge lines (motorway/trunk),
-    cleared in junctions and kept inside the road surface."""
-    import shapely
-
-    dashed = {CENTRE_DASH: ([], []), DIVIDER_DASH: ([], [])}
-    solid_l, solid_o = [], []
-    for r in roads:
-        p = r.p
-        w, n = p.width_m, p.marking_lanes
-        if p.cls not in UNMARKED_CLASSES and n >= 2:
-            # lane boundaries k = 1 .. n-1 counted from the left edge (line direction); on a
-            # two-way road boundary kc (after the backward lanes) is the centre line
-            kc = -1 if p.oneway else (p.lanes_backward if p.lanes_backward > 0 else n // 2)
-            for k in range(1, n):
-                off = w / 2 - k * w / n  # > 0: left of the line's direction
-                if k == kc:
-                    if w < MIN_CENTRE_LINE_WIDTH_M:
-                        continue  # a narrow two-way street: no centre line
-                    style = CENTRE_DASH
-                else:
-                    style = DIVIDER_DASH
-                dashed[style][0].append(r.line)
-                dashed[style][1].append(off)
-        if p.cls in EDGE_LINE_CLASSES and w > 2 * EDGE_INSET_M + 1.0:
-            for off in (w / 2 - EDGE_INSET_M, -(w / 2 - EDGE_INSET_M)):
-                solid_l.append(r.line)
-                solid_o.append(off)
-    pieces = []
-    for (dash, gap), (ls, offs) in dashed.items():
-        if ls:
-            curves = shapely.offset_curve(np.array(ls, dtype=object), np.array(offs), quad_segs=4)
-            segs = _dashes(curves, dash, gap)
-            if len(segs):
-                pieces.append(shapely.buffer(segs, MARKING_W_M / 2, cap_style="flat"))
-    if solid_l:
-        curves = shapely.offset_curve(np.array(solid_l, dtype=object), np.array(solid_o),
-                                      quad_segs=4)
-        pieces.append(shapely.buffer(curves, MARKING_W_M / 2, cap_style="flat", quad_segs=2))
-    if not pieces:
-        return np.array([], dtype=object)
-    polys = np.concatenate(pieces)
-    return _clip_to_road(polys, road_area, junctions)
-
-
-def _clip_to_road(polys, road_area, junctions, junction_extra_m: float = 0.0):
-    """The non-empty polygons of ``polys`` cut to the road surface (inset by half the edge
-    inset) minus the junction disks grown by ``junction_extra_m``; polygons wholly inside
-    are kept as they are."""
-    import shapely
-
-    polys = polys[~shapely.is_empty(polys)]
-    clip = shapely.buffer(road_area, -EDGE_INSET_M / 2)
-    if len(junctions):
-        disks = shapely.buffer(shapely.points(junctions[:, :2]), junctions[:, 2] + junction_extra_m)
-        clip = shapely.difference(clip, shapely.union_all(disks))
-    shapely.prepare(clip)
-    inside = shapely.contains_properly(clip, polys)
-    rest = polys[~inside]
-    if len(rest):
-        rest = shapely.get_parts(shapely.intersection(rest, clip))
-        rest = rest[shapely.get_type_id(rest) == 3]
-    return np.concatenate([polys[inside], rest])
-
-
-def _tracks(roads: list[_Road], road_area, junctions):
-    """Two worn wheel paths per lane (0.6 m wide, centres 1.8 m apart, centred on the lane)
-    of every road with lanes at least 2.4 m wide, kept 2 m further out of junctions than the
-    markings and inside the road surface."""
-    import shapely
-
-    ls, offs = [], []
-    for r in roads:
-        w = r.p.width_m
-        n = min(max(1, r.p.marking_lanes), int(w // 2.4))
-        for k in range(n):
-            c = w / 2 - (k + 0.5) * w / n  # lane centre, > 0: left of the line's direction
-            for d in (-TRACK_GAUGE_M / 2, TRACK_GAUGE_M / 2):
-                ls.append(r.line)
-                offs.append(c + d)
-    if not ls:
-        return np.array([], dtype=object)
-    curves = shapely.offset_curve(np.array(ls, dtype=object), np.array(offs), quad_segs=4)
-    polys = shapely.buffer(curves, TRACK_W_M / 2, cap_style="flat", quad_segs=2)
-    return _clip_to_road(polys, road_area, junctions, TRACK_JUNCTION_M)
-
-
-def _junctions(roads: list[_Road]) -> np.ndarray:
-    """(k, 3): x, y, clear radius of every vertex shared by two or more ways."""
-    import shapely
-
-    if not roads:
-        return np.zeros((0, 3))
-    xy, owner, half = [], [], []
-    for i, r in enumerate(roads):
-        c = shapely.get_coordinates(r.line)
-        xy.append(c)
-        owner.append(np.full(len(c), i))
-        half.append(np.full(len(c), r.p.width_m / 2))
-    xy = np.concatenate(xy)
-    owner = np.concatenate(owner)
-    half = np.concatenate(half)
-    key = np.round(xy, 3)
-    _, inv = np.unique(key, axis=0, return_inverse=True)
-    inv = inv.ravel()
-    n_ways = np.zeros(inv.max() + 1, int)
-    pairs = np.unique(np.stack([inv, owner], 1), axis=0)
-    np.add.at(n_ways, pairs[:, 0], 1)
-    rad = np.zeros(inv.max() + 1)
-    np.maximum.at(rad, inv, half)
-    first = np.zeros(inv.max() + 1, int)
-    first[inv[::-1]] = np.arange(len(inv))[::-1]
-    sel = np.flatnonzero(n_ways >= 2)
-    return np.column_stack([xy[first[sel]], rad[sel] + JUNCTION_CLEAR_M])
 
 
 def _crowns(centres, radii_xy, radii_z):
@@ -378,7 +182,86 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
         ageoms = shapely.make_valid(ageoms)
 
     # -------------------------------------------------------------- roads
-    roads: list[_Road] = []
+    roads = _roads_of(data, kinds, lgeoms, margin, source)
+    widths = np.array([r.p.width_m for r in roads])
+    road_area = road_surface([r.line for r in roads], widths, clip)
+    if road_area.is_empty:
+        raise SceneError(f"OSM file {source}: no drivable road surface inside bbox "
+                         f"{_fmt_bbox(data.bbox)}")
+    truth_roads, hint_roads, kerbs = _centre_lines(roads, clip)
+    t_roads = time.perf_counter()
+    junctions = find_junctions(roads)
+    markings = road_markings(roads, road_area, junctions)
+    tracks = tyre_tracks(roads, road_area, junctions)
+
+    # -------------------------------------------------------------- other surfaces
+    sidewalk, water, spaces, parking, grass, soil = _surfaces(data, kinds, lgeoms, akinds, ageoms,
+                                                              clip)
+
+    objects: list[SceneObject] = []
+
+    def flat(name, label, poly, z, material=None):
+        if isinstance(poly, np.ndarray):
+            v, f = _triangles(poly, z)  # many polygons, each triangulated on its own
+        elif poly is None or poly.is_empty:
+            return
+        else:
+            v, f = flat_polygon(poly, z)
+        if len(f):
+            objects.append(SceneObject(name, label, v, f, material or ""))
+
+    flat("ground", "ground", clip, Z["ground"], "concrete")
+    flat("grass", "ground", grass, Z["grass"], "grass")
+    flat("soil", "ground", soil, Z["grass"], "soil")
+    flat("water", "water", water, Z["water"])
+    flat("sidewalks", "sidewalk", sidewalk, Z["sidewalk"])
+    flat("parking", "parking", parking, Z["parking"])
+    flat("road", "road", road_area, Z["road"])
+    flat("tyre_tracks", "road", tracks, Z["track"], "track")  # drivable: label road
+    flat("lane_markings", "lane_marking", markings, Z["marking"])
+
+    # -------------------------------------------------------------- buildings
+    n_buildings = _buildings(data, akinds, ageoms, clip, objects)
+
+    # -------------------------------------------------------------- trees
+    txy, tr, th = _tree_points(data, kinds, lgeoms, akinds, ageoms, clip, transformer, origin_xy, seed)
+    _add_trees(objects, txy, tr, th)
+
+    hints = RoadHints(hint_roads)
+    truth = SceneTruth(road_area=road_area, roads=tuple(truth_roads),
+                       parking_area=_union(list(parking)) if len(parking) else None)
+    meta = {
+        "file": source,
+        "format": "osm",
+        "bbox": [float(c) for c in data.bbox],
+        "attribution": ATTRIBUTION,
+        META_KEY: hints,
+        "parking_spaces": [np.asarray(p.exterior.coords)[:-1].round(4).tolist() for p in spaces],
+        "kerb_parking": kerbs,
+        "osm": {
+            "roads": len(roads),
+            "oneway_roads": int(sum(r.p.oneway for r in roads)),
+            "buildings": n_buildings,
+            "trees": int(len(txy)),
+            "junctions": int(len(junctions)),
+            "objects_read": dict(data.counts),
+        },
+        "build_seconds": {"roads": round(t_roads - t0, 3),
+                          "total": round(time.perf_counter() - t0, 3)},
+    }
+    # driveway sites, house/garage/shed counts, sheds as hard negatives (osm/residential.py)
+    meta.update(residential_meta(roads, data.areas, ageoms, clip))
+    return Scene(name=name, objects=objects, source=source, truth=truth, meta=meta,
+                 origin=(float(origin_xy[0]), float(origin_xy[1]), 0.0), crs=crs)
+
+
+
+def _roads_of(data: OsmData, kinds, lgeoms, margin, source: str) -> list:
+    """The drivable ways near the scene (within ``margin``) as :class:`OsmRoad` parts, each
+    running in its driving direction; SceneError when there is none."""
+    import shapely
+
+    roads: list[OsmRoad] = []
     sel = np.flatnonzero(kinds == "road")
     if len(sel):
         near = shapely.intersection(lgeoms[sel], margin)
@@ -390,18 +273,20 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
                     continue
                 if p.reverse:
                     part = shapely.reverse(part)
-                roads.append(_Road(oid, tags, p, part))
+                roads.append(OsmRoad(oid, tags, p, part))
     if not roads:
         raise SceneError(
             f"OSM file {source}: no drivable road (highway=motorway ... service) inside bbox "
             f"{_fmt_bbox(data.bbox)}; expected at least one"
         )
-    widths = np.array([r.p.width_m for r in roads])
-    road_area = road_surface([r.line for r in roads], widths, clip)
-    if road_area.is_empty:
-        raise SceneError(f"OSM file {source}: no drivable road surface inside bbox "
-                         f"{_fmt_bbox(data.bbox)}")
-    # centre lines inside the scene: truth and hints
+    return roads
+
+
+def _centre_lines(roads: list, clip) -> tuple[list, list, list]:
+    """The roads' centre lines inside the scene: (RoadTruth list, HintRoad list, kerb
+    parking records per tagged side)."""
+    import shapely
+
     truth_roads, hint_roads = [], []
     kerbs = []  # kerb parking allowed per side, where the way tags it (placement/parking.py)
     inside = shapely.intersection(np.array([r.line for r in roads], dtype=object), clip)
@@ -420,12 +305,14 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
             if left is not None or right is not None:
                 kerbs.append({"coords": shapely.get_coordinates(part).round(4).tolist(),
                               "width_m": float(r.p.width_m), "left": left, "right": right})
-    t_roads = time.perf_counter()
-    junctions = _junctions(roads)
-    markings = _markings(roads, road_area, junctions)
-    tracks = _tracks(roads, road_area, junctions)
+    return truth_roads, hint_roads, kerbs
 
-    # -------------------------------------------------------------- other surfaces
+
+def _surfaces(data: OsmData, kinds, lgeoms, akinds, ageoms, clip):
+    """Polygon arrays (clipped, not unioned) of sidewalks, water, parking spaces, parking,
+    grass (and forest floor) and soil."""
+    import shapely
+
     side_l = np.flatnonzero(kinds == "sidewalk")
     side_geoms = []
     if len(side_l):
@@ -451,29 +338,14 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
     grass = _polys(np.concatenate([areas("grass"), areas("forest")]), clip)
     soil = _polys(areas("soil"), clip)
 
-    objects: list[SceneObject] = []
+    return sidewalk, water, spaces, parking, grass, soil
 
-    def flat(name, label, poly, z, material=None):
-        if isinstance(poly, np.ndarray):
-            v, f = _triangles(poly, z)  # many polygons, each triangulated on its own
-        elif poly is None or poly.is_empty:
-            return
-        else:
-            v, f = flat_polygon(poly, z)
-        if len(f):
-            objects.append(SceneObject(name, label, v, f, material or ""))
 
-    flat("ground", "ground", clip, Z["ground"], "concrete")
-    flat("grass", "ground", grass, Z["grass"], "grass")
-    flat("soil", "ground", soil, Z["grass"], "soil")
-    flat("water", "water", water, Z["water"])
-    flat("sidewalks", "sidewalk", sidewalk, Z["sidewalk"])
-    flat("parking", "parking", parking, Z["parking"])
-    flat("road", "road", road_area, Z["road"])
-    flat("tyre_tracks", "road", tracks, Z["track"], "track")  # drivable: label road
-    flat("lane_markings", "lane_marking", markings, Z["marking"])
+def _buildings(data: OsmData, akinds, ageoms, clip, objects: list) -> int:
+    """Append the buildings' roofs (one object per covering) and walls to ``objects``;
+    returns how many buildings lie in the scene."""
+    import shapely
 
-    # -------------------------------------------------------------- buildings
     bsel = np.flatnonzero(akinds == "building") if len(akinds) else np.zeros(0, int)
     n_buildings = 0
     if len(bsel):
@@ -484,9 +356,6 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
         n_buildings = int(len(np.unique(pidx)))
         if len(parts):
             h = np.array([building_height_m(data.areas[i][2]) for i in bsel])[pidx]
-            from ..build import merge_meshes
-            from ..procedural.roofs import ROOF_MATERIALS, covering_from_tags
-
             cov = np.array([covering_from_tags(data.areas[i][2]) for i in bsel])[pidx]
             walls = []
             for mat in ROOF_MATERIALS:  # one roof object per covering, from the tags
@@ -500,8 +369,15 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
             wv, wf = merge_meshes(walls)
             if len(wf):
                 objects.append(SceneObject("building_walls", "building", wv, wf, "wall"))
+    return n_buildings
 
-    # -------------------------------------------------------------- trees
+
+def _tree_points(data: OsmData, kinds, lgeoms, akinds, ageoms, clip, transformer, origin_xy,
+                 seed: int):
+    """(xy list, crown radius list, height list), metres, of the single trees, tree rows
+    and forest crowns (seeded per forest) in the scene."""
+    import shapely
+
     txy, tr, th = [], [], []
     if data.trees:
         ll = np.array([[lon, lat] for _, lon, lat, _ in data.trees])
@@ -542,7 +418,14 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
         txy.extend(pts)
         tr.extend(rng.uniform(2.0, 3.5, len(pts)))
         th.extend(rng.uniform(10.0, 18.0, len(pts)))
-    if txy:
+    return txy, tr, th
+
+
+
+def _add_trees(objects: list, txy, tr, th) -> None:
+    """Append the crowns and trunks of the trees at ``txy`` (crown radius ``tr``, height
+    ``th``, metres) to ``objects``."""
+    if len(txy):
         txy = np.asarray(txy, float).reshape(-1, 2)
         tr = np.asarray(tr, float)
         th = np.asarray(th, float)
@@ -552,34 +435,6 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
         objects.append(SceneObject("trees", "tree", v, f))
         v, f = _trunks(txy, cz)
         objects.append(SceneObject("trunks", "trunk", v, f))
-
-    hints = RoadHints(hint_roads)
-    truth = SceneTruth(road_area=road_area, roads=tuple(truth_roads),
-                       parking_area=_union(list(parking)) if len(parking) else None)
-    meta = {
-        "file": source,
-        "format": "osm",
-        "bbox": [float(c) for c in data.bbox],
-        "attribution": ATTRIBUTION,
-        META_KEY: hints,
-        "parking_spaces": [np.asarray(p.exterior.coords)[:-1].round(4).tolist() for p in spaces],
-        "kerb_parking": kerbs,
-        "osm": {
-            "roads": len(roads),
-            "oneway_roads": int(sum(r.p.oneway for r in roads)),
-            "buildings": n_buildings,
-            "trees": int(len(txy)),
-            "junctions": int(len(junctions)),
-            "objects_read": dict(data.counts),
-        },
-        "build_seconds": {"roads": round(t_roads - t0, 3),
-                          "total": round(time.perf_counter() - t0, 3)},
-    }
-    # driveway sites, house/garage/shed counts, sheds as hard negatives (osm/residential.py)
-    meta.update(residential_meta(roads, data.areas, ageoms, clip))
-    return Scene(name=name, objects=objects, source=source, truth=truth, meta=meta,
-                 origin=(float(origin_xy[0]), float(origin_xy[1]), 0.0), crs=crs)
-
 
 def _fmt_bbox(b) -> str:
     return ",".join(f"{c:.6f}" for c in b)

@@ -48,13 +48,14 @@ def checked_spec(spec: Mapping, where: str, seed: int | None = None) -> tuple[di
     ``size_m``, every field checked), without building anything. Raises SceneError."""
     if not isinstance(spec, Mapping):
         raise SceneError(f"{where}: expected a mapping, got {type(spec).__name__}")
-    return check_spec(with_size_m(spec, where), where, seed)
+    return check_spec(with_size_m(spec, where), where, GENERATORS, seed)
 
 
 def generate(spec: Mapping, seed: int | None = None, source: str = "") -> Scene:
     """Build a procedural scene from a spec mapping.
 
-    spec : mapping with ``generator`` (city_park | suburb | highway), ``name``, ``seed``,
+    spec : mapping with ``generator`` (one of :data:`GENERATORS`: city_park | suburb |
+           highway | city | depot), ``name``, ``seed``,
            ``size_m`` [w, h] and the generator's parameters (see docs/scenes.md)
     seed : overrides ``spec["seed"]`` when given (0 is a valid seed)
     source : provenance string stored in ``Scene.source``

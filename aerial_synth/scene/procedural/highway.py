@@ -90,7 +90,16 @@ def generate_highway(b: Builder, spec: Mapping):
             band = LineString([p - nrm * outer, p + nrm * outer]).buffer(opening / 2, cap_style="flat")
             openings.append(band.intersection(base.buffer(median / 2 + 0.05, cap_style="flat")))
     b.pads.extend(openings)
-    # two-way local roads parallel to the highway, clear of its outer edges
+    _local_roads(b, hw, base_long, base, outer)
+    b.freeze_areas()
+    _dress(b, spec, crossings, base)
+
+
+def _local_roads(b: Builder, hw: Mapping, base_long, base, outer: float) -> None:
+    """Two-way local roads parallel to the highway (``highway.local_roads``), clear of its
+    carriageways' outer edges (``outer`` metres from the base line)."""
+    from shapely.geometry import LineString
+
     loc = hw.get("local_roads", {}) or {}
     loc_w = float(loc.get("width_m", 7.0))
     clear = float(loc.get("clear_m", 15.0))
@@ -111,7 +120,12 @@ def generate_highway(b: Builder, spec: Mapping):
         if line.distance(base) < outer + clear + loc_w / 2:
             raise ValueError(f"{name} comes within {clear} m of the highway")
         b.roads.append(Road(name, line, loc_w, lanes=1))
-    b.freeze_areas()
+
+
+def _dress(b: Builder, spec: Mapping, crossings: list, base) -> None:
+    """Trees and poles beside the highway, lamp posts in its median, a few buildings."""
+    import shapely
+
     # median stays grass (ground); trees and poles beside the highway, a few buildings
     t = spec.get("trees", {}) or {}
     if int(t.get("count", 0)) > 0:
@@ -131,5 +145,3 @@ def generate_highway(b: Builder, spec: Mapping):
         for (x, y), good in zip(pts, ok):
             if good:
                 b.poles.append((float(x), float(y), float(p.get("height_m", 10.0))))
-
-

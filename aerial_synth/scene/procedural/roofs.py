@@ -25,7 +25,8 @@ from typing import Mapping
 
 import numpy as np
 
-from ..build import prism
+from ..build import merge_meshes, prism
+from ..model import SceneObject
 
 __all__ = ["ROOF_MATERIALS", "ROOF_COLORS", "DEFAULT_ROOFS", "ROOF_DETAIL_MAX_M", "RoofParts",
            "roof_parts", "roof_weights", "detail_objects", "building_objects"]
@@ -279,9 +280,6 @@ def roof_parts(poly, height: float, rng: np.random.Generator, override: Mapping 
 
 def detail_objects(parts: list[RoofParts], prefix: str = "roof_details"):
     """Merge every building's roof details into one object per material (label building)."""
-    from ..build import merge_meshes
-    from ..model import SceneObject
-
     by: dict[str, list] = {}
     for p in parts:
         for mat, v, f in p.details:
@@ -300,8 +298,6 @@ def building_objects(buildings, seeds, spec: Mapping, names=None):
     buildings : [(footprint polygon, height)]; seeds : one integer (or tuple of integers
     >= 0) per building, its roof's seed; spec : the scene spec (``roofs`` section,
     ``generator``); names : object names (default ``building_000``, ...)."""
-    from ..model import SceneObject
-
     cfg = spec.get("roofs") or {}
     override = cfg.get("materials") or DEFAULT_ROOFS.get(str(spec.get("generator")))
     on, det = cfg.get("enabled", True), cfg.get("details", True)

@@ -21,6 +21,9 @@ from typing import Any, Callable, Mapping
 
 from ... import validators as V
 from ...errors import SceneError
+from ..parking_layout import parse_layout
+from .city import CITY_DEFAULTS
+from .trees import species_weights
 
 __all__ = ["check_spec", "check_seed", "MAX_SIZE_M", "MAX_COUNT"]
 
@@ -191,8 +194,6 @@ BUILDINGS = section({
 })
 def species(f: str, v: Any) -> dict:
     """A tree species mix ``{broadleaf: 0.7, conifer: 0.3}`` (procedural/trees.py)."""
-    from .trees import species_weights
-
     species_weights(v, f)
     return {str(k): float(x) for k, x in v.items()}
 
@@ -237,9 +238,7 @@ LAKE = section({
     "road_clear_m": nonneg(1e3),
 }, required=("center", "radii_m"), allow_none=False)
 def _lot_layout(f: str, v: Any):
-    """A lot's bay layout (procedural/parking.py validates it; the value is kept as given)."""
-    from .parking import parse_layout
-
+    """A lot's bay layout (scene/parking_layout.py validates it; the value is kept as given)."""
     parse_layout(v, f)
     return v
 
@@ -334,16 +333,16 @@ def check_seed(field: str, value: Any) -> int:
     return V.integer(field, value, 0, None, error=E)
 
 
-def check_spec(spec: Any, where: str, seed: Any = None) -> tuple[dict, int]:
+def check_spec(spec: Any, where: str, generators: Mapping, seed: Any = None) -> tuple[dict, int]:
     """Validate ``spec`` (a parsed YAML mapping) for its generator.
 
+    ``generators`` : the known generator names (the package's ``GENERATORS`` registry,
+    passed in so this module does not import its package back).
     Returns (normalised spec, seed); ``seed`` (when not None) overrides the spec's seed and
     is validated the same way. Raises SceneError: ``<where>: <field>: expected ..., got ...``.
     """
-    from . import GENERATORS
-
     try:
-        return _check(spec, seed, GENERATORS)
+        return _check(spec, seed, generators)
     except SceneError as exc:
         raise SceneError(f"{where}: {exc}") from None
 
@@ -375,7 +374,6 @@ def _check(spec: Any, seed: Any, generators) -> tuple[dict, int]:
     if "tracks" in spec:
         out["tracks"] = TRACKS("tracks", spec["tracks"])
     if kind == "city":  # procedural/city.py checks its values; here: no unknown keys
-        from .city import CITY_DEFAULTS
 
         V.known_keys("top level", spec, _COMMON + ("size_km", "window_m") + tuple(CITY_DEFAULTS),
                      error=E)

@@ -100,6 +100,11 @@ def generate_suburb(b: Builder, spec: Mapping):
             e = a - nrm * (setback + side + 1.5)
             b.parking.append(LineString([a, e]).buffer(dw / 2, cap_style="flat"))
     b.freeze_areas()
+    _trees_and_poles(b, spec)
+
+
+def _trees_and_poles(b: Builder, spec: Mapping) -> None:
+    """Street tree rows, yard trees and lamp posts along the wider streets."""
     t = spec.get("trees", {}) or {}
     row = t.get("street", {}) or {}
     if row:
@@ -118,5 +123,3 @@ def generate_suburb(b: Builder, spec: Mapping):
         if r.width_m >= float(p.get("min_road_width_m", 7.0)):
             b.add_poles_along(r, float(p.get("spacing_m", 40.0)), float(p.get("height_m", 7.0)),
                               r.sidewalk_m + float(p.get("offset_m", 0.5)))
-
-

@@ -27,6 +27,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ...errors import SceneError
+from ..model import SceneObject
 
 __all__ = [
     "SPECIES",
@@ -242,8 +243,6 @@ def tree_objects(trees: np.ndarray, prefix: str = "tree_crowns", sub: int = 0):
     Returns a list of :class:`SceneObject` (label ``tree`` per species/colour group, label
     ``trunk`` for all trunks), in a fixed order.
     """
-    from ..model import SceneObject
-
     trees = np.asarray(trees, float).reshape(-1, 7)
     if not len(trees):
         return []
