@@ -26,8 +26,9 @@ import numpy as np
 
 from ..errors import ConfigError, PlacementError
 from ..scene.model import LABEL_IDS
+from .footprints import footprint_points
 from .model import PlacedVehicle, Placement, footprint_corners_xy, with_lonlat
-from .parking import _outline
+from .parking import outline, place_parking
 
 __all__ = ["DrivewaySite", "find_sites", "fill_sites", "place_driveways", "driveway_report"]
 
@@ -172,7 +173,7 @@ def fill_sites(sites, catalog, rng: np.random.Generator, rayscene, first_id: int
             xy = bc + site.axis * sl + v * st
             h = float(np.mod(head0 + dth, 2 * np.pi))
             corners = footprint_corners_xy(xy[0], xy[1], h, m.length_m, m.width_m)
-            pts = _outline(np.array([xy[0]]), np.array([xy[1]]), np.array([h]),
+            pts = outline(np.array([xy[0]]), np.array([xy[1]]), np.array([h]),
                            np.array([m.length_m]), np.array([m.width_m]))
             if not np.isin(_labels(rayscene, pts), site.label_ids).all():
                 stats["off_surface"] += 1
@@ -229,8 +230,6 @@ def place_driveways(rayscene, cfg, rng: np.random.Generator, catalog, seed=None,
                     n_vehicles=None, n_lines=None, place_traffic=None) -> Placement:
     """Run a ``driveways`` scenario: driveway, pad and yard vehicles, then kerb parking and
     traffic lines (placement/parking.py, as ``mixed`` without lots)."""
-    from .parking import place_parking
-
     t0 = time.perf_counter()
     sites = find_sites(rayscene)
     if not sites and not rayscene.scene.meta.get("driveways"):
@@ -244,8 +243,6 @@ def place_driveways(rayscene, cfg, rng: np.random.Generator, catalog, seed=None,
     # kerb and traffic vehicles keep clear of the driveway vehicles, and every footprint
     # sample of theirs lands on drivable surface (a kerb bay on a tight bend may not)
     import shapely
-
-    from .footprints import footprint_points
 
     drv = np.array(sorted(LABEL_IDS[n] for n in rayscene.label_config.drivable))
     ok = np.ones(len(rest.vehicles), bool)

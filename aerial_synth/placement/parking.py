@@ -118,7 +118,7 @@ def fill_bays(sites: list, cfg: ParkingConfig, catalog, rng: np.random.Generator
             live = np.flatnonzero(valid)
             if not len(live):
                 break
-            pts = _outline(x[live], y[live], h[live], L[live], W[live])
+            pts = outline(x[live], y[live], h[live], L[live], W[live])
             bad = live[~surface_ok(pts, kerb_row[live])]
             if not len(bad):
                 break
@@ -285,7 +285,7 @@ def _settle_clashes(obstacles, poses, jit, valid, x, y, h, L, W):
     return x, y, h, n_reset
 
 
-def _outline(x, y, h, L, W, n_l: int = 5, n_w: int = 3) -> np.ndarray:
+def outline(x, y, h, L, W, n_l: int = 5, n_w: int = 3) -> np.ndarray:
     """(n, 2 n_l + 2 n_w - 4 + 1, 2) points on each footprint's outline (1 cm inside) and
     its centre."""
     fl = np.linspace(-0.5, 0.5, n_l)
@@ -452,7 +452,7 @@ def parking_report(placement: Placement, lots: list[Lot] | None = None, kerbs: l
                           "max": round(float(align[matched].max()), 4)} if matched.any() else None,
     }
     if rayscene is not None:
-        pts = _outline(x, y, h, L, W, n_l=5, n_w=3)
+        pts = outline(x, y, h, L, W, n_l=5, n_w=3)
         lab = trace_labels(rayscene, pts.reshape(-1, 2)).reshape(n, -1)
         surf = [LABEL_IDS[s] for s in ("parking", "parking_marking", "road", "lane_marking")]
         out["on_surface_fraction"] = round(float(np.isin(lab, surf).all(axis=1).mean()), 6)

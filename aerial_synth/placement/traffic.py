@@ -17,6 +17,7 @@ from .. import validators as V
 from ..errors import PlacementError
 from ..vehicles import load_catalog
 from .config import ScenarioConfig, load_scenario
+from .driveways import place_driveways
 from .model import Placement, with_lonlat
 from .parking import place_parking
 from .parking_config import PARKING_KINDS
@@ -71,8 +72,6 @@ def place(
     if catalog is None:
         catalog = load_catalog()
     if cfg.kind == "driveways":  # residential and farm sites, then kerbs and traffic
-        from .driveways import place_driveways
-
         return place_driveways(rayscene, cfg, rng, catalog, seed=seed, scene_name=scene_name,
                                n_vehicles=n_vehicles, n_lines=n_lines, place_traffic=place)
     if cfg.kind in PARKING_KINDS:  # parking, street-parking, mixed: placement/parking.py

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..build import cylinder, flat_polygon, merge_meshes, prism
 from ..model import SceneObject
-from .roofs import _box, _gable, detail_objects, roof_parts
+from .roofs import box, detail_objects, gable, roof_parts
 
 __all__ = ["ROOF_PALETTES", "house_mesh", "HouseSet", "rect_poly", "Z_PATIO", "Z_POOL", "Z_COPING"]
 
@@ -93,10 +93,10 @@ def house_mesh(c, u, a, b, height, shape: str, rng: np.random.Generator, overhan
     if rise < 0.8:
         return None
     eave = height - rise
-    wv, wf, _ = _box(c, u, v, a, b, 0.0, eave)
+    wv, wf, _ = box(c, u, v, a, b, 0.0, eave)
     ao, bo = a + 2 * overhang, b + 2 * overhang
     if shape == "gable":
-        rv, rf = _gable(c, u, v, ao, bo, eave, height)
+        rv, rf = gable(c, u, v, ao, bo, eave, height)
     elif shape == "pyramid":
         s = max(ao, bo)
         rv, rf = _hip(c, u, v, s, s, eave, height) if abs(a - b) < 0.15 * a else _hip(c, u, v, ao, bo, eave, height)

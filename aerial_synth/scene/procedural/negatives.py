@@ -39,6 +39,7 @@ import numpy as np
 
 from ..build import flat_polygon, merge_meshes, prism
 from ..model import SceneObject
+from .roofs import box, gable
 
 __all__ = ["NEGATIVE_KINDS", "DENSITY_PER_HA", "KIND_REGIONS", "densities", "add_negatives",
            "Z_SLAB", "Z_PATCH"]
@@ -103,13 +104,11 @@ def _rect(cx, cy, a, b, yaw):
 
 def _gabled(cx, cy, a, b, yaw, wall, ridge):
     """Closed box to ``wall`` with a gabled roof to ``ridge`` (ridge along a)."""
-    from .roofs import _box, _gable
-
     u = np.array([np.cos(yaw), np.sin(yaw)])
     v = np.array([-u[1], u[0]])
     c = np.array([cx, cy])
-    wv, wf, _ = _box(c, u, v, a, b, 0.0, wall)
-    gv, gf = _gable(c, u, v, a + 0.3, b + 0.3, wall, ridge)
+    wv, wf, _ = box(c, u, v, a, b, 0.0, wall)
+    gv, gf = gable(c, u, v, a + 0.3, b + 0.3, wall, ridge)
     return merge_meshes([(wv, wf), (gv, gf)])
 
 

@@ -47,11 +47,12 @@ import numpy as np
 
 from ... import validators as V
 from ...errors import SceneError
+from ..build import polygon_object
 from . import spec as S
-from .builder import Builder
+from .builder import Z_ROAD, Builder
 from .houses import HouseSet
 from .negatives import NEGATIVE_KINDS, add_negatives
-from .roads import Road, chaikin, offset_line
+from .roads import Road, chaikin, offset_line, polygonal
 
 __all__ = ["generate_residential", "RESIDENTIAL_DEFAULTS", "check_residential", "NEGATIVES_SECTION",
            "VEHICLES_SECTION"]
@@ -485,10 +486,6 @@ def _residential_scene(b: Builder, source: str, meta: dict):
     """Builder.scene, then: driveways in concrete where drawn so, gravel pads, houses and
     yard things, hard negatives; hints and counts in the metadata."""
     import shapely
-
-    from ..build import polygon_object
-    from .builder import Z_ROAD
-    from .roads import polygonal
 
     r = b._res
     scene = Builder.scene(b, source, {**meta, "variant": b.spec["variant"]})

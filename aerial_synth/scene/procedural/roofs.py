@@ -114,7 +114,7 @@ _BOX_F = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7]]
 _BOX_F.setflags(write=False)
 
 
-def _box(centre, u, v, su, sv, z0, z1):
+def box(centre, u, v, su, sv, z0, z1):
     """Closed box, sides su along u and sv along v, z from z0 to z1 (outward faces)."""
     cu, cv = su / 2, sv / 2
     a = np.array([centre - u * cu - v * cv, centre + u * cu - v * cv,
@@ -132,8 +132,8 @@ def _box(centre, u, v, su, sv, z0, z1):
 
 def _ring_box(centre, u, v, a, b, th, z0, z1):
     """A closed rectangular ring (parapet): outer a x b, walls ``th`` thick, z0..z1."""
-    _, _, outer = _box(centre, u, v, a, b, z0, z1)
-    _, _, inner = _box(centre, u, v, a - 2 * th, b - 2 * th, z0, z1)
+    _, _, outer = box(centre, u, v, a, b, z0, z1)
+    _, _, inner = box(centre, u, v, a - 2 * th, b - 2 * th, z0, z1)
     # both rings counter-clockwise from above and starting at the same corner
     ring = np.concatenate([outer, inner])  # 0-3 outer, 4-7 inner
     verts = np.concatenate([np.column_stack([ring, np.full(8, z0)]),
@@ -148,7 +148,7 @@ def _ring_box(centre, u, v, a, b, th, z0, z1):
     return verts, np.asarray(f, np.int64)
 
 
-def _gable(rect_c, u, v, a, b, eave, ridge):
+def gable(rect_c, u, v, a, b, eave, ridge):
     """A closed gabled roof volume over the rectangle (a along u, b along v)."""
     ha, hb = a / 2, b / 2
     p = lambda s, t, z: (*(rect_c + u * s + v * t), z)  # noqa: E731
@@ -218,8 +218,8 @@ def roof_parts(poly, height: float, rng: np.random.Generator, override: Mapping 
     if mat == "roof_tiles" and is_rect and b >= 4.0 and rise >= 1.0:
         eave = height - rise
         ridge = height
-        wv, wf, _ = _box(c0, u, v, a, b, 0.0, eave)
-        gv, gf = _gable(c0, u, v, a, b, eave, ridge)
+        wv, wf, _ = box(c0, u, v, a, b, 0.0, eave)
+        gv, gf = gable(c0, u, v, a, b, eave, ridge)
         body = (np.concatenate([wv, gv]), np.concatenate([wf, gf + len(wv)]))
         if details:
             for _ in range(int(rng.integers(0, 3))):  # chimneys on a slope, below the ridge
@@ -229,11 +229,11 @@ def roof_parts(poly, height: float, rng: np.random.Generator, override: Mapping 
                 c = c0 + u * s + v * t
                 z_low = ridge - rise * (abs(t) + sz / 2) / (b / 2)  # roof under its far edge
                 z_top = ridge - rise * max(abs(t) - sz / 2, 0.0) / (b / 2) + rng.uniform(0.5, 0.9)
-                bv, bf, _ = _box(c, u, v, sz, sz, max(z_low, eave), z_top)
+                bv, bf, _ = box(c, u, v, sz, sz, max(z_low, eave), z_top)
                 out_details.append(("concrete", bv, bf))
         return RoofParts(body, mat, col, eave, ridge, True, out_details)
 
-    body = _box(c0, u, v, a, b, 0.0, height)[:2] if is_rect else prism(poly, 0.0, height)
+    body = box(c0, u, v, a, b, 0.0, height)[:2] if is_rect else prism(poly, 0.0, height)
     if not details:
         return RoofParts(body, mat, col, height, height, False, out_details)
     taken: list = []
@@ -255,14 +255,14 @@ def roof_parts(poly, height: float, rng: np.random.Generator, override: Mapping 
     def add(material, sizes, hz):
         c = _place(rng, frame, margin, sizes, taken, inner)
         if c is not None:
-            bv, bf, _ = _box(c, u, v, sizes[0], sizes[1], height - 0.02, height + hz)
+            bv, bf, _ = box(c, u, v, sizes[0], sizes[1], height - 0.02, height + hz)
             out_details.append((material, bv, bf))
 
     if mat == "roof_metal" and is_rect:  # skylight strips along the long side
         n = int(min(3, area // 400))
         for k in range(n):
             t = ((k + 0.5) / n - 0.5) * (b - 2 * margin - 1.2)
-            bv, bf, _ = _box(c0 + v * t, u, v, 0.7 * a, 1.2, height - 0.02, height + 0.18)
+            bv, bf, _ = box(c0 + v * t, u, v, 0.7 * a, 1.2, height - 0.02, height + 0.18)
             taken.append((0.0, t, 0.7 * a, 1.2))
             out_details.append(("glass", bv, bf))
     if area > 200.0 and rng.random() < 0.6:  # stairwell / lift housing

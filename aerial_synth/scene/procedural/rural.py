@@ -37,6 +37,8 @@ import numpy as np
 
 from ... import validators as V
 from ...errors import SceneError
+from ..build import polygon_object, prism
+from ..model import SceneObject
 from . import spec as S
 from .builder import Z_ROAD, Z_TRACK, Builder
 from .houses import HouseSet, rect_poly
@@ -247,8 +249,6 @@ def generate_rural(b: Builder, spec: Mapping) -> None:
 def _silo(houses: HouseSet, c, r, h):
     import shapely
 
-    from ..build import prism
-
     disc = shapely.Point(c).buffer(r, quad_segs=4)
     col = (0.70, 0.71, 0.72) if houses.rng.random() < 0.7 else (0.45, 0.50, 0.48)
     houses._add("building", "roof_metal", col, prism(disc, 0.0, h))
@@ -280,9 +280,6 @@ def _fields(rng, land, ang, fcfg, W, H):
     """Field objects (ground surfaces and rows) and counts by type."""
     import shapely
     from shapely import affinity
-
-    from ..build import polygon_object
-    from ..model import SceneObject
 
     lo, hi = fcfg["size_m"]
     R = 0.75 * np.hypot(W, H)
@@ -352,8 +349,6 @@ def _rural_scene(b: Builder, source: str, meta: dict):
     import dataclasses
 
     import shapely
-
-    from ..build import polygon_object
 
     r = b._rural
     scene = Builder.scene(b, source, meta)
