@@ -15,8 +15,8 @@ Each option is a pure transformation of the ground truth and the detections befo
   centre lies less than PX from the image border is made difficult (a detection on it is
   neither a true nor a false positive); a detection whose centre lies there is removed;
 - **groups**: one per sub-folder of a collection (``--gt`` holding DOTA folders), or the
-  first capture group (else the whole match) of ``--group REGEX`` searched in each image
-  name; images that do not match form the group ``(other)``.
+  first capture group that took part in the match (else the whole match) of ``--group
+  REGEX`` searched in each image name; images that do not match form the group ``(other)``.
 
 Geometry: (n, 4, 2) float64 pixels, image frame. Image names of a collection are
 ``<sub-folder>/<stem>``, the names prediction files use.
@@ -202,14 +202,18 @@ def ignore_border(gt: list[ImageLabels], dets: Detections, px_per_image) -> tupl
 
 
 def image_groups(gt: list[ImageLabels], regex: str | None = None) -> list[str]:
-    """The group of each image: ``regex`` (first capture group, else the whole match), else
+    """The group of each image: ``regex`` (first matched capture group, else the whole match), else
     the collection's sub-folder (``extra['group']``), else ``all``."""
     if regex is not None:
         pat = re.compile(regex)
         out = []
         for g in gt:
             m = pat.search(g.name)
-            out.append(OTHER_GROUP if m is None else (m.group(1) if pat.groups else m.group(0)) or OTHER_GROUP)
+            if m is None:
+                out.append(OTHER_GROUP)
+                continue
+            found = next((x for x in m.groups() if x is not None), None)
+            out.append((found if found is not None else m.group(0)) or OTHER_GROUP)
         return out
     return [g.extra.get("group", "all") for g in gt]
 

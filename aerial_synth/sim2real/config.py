@@ -81,14 +81,27 @@ def _images(folder: Path) -> list[Path]:
 
 
 def _export_gsd(d: Path) -> float | None:
-    for m in (d / "manifest.json", d.parent / "manifest.json"):
-        if m.is_file():
+    """The export's nadir GSD: ``parameters.gsd_m`` of its manifest, else (a GSD derived from
+    the altitude) the median ``gsd_m`` of its per-image metadata (``meta/*.json``)."""
+    for base in (d, d.parent):
+        m = base / "manifest.json"
+        if not m.is_file():
+            continue
+        try:
+            g = json.loads(m.read_text(encoding="utf-8")).get("parameters", {}).get("gsd_m")
+        except (OSError, ValueError, AttributeError):
+            g = None
+        if isinstance(g, (int, float)) and g > 0:
+            return float(g)
+        vals = []
+        for f in sorted((base / "meta").glob("*.json")) if (base / "meta").is_dir() else ():
             try:
-                data = json.loads(m.read_text(encoding="utf-8"))
-                g = data.get("parameters", {}).get("gsd_m")
+                v = json.loads(f.read_text(encoding="utf-8")).get("gsd_m")
             except (OSError, ValueError, AttributeError):
-                return None
-            return float(g) if isinstance(g, (int, float)) and g > 0 else None
+                continue
+            if isinstance(v, (int, float)) and v > 0:
+                vals.append(float(v))
+        return float(np.median(vals)) if vals else None
     return None
 
 
