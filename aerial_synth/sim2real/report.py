@@ -134,4 +134,15 @@ def contact_sheet(items, images, dets_by_image, threshold: float, iou_type_by_im
         cells.append(cell)
     if not cells:
         return np.full((64, 64, 3), 255, np.uint8)
-    return grid(cells, cols=min(3, len(cells)))
+    sheet = grid(cells, cols=min(3, len(cells)))
+    legend = np.full((24, sheet.shape[1], 3), 255, np.uint8)
+    x = 4
+    for text, col in ((f"predictions with score >= {threshold:.3f}:", (0, 0, 0)), ("match", (255, 255, 0)),
+                      ("false positive", (0, 0, 255)), ("  truth:", (0, 0, 0)), ("found", (0, 200, 0)),
+                      ("missed", (0, 230, 255)), ("ignored", (160, 160, 160))):
+        if col != (0, 0, 0):
+            cv2.rectangle(legend, (x, 7), (x + 14, 17), col, 2)
+            x += 18
+        cv2.putText(legend, text, (x, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
+        x += 8 * len(text) + 10
+    return np.vstack([legend, sheet])

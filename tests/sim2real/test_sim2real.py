@@ -16,7 +16,13 @@ from aerial_synth.evaluate.scoring import ScoringOptions, score
 from aerial_synth.sim2real import ultra
 from aerial_synth.sim2real.config import Sim2RealError, inspect_synthetic, parse_arm, parse_arms
 from aerial_synth.sim2real.pipeline import write_task1
-from aerial_synth.sim2real.real import merge_tiles, plan_image, read_real, rotated_nms, tile_to_original
+from aerial_synth.sim2real.real import (
+    merge_tiles,
+    plan_image,
+    read_real,
+    rotated_nms,
+    tile_to_original,
+)
 from aerial_synth.sim2real.report import ARM_FIELDS, REPORT_FIELDS, summary_text
 
 from ..helpers import REPO
