@@ -155,7 +155,7 @@ def run_sim2real(cfg: Sim2RealConfig) -> dict:
     out, sets, gsds, items, plans, opts = check_inputs(cfg)
     device, device_name = ultra.resolve_device(cfg.device)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)).resolve()
     try:
         report = _run(cfg, tmp, sets, gsds, items, plans, opts, device, device_name)
         if out.exists():
@@ -203,7 +203,9 @@ def _run(cfg, tmp: Path, sets, gsds, items, plans, opts, device, device_name) ->
         curves[a.name] = agn
         thr = rep.best_f1_threshold(c0)
         sheets[a.name] = (dets, thr)
-        weights_rel = tr.weights.relative_to(tmp) if tmp in tr.weights.parents else tr.weights
+        if tmp not in tr.weights.resolve().parents:
+            raise RuntimeError(f"Ultralytics wrote the weights outside the run folder: {tr.weights}")
+        weights_rel = tr.weights.resolve().relative_to(tmp)
         arms.append({
             "name": a.name, "dirs": [str(d) for d in a.dirs], "gsd_m": gsds[a.name],
             "classes": list(sets[a.name][0].names), "training_images": n_train,

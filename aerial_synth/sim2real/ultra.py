@@ -86,7 +86,10 @@ def _offline_ultralytics():
     import ultralytics  # noqa: F401  (heavy: torch)
     from ultralytics.utils import SETTINGS
 
-    SETTINGS.update(_SETTINGS_OFF)
+    # its default folders are relative to a git checkout it may sit in: keep them private
+    SETTINGS.update(dict(_SETTINGS_OFF, runs_dir=str(_CONFIG_DIR / "runs"),
+                         weights_dir=str(_CONFIG_DIR / "weights"),
+                         datasets_dir=str(_CONFIG_DIR / "datasets")))
     return ultralytics
 
 
@@ -235,7 +238,7 @@ def train(data_yaml: Path, run_dir: Path, *, model: str | None, weights: Path | 
     src = str(weights) if weights is not None else str(model)
     net = YOLO(src, task="obb")
     kw = dict(data=str(data_yaml), imgsz=imgsz, device=device, seed=seed, deterministic=True,
-              batch=batch, workers=workers, plots=False, amp=device != "cpu", project=str(run_dir.parent),
+              batch=batch, workers=workers, plots=False, amp=device != "cpu", project=str(run_dir.parent.resolve()),
               name=run_dir.name, exist_ok=True, verbose=False, pretrained=False, cache=False,
               val=True, trainer=_trainer_class(), patience=0)
     if minutes is not None:

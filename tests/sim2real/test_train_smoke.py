@@ -69,13 +69,15 @@ SMOKE = ["--epochs", "1", "--imgsz", "128", "--device", "cpu", "--workers", "0",
 
 @pytest.fixture(scope="module")
 def smoke(data, tmp_path_factory):
+    """Two arms on the same data, run from a scratch folder with a relative --out."""
     syn, real = data
-    out = tmp_path_factory.mktemp("run") / "report"
+    cwd = tmp_path_factory.mktemp("run")
     cmd, env, how = _offline_cmd(["sim2real", "--synthetic", f"a={syn}", "--synthetic", f"b={syn}",
-                                  "--real", real, "--out", out, *SMOKE])
-    r = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=600)
+                                  "--real", real, "--out", "report", *SMOKE])
+    r = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=600, cwd=cwd)
     assert r.returncode == 0, f"({how}) {r.stderr[-3000:]}"
-    return out, r
+    assert sorted(p.name for p in cwd.iterdir()) == ["report"], "something written beside --out"
+    return cwd / "report", r
 
 
 def test_report_holds_every_field(smoke, data):
@@ -171,7 +173,13 @@ def test_perfect_predictions_give_ap_one(data, smoke, tmp_path, monkeypatch):
     seen: list[int] = []
     rep0 = json.loads((smoke[0] / "report.json").read_text())
     weights = smoke[0] / rep0["arms"][0]["weights"]
-    monkeypatch.setattr(ultra, "train", lambda *a, **k: ultra.TrainResult(weights, 1, 0.1, 0.0, 0.0))
+
+    def trained(data_yaml, run_dir, **kw):
+        (run_dir / "weights").mkdir(parents=True)
+        shutil.copyfile(weights, run_dir / "weights" / "best.pt")
+        return ultra.TrainResult(run_dir / "weights" / "best.pt", 1, 0.1, 0.0, 0.0)
+
+    monkeypatch.setattr(ultra, "train", trained)
     monkeypatch.setattr(ultra, "Predictor", Perfect)
     rep = pipeline.run_sim2real(cfg)
     a = rep["arms"][0]
