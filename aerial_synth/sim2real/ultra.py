@@ -82,9 +82,10 @@ def _offline_ultralytics():
         os.environ["YOLO_OFFLINE"] = "true"
         os.environ["YOLO_AUTOINSTALL"] = "false"
         os.environ.setdefault("YOLO_VERBOSE", "false")
-        _provide_fonts(_CONFIG_DIR)
     import ultralytics  # noqa: F401  (heavy: torch)
-    from ultralytics.utils import SETTINGS
+    from ultralytics.utils import SETTINGS, USER_CONFIG_DIR
+
+    _provide_fonts(Path(USER_CONFIG_DIR))  # where check_font looks first
 
     # its default folders are relative to a git checkout it may sit in: keep them private
     SETTINGS.update(dict(_SETTINGS_OFF, runs_dir=str(_CONFIG_DIR / "runs"),
@@ -94,18 +95,20 @@ def _offline_ultralytics():
 
 
 def _provide_fonts(folder: Path) -> None:
-    """Ultralytics' dataset check asks for Arial.ttf (a download when missing): give it
-    matplotlib's DejaVu Sans under that name."""
+    """Ultralytics' dataset check asks for Arial.ttf (a download when missing, whether or not
+    it plots): give it matplotlib's DejaVu Sans under that name."""
     folder.mkdir(parents=True, exist_ok=True)
     spec = importlib.util.find_spec("matplotlib")
     src = None
     if spec is not None and spec.submodule_search_locations:
         cand = Path(list(spec.submodule_search_locations)[0]) / "mpl-data" / "fonts" / "ttf" / "DejaVuSans.ttf"
         src = cand if cand.is_file() else None
+    if src is None:
+        raise Sim2RealError("sim2real: matplotlib's DejaVuSans.ttf not found (Ultralytics would "
+                            "download a font); reinstall matplotlib")
     for name in ("Arial.ttf", "Arial.Unicode.ttf"):
-        dst = folder / name
-        if src is not None:
-            shutil.copyfile(src, dst)
+        if not (folder / name).is_file():
+            shutil.copyfile(src, folder / name)
 
 
 def versions() -> dict:

@@ -49,11 +49,36 @@ def data(tmp_path_factory):
     return syn, real
 
 
+# Every attempt to reach the network (a name lookup or a connect to anything but a local
+# socket) is written to stderr with its stack and refused; the tests require none.
+_GUARD = """
+import socket, sys, traceback
+def _refuse(what):
+    sys.stderr.write("NETWORK ATTEMPT: " + what + "\\n" + "".join(traceback.format_stack(limit=25)))
+    raise OSError("network blocked by the sim2real smoke test")
+_gai = socket.getaddrinfo
+def getaddrinfo(host, *a, **k):
+    if host not in (None, "localhost", "127.0.0.1", "::1"):
+        _refuse("getaddrinfo " + repr(host))
+    return _gai(host, *a, **k)
+socket.getaddrinfo = getaddrinfo
+socket.gethostbyname = lambda host: _refuse("gethostbyname " + repr(host))
+_connect = socket.socket.connect
+def connect(self, addr):
+    if self.family != socket.AF_UNIX:
+        _refuse("connect " + repr(addr))
+    return _connect(self, addr)
+socket.socket.connect = connect
+from aerial_synth.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
 def _offline_cmd(args):
-    """The CLI in a process without network: `unshare -rn` where it works, else every
-    proxy variable pointing at a closed local port."""
+    """The CLI with the guard above, in a process without network: `unshare -rn` where it
+    works, else every proxy variable pointing at a closed local port."""
     env = dict(os.environ, PYTHONPATH=str(REPO))
-    cmd = [sys.executable, "-m", "aerial_synth.cli", *map(str, args)]
+    cmd = [sys.executable, "-c", _GUARD, *map(str, args)]
     if shutil.which("unshare") and subprocess.run(["unshare", "-rn", "true"], capture_output=True).returncode == 0:
         return ["unshare", "-rn", *cmd], env, "unshare -rn"
     for k in ("HTTP_PROXY", "HTTPS_PROXY", "http_proxy", "https_proxy", "ALL_PROXY", "all_proxy"):
@@ -76,6 +101,7 @@ def smoke(data, tmp_path_factory):
                                   "--real", real, "--out", "report", *SMOKE])
     r = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=600, cwd=cwd)
     assert r.returncode == 0, f"({how}) {r.stderr[-3000:]}"
+    assert "NETWORK ATTEMPT" not in r.stderr, r.stderr[r.stderr.index("NETWORK ATTEMPT"):][:3000]
     assert sorted(p.name for p in cwd.iterdir()) == ["report"], "something written beside --out"
     return cwd / "report", r
 
@@ -135,6 +161,7 @@ def test_same_seed_same_predictions(smoke, data, tmp_path):
     cmd, env, how = _offline_cmd(["sim2real", "--synthetic", f"a={syn}", "--real", real, "--out", out2, *SMOKE])
     r = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=600)
     assert r.returncode == 0, r.stderr[-2000:]
+    assert "NETWORK ATTEMPT" not in r.stderr
     for f in files:
         assert f.read_bytes() == (out2 / "arms" / "a" / "predictions" / f.name).read_bytes(), f.name
 
