@@ -52,8 +52,8 @@ def register(sub) -> None:
                    metavar="M", help="GSD of real images whose labels carry no gsd: header")
     p.add_argument("--real-classes", default="small-vehicle,large-vehicle", metavar="LIST|all",
                    help="real truth classes kept (small-vehicle,large-vehicle)")
-    p.add_argument("--conf", type=arg_float("--conf", 0.0, 1.0, hi_open=True), default=0.01,
-                   metavar="F", help="lowest prediction score kept (0.01)")
+    p.add_argument("--conf", type=arg_float("--conf", 0.0, 1.0, hi_open=True), default=0.001,
+                   metavar="F", help="lowest prediction score kept (0.001, as Ultralytics' mAP)")
     p.add_argument("--merge-iou", type=arg_float("--merge-iou", 0.0, 1.0, lo_open=True, hi_open=True),
                    default=0.3, metavar="T", help="rotated NMS across tiles, IoU > T (0.3, as the DOTA devkit)")
     p.add_argument("--iou-type", type=arg_choice("--iou-type", ("obb", "hbb", "auto")), default="auto",

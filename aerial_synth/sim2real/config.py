@@ -106,17 +106,19 @@ def _export_gsd(d: Path) -> float | None:
 
 
 def inspect_synthetic(d: Path, option: str) -> SyntheticSet:
-    """Check one synthetic folder: YOLO-OBB layout, every image with a label file."""
+    """Check one synthetic folder: YOLO-OBB layout, every image with a label file.
+    ``option`` prefixes the folder in messages (``--synthetic NAME=``)."""
+    where = f"{option}{d}"
     if not d.exists():
-        raise Sim2RealError(f"{option} {d}: no such folder")
+        raise Sim2RealError(f"{where}: no such folder")
     if not d.is_dir():
-        raise Sim2RealError(f"{option} {d}: expected a folder, found a file")
+        raise Sim2RealError(f"{where}: expected a folder, found a file")
     root = d / "yolo-obb" if (d / "yolo-obb").is_dir() else d
     yaml_path = find_data_yaml(root) if (root / "images").is_dir() and (root / "labels").is_dir() else None
     if yaml_path is None:
-        raise Sim2RealError(f"{option} {d}: expected a YOLO-OBB dataset (yolo-obb/ with data.yaml, "
+        raise Sim2RealError(f"{where}: expected a YOLO-OBB dataset (yolo-obb/ with data.yaml, "
                             f"images/, labels/; export it with --format yolo-obb), found none")
-    names = tuple(parse_names(str(yaml_path), option=f"{option} {yaml_path.name}"))
+    names = tuple(parse_names(str(yaml_path), option=f"{where}: {yaml_path.name}"))
     img = root / "images"
     train = img / "train" if (img / "train").is_dir() else img
     val = img / "val" if (img / "val").is_dir() else None
@@ -129,10 +131,10 @@ def inspect_synthetic(d: Path, option: str) -> SyntheticSet:
         lab = root / "labels" / folder.relative_to(img)
         for f in files:
             if not (lab / (f.stem + ".txt")).is_file():
-                raise Sim2RealError(f"{option} {d}: image {f} has no label file {lab / (f.stem + '.txt')}")
+                raise Sim2RealError(f"{where}: image {f} has no label file {lab / (f.stem + '.txt')}")
         counts.append(len(files))
     if counts[0] == 0:
-        raise Sim2RealError(f"{option} {d}: no training images in {train}")
+        raise Sim2RealError(f"{where}: no training images in {train}")
     return SyntheticSet(root, train, val, names, _export_gsd(d), counts[0], counts[1])
 
 
@@ -157,7 +159,7 @@ class Sim2RealConfig:
     gsd: float | None = None
     real_gsd: float | None = None
     real_classes: tuple[str, ...] | None = ("small-vehicle", "large-vehicle")
-    conf: float = 0.01
+    conf: float = 0.001
     merge_iou: float = 0.3
     iou_type: str = "auto"
     ignore_border: dict = field(default_factory=dict)

@@ -66,7 +66,7 @@ def check_inputs(cfg: Sim2RealConfig):
     sets: dict[str, list[SyntheticSet]] = {}
     gsds: dict[str, float | None] = {}
     for a in cfg.arms:
-        ss = [inspect_synthetic(d, f"--synthetic {a.name}={d}:") for d in a.dirs]
+        ss = [inspect_synthetic(d, f"--synthetic {a.name}=") for d in a.dirs]
         if len({s.names for s in ss}) > 1:
             raise Sim2RealError(f"--synthetic {a.name}: its folders have different class lists "
                                 f"({' vs '.join(str(list(s.names)) for s in ss)})")

@@ -127,16 +127,16 @@ def test_other_bad_options(tmp_path, capsys, extra_present, extra, msg):
 
 def test_synthetic_image_without_label_and_gsd_from_metadata(tmp_path):
     syn = write_synthetic(tmp_path / "syn", manifest=False)
-    s = inspect_synthetic(syn, "--synthetic")
+    s = inspect_synthetic(syn, "--synthetic x=")
     assert (s.n_train, s.n_val, s.names, s.gsd_m) == (2, 1, ("small-vehicle", "large-vehicle"), None)
     (syn / "manifest.json").write_text('{"parameters": {"gsd_m": null}}')
     (syn / "meta").mkdir()
     for i, g in enumerate((0.1, 0.1, 0.3)):
         (syn / "meta" / f"{i}.json").write_text(f'{{"gsd_m": {g}}}')
-    assert inspect_synthetic(syn, "--synthetic").gsd_m == pytest.approx(0.1)
+    assert inspect_synthetic(syn, "--synthetic x=").gsd_m == pytest.approx(0.1)
     (syn / "yolo-obb" / "labels" / "train" / "train0.txt").unlink()
     with pytest.raises(Sim2RealError, match="train0.png has no label file"):
-        inspect_synthetic(syn, "--synthetic")
+        inspect_synthetic(syn, "--synthetic x=")
 
 
 def test_arm_parsing(tmp_path):
