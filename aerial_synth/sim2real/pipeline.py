@@ -24,9 +24,10 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from ..evaluate.ap import Detections
 from ..evaluate.evaluation import read_task1_folder
 from ..evaluate.plots import png_bytes
-from ..evaluate.scoring import ScoringOptions, image_groups, score
+from ..evaluate.scoring import ScoringOptions, ignore_border, image_groups, score
 from ..io_utils import (
     atomic_write_bytes,
     atomic_write_json,
@@ -246,6 +247,15 @@ def _run(cfg, tmp: Path, sets, gsds, items, plans, opts, device, device_name) ->
     return report
 
 
+def _subset_dets(dets: Detections, chosen: list[int]) -> Detections:
+    """The detections of images ``chosen``, re-indexed 0..len(chosen)-1."""
+    remap = {i: k for k, i in enumerate(chosen)}
+    m = np.array([int(i) in remap for i in np.asarray(dets.image)], bool)
+    img = np.array([remap[int(i)] for i in np.asarray(dets.image)[m]], np.int64)
+    return Detections(img, [c for c, k in zip(dets.classes, m) if k], np.asarray(dets.scores)[m],
+                      np.asarray(dets.polygons_xy_px).reshape(-1, 4, 2)[m])
+
+
 def _real_summary(cfg, items, plans, opts) -> dict:
     groups = image_groups(items, opts.group)
     by_group: dict[str, dict] = {}
@@ -291,13 +301,16 @@ def _write_figures(tmp: Path, report, curves, sheets, items, contact_images: int
     for a in report["arms"]:
         dets, thr = sheets[a["name"]]
         res = curves[a["name"]]
+        # as scored: border truth ignored (grey), border detections gone
+        shown, kept = ignore_border([items[i] for i in chosen], _subset_dets(dets, chosen),
+                                    [res.border_px[groups[i]] for i in chosen])
         imgs, dsel, hbb = [], [], []
-        for i in chosen:
+        for k, i in enumerate(chosen):
             imgs.append(cv2.imread(str(items[i].image_path), cv2.IMREAD_COLOR))
-            m = np.asarray(dets.image) == i
-            dsel.append((np.asarray(dets.polygons_xy_px)[m], np.asarray(dets.scores)[m]))
+            m = np.asarray(kept.image) == k
+            dsel.append((np.asarray(kept.polygons_xy_px)[m], np.asarray(kept.scores)[m]))
             hbb.append(res.iou_type[groups[i]] == "hbb")
-        sheet = rep.contact_sheet([items[i] for i in chosen], imgs, dsel, thr, hbb)
+        sheet = rep.contact_sheet(shown, imgs, dsel, thr, hbb)
         safe = "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in a["name"])
         atomic_write_bytes(tmp / f"contact_{safe}.png", png_bytes(sheet))
         files["contact_sheets"].append(f"contact_{safe}.png")
