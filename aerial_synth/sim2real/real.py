@@ -61,6 +61,10 @@ def read_real(path: Path, classes: tuple[str, ...] | None) -> list[ImageLabels]:
                     raise Sim2RealError(f"--real: image {p} has no label file "
                                         f"({lab_dir / (p.stem + '.txt')}); label it or move it out")
     if classes is not None:
+        found = sorted({c for g in items for c in g.classes})
+        if found and not set(found) & set(classes):
+            raise Sim2RealError(f"--real {path}: no truth box of the classes {','.join(classes)} "
+                                f"(found {','.join(found[:8])}); give --real-classes LIST or all")
         for g in items:
             k = np.array([c in classes for c in g.classes], bool)
             g.polygons_xy_px = g.polygons_xy_px.reshape(-1, 4, 2)[k]

@@ -223,6 +223,13 @@ def test_perfect_predictions_through_tiles_score_ap_one(tmp_path):
     assert c.tp == len(boxes) and c.fp == len(xy2) - len(boxes)
 
 
+def test_real_classes_must_meet_the_truth(tmp_path):
+    real = write_real(tmp_path / "real", "img", [box(10, 10, 30, 20)], ["car"])
+    with pytest.raises(Sim2RealError, match="no truth box of the classes small-vehicle,large-vehicle .found car"):
+        read_real(real, ("small-vehicle", "large-vehicle"))
+    assert read_real(real, ("car",))[0].classes == ["car"]
+
+
 def test_plan_needs_a_gsd_to_rescale(tmp_path):
     real = write_real(tmp_path / "real", "img", [box(10, 10, 30, 20)], header=False)
     g = read_real(real, None)[0]
