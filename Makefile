@@ -17,7 +17,7 @@ LOCK_DATE ?= 2026-11-27T00:00:00Z
 LOCK_ARGS := --upgrade --python-version 3.11 --python-platform $(LOCK_PLATFORM) --generate-hashes \
 	--format pylock.toml --exclude-newer $(LOCK_DATE) --quiet
 
-.PHONY: pycheck demo test lint test-all test-latest lock dist sysdeps sysdeps-egl venv install install-test clean bench
+.PHONY: pycheck demo test lint test-all test-latest test-train lock dist sysdeps sysdeps-egl venv install install-test clean bench
 
 # open3d's Linux wheel links against libusb-1.0; pip cannot provide it.
 sysdeps:
@@ -97,6 +97,32 @@ test-latest: sysdeps | pycheck
 	@echo "== every other test (must hold on any allowed version) =="
 	$(LATEST)/bin/python -m pytest -q -p no:cacheprovider -m 'not lock_exact and not slow'
 
+# sim2real's CPU smoke test (tests/sim2real, marker `train`) in a separate environment with the
+# [train] extra; `make test` stays torch-free. Everything but the training stack comes from
+# the test lock (uv); torch/torchvision come from pip, which on this kind of machine takes
+# them from local wheels (uv would download gigabytes); Ultralytics is pinned exactly and
+# installed without its dependency list: all but two are in the lock already, and those two
+# are left out on purpose (opencv-python would shadow the project's opencv-python-headless;
+# polars only reads results.csv, which sim2real reads with the standard library).
+TRAIN_VENV := .venv-train
+TRAIN_PINS := torch==2.14.1 torchvision==0.29.1
+ULTRALYTICS_PINS := ultralytics==8.4.190 ultralytics-thop==2.2.3
+# Ultralytics imports matplotlib; the project does not (its charts are drawn with OpenCV), and
+# the lock's open3d 0.20 no longer brings it: pinned here, with its own dependencies.
+TRAIN_EXTRA_PINS := matplotlib==3.11.2
+$(TRAIN_VENV)/.installed: pylock.test.toml pyproject.toml requirements/uv.txt | pycheck
+	rm -rf $(TRAIN_VENV)
+	$(PYTHON) -m venv $(TRAIN_VENV)
+	$(TRAIN_VENV)/bin/python -m pip install -q --disable-pip-version-check --require-hashes --no-deps -r requirements/uv.txt
+	$(TRAIN_VENV)/bin/uv pip install -q --python $(TRAIN_VENV)/bin/python -r pylock.test.toml
+	$(TRAIN_VENV)/bin/uv pip install -q --python $(TRAIN_VENV)/bin/python --no-deps --no-build-isolation -e .
+	$(TRAIN_VENV)/bin/python -m pip install -q --disable-pip-version-check $(TRAIN_PINS) $(TRAIN_EXTRA_PINS)
+	$(TRAIN_VENV)/bin/python -m pip install -q --disable-pip-version-check --no-deps $(ULTRALYTICS_PINS)
+	touch $@
+
+test-train: sysdeps $(TRAIN_VENV)/.installed
+	$(TRAIN_VENV)/bin/python -m pytest -q -p no:cacheprovider -m train tests/sim2real
+
 install: sysdeps $(VENV)/.installed
 install-test: sysdeps sysdeps-egl $(VENV)/.installed-test
 
@@ -124,4 +150,4 @@ bench: install-test
 	$(BIN)/python tools/bench_suite.py --out bench.json --export-presets full,fast
 
 clean:
-	rm -rf $(VENV) $(LATEST) out .pytest_cache build dist *.egg-info
+	rm -rf $(VENV) $(LATEST) $(TRAIN_VENV) out .pytest_cache build dist *.egg-info

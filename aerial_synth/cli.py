@@ -27,6 +27,7 @@ _COMMAND_MODULES = (
     "aerial_synth.render.cli",
     "aerial_synth.dataset.cli",
     "aerial_synth.evaluate.cli",
+    "aerial_synth.sim2real.cli",
 )
 
 

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from ..errors import EvaluationError
 from ..validators import arg_choice, arg_float, arg_int
+from .scoring_cli import add_scoring_args, cmd_scored_eval, uses_scoring
 
 __all__ = ["register"]
 
@@ -42,6 +43,7 @@ def register(sub) -> None:
                    help="comma list of classes to report (default: all in gt or predictions)")
     e.add_argument("--out", default=None, metavar="DIR",
                    help="write eval.json, summary.txt and pr_<class>.png here")
+    add_scoring_args(e)
     e.set_defaults(func=_cmd_eval)
 
     m = sub.add_parser(
@@ -135,6 +137,8 @@ def _cmd_eval(args) -> int:
     out = None
     if args.out is not None:
         out = check_report_dir(args.out, [("--gt", Path(args.gt)), ("--pred", Path(args.pred))])
+    if uses_scoring(args):
+        return cmd_scored_eval(args, out)
     res = run_eval(args.gt, args.pred, iou=args.iou, metric=args.metric, pred_format=args.pred_format,
                    names=args.names, images=args.images, split=args.split,
                    classes=_classes(args.classes))

@@ -1,0 +1,148 @@
+"""The report of ``sim2real``: summary text, PR curves and contact sheets (pure functions
+over scored results; the pipeline writes the files)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..evaluate.ap import pairwise_iou
+from ..evaluate.plots import grid, line_chart
+from ..evaluate.scoring import ScoreResult, hbb_hull
+
+__all__ = ["agnostic", "arm_real_figures", "summary_text", "pr_chart", "best_f1_threshold",
+           "contact_sheet", "REPORT_FIELDS", "ARM_FIELDS"]
+
+#: top-level fields of report.json (the smoke test checks each)
+REPORT_FIELDS = ("format", "version", "parameters", "versions", "device", "real", "scoring", "arms",
+                 "files")
+#: fields of each arm in report.json
+ARM_FIELDS = ("name", "dirs", "gsd_m", "classes", "training_images", "validation_images",
+              "val_is_train", "epochs", "seconds", "synthetic_val_map50", "synthetic_val_map50_95",
+              "real_ap50", "real_recall", "real", "predictions", "weights")
+
+
+def agnostic(res: ScoreResult, group: str | None = None):
+    """The single merged class's ClassResult at the first threshold (overall or a group)."""
+    r = res.overall if group is None else res.groups[group]
+    t0 = r.iou_thresholds[0]
+    return next(iter(r.per_threshold[t0].values()))
+
+
+def _figs(c) -> dict:
+    n = len(c.recall)
+    return {"ap50": None if c.ap is None else round(float(c.ap), 6),
+            "recall": round(float(c.recall[-1]), 6) if n and c.n_gt else 0.0,
+            "precision_at_max_recall": round(float(c.precision[-1]), 6) if n else 0.0,
+            "n_gt": c.n_gt, "n_det": c.n_det, "tp": c.tp, "fp": c.fp}
+
+
+def arm_real_figures(agn: ScoreResult, per_class: ScoreResult) -> dict:
+    """Class-agnostic AP50/recall overall and per group; per-class AP50 (not merged)."""
+    out = _figs(agnostic(agn))
+    out["per_group"] = {k: dict(_figs(agnostic(agn, k)), iou_type=agn.iou_type[k],
+                                ignore_border_px=agn.border_px[k]) for k in agn.groups}
+    out["per_class_ap50"] = {c: (None if v is None else round(float(v), 6))
+                             for c, v in per_class.overall.ap.items()}
+    out["iou_type_by_group"] = dict(agn.iou_type)
+    return out
+
+
+def _f(v, nd=3):
+    return "-" if v is None else f"{v:.{nd}f}"
+
+
+def summary_text(report: dict) -> str:
+    d = report["device"]
+    v = report["versions"]
+    lines = [f"aerial-synth sim2real: {len(report['arms'])} arm(s), real set {report['real']['dir']} "
+             f"({report['real']['images']} images, {report['real']['vehicles']} vehicles)",
+             f"device {d['name']} ({d['used']}); aerial-synth {v['aerial_synth']}, ultralytics "
+             f"{v['ultralytics']}, torch {v['torch']}",
+             "real AP50: class-agnostic (vehicle), VOC07, IoU > 0.5; "
+             f"iou type by group {report['scoring']['iou_type_by_group']}", ""]
+    groups = list(report["arms"][0]["real"]["per_group"]) if report["arms"] else []
+    head = (f"{'arm':<16} {'train img':>9} {'epochs':>6} {'seconds':>8} {'syn mAP50':>9} "
+            f"{'real AP50':>9} {'recall':>6}" + "".join(f" {g[:14]:>14}" for g in groups))
+    lines += [head, "-" * len(head)]
+    for a in report["arms"]:
+        row = (f"{a['name'][:16]:<16} {a['training_images']:>9} {a['epochs']:>6} {a['seconds']:>8.1f} "
+               f"{_f(a['synthetic_val_map50']):>9} {_f(a['real_ap50']):>9} {_f(a['real_recall']):>6}")
+        for g in groups:
+            pg = a["real"]["per_group"][g]
+            row += f" {_f(pg['ap50']) + '/' + _f(pg['recall'], 2):>14}"
+        lines.append(row)
+    if groups:
+        lines.append("(per group: AP50/recall)")
+    return "\n".join(lines)
+
+
+def pr_chart(title: str, curves: dict) -> np.ndarray:
+    """{label: ClassResult} -> a precision-recall chart (BGR)."""
+    series = []
+    for label, c in curves.items():
+        if c.n_gt == 0:
+            continue
+        rec = np.concatenate(([0.0], c.recall)) if len(c.recall) else np.array([0.0])
+        pre = np.concatenate(([1.0], c.precision)) if len(c.precision) else np.array([1.0])
+        series.append((f"{label} AP {_f(c.ap)}", rec, pre))
+    if not series:
+        series = [("no truth", np.array([0.0]), np.array([0.0]))]
+    return line_chart(title, series, "recall", "precision", xlim=(0.0, 1.0), ylim=(0.0, 1.02))
+
+
+def best_f1_threshold(c) -> float:
+    """The score at which the class-agnostic F1 is highest (1.0 without detections)."""
+    if len(c.scores) == 0 or c.n_gt == 0:
+        return 1.0
+    f1 = 2 * c.precision * c.recall / np.maximum(c.precision + c.recall, 1e-12)
+    return float(c.scores[int(np.argmax(f1))])
+
+
+def contact_sheet(items, images, dets_by_image, threshold: float, iou_type_by_image,
+                  tile_px: int = 480) -> np.ndarray:
+    """Real images with truth and predictions (score >= threshold) drawn: truth found green,
+    truth missed yellow, ignored (difficult / border) grey; predictions matching truth
+    (IoU > 0.5) cyan, false positives red. ``images``: BGR arrays of ``items``."""
+    import cv2
+
+    cells = []
+    for g, img, (xy, sc), hbb in zip(items, images, dets_by_image, iou_type_by_image):
+        canvas = img.copy()
+        keep = np.asarray(sc) >= threshold
+        dxy = np.asarray(xy, np.float64).reshape(-1, 4, 2)[keep]
+        gxy = g.polygons_xy_px.reshape(-1, 4, 2)
+        a, b = (hbb_hull(dxy), hbb_hull(gxy)) if hbb else (dxy, gxy)
+        iou = pairwise_iou(a, b) if len(a) and len(b) else np.zeros((len(a), len(b)))
+        found = (iou > 0.5).any(0) if len(a) else np.zeros(len(b), bool)
+        good = (iou > 0.5).any(1) if len(b) else np.zeros(len(a), bool)
+        lw = max(1, int(round(max(img.shape[:2]) / 500)))
+        for p, f, dif in zip(gxy, found, np.asarray(g.difficult, bool)):
+            col = (160, 160, 160) if dif else ((0, 200, 0) if f else (0, 230, 255))
+            cv2.polylines(canvas, [np.round(p).astype(np.int32)], True, col, lw + 1, cv2.LINE_AA)
+        for p, ok in zip(dxy, good):
+            col = (255, 255, 0) if ok else (0, 0, 255)
+            cv2.polylines(canvas, [np.round(p).astype(np.int32)], True, col, lw, cv2.LINE_AA)
+        s = tile_px / max(canvas.shape[:2])
+        canvas = cv2.resize(canvas, (max(1, int(canvas.shape[1] * s)), max(1, int(canvas.shape[0] * s))),
+                            interpolation=cv2.INTER_AREA)
+        cell = np.full((tile_px + 22, tile_px, 3), 255, np.uint8)
+        cell[22:22 + canvas.shape[0], :canvas.shape[1]] = canvas
+        n_fp = int((~good).sum())
+        n_miss = int((~found & ~np.asarray(g.difficult, bool)).sum())
+        cv2.putText(cell, f"{g.name[:40]}  FP {n_fp}  missed {n_miss}", (4, 16),
+                    cv2.FONT_HERSHEY_SIMPLEX, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
+        cells.append(cell)
+    if not cells:
+        return np.full((64, 64, 3), 255, np.uint8)
+    sheet = grid(cells, cols=min(3, len(cells)))
+    legend = np.full((24, sheet.shape[1], 3), 255, np.uint8)
+    x = 4
+    for text, col in ((f"predictions with score >= {threshold:.3f}:", (0, 0, 0)), ("match", (255, 255, 0)),
+                      ("false positive", (0, 0, 255)), ("  truth:", (0, 0, 0)), ("found", (0, 200, 0)),
+                      ("missed", (0, 230, 255)), ("ignored", (160, 160, 160))):
+        if col != (0, 0, 0):
+            cv2.rectangle(legend, (x, 7), (x + 14, 17), col, 2)
+            x += 18
+        cv2.putText(legend, text, (x, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
+        x += 8 * len(text) + 10
+    return np.vstack([legend, sheet])
