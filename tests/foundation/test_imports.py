@@ -164,10 +164,11 @@ LAYERS = (
     ("render",),  # frame buffers and RGB of scene + placed vehicles
     ("formats",),  # label files (registry of DOTA, EAGLE, YOLO-OBB, COCO, meta)
     ("dataset", "evaluate"),  # export orchestration | measurement (an island, see below)
+    ("sim2real",),  # trains a detector on exports, scores it on real images through evaluate
     ("cli",),  # aerial_synth.cli and every package's command module
 )
 #: ``evaluate`` stands beside the pipeline: it reads label files, so it may import only
-#: these components, and only the cli imports it.
+#: these components, and only sim2real and the cli import it.
 EVALUATE_MAY_IMPORT = {"formats", "annotate", "camera_rays", "validators", "io_utils", "png",
                        "aerial_synth", "errors", "numba_setup", "_open3d"}
 _RANK = {c: i for i, line in enumerate(LAYERS) for c in line}

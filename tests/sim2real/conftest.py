@@ -8,7 +8,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from aerial_synth.evaluate.labels import dota_lines
+from aerial_synth.formats import dota
 
 
 def box(x0, y0, x1, y1):
@@ -33,7 +33,8 @@ def write_real(folder: Path, name: str, boxes, classes=None, *, size=(300, 200),
         cv2.fillPoly(img, [np.round(np.asarray(b) * 16).astype(np.int32)], (230, 230, 230), cv2.LINE_8, shift=4)
     cv2.imwrite(str(folder / "images" / f"{name}.png"), img)
     classes = classes or ["small-vehicle"] * len(boxes)
-    lines = dota_lines(np.asarray(boxes, float).reshape(-1, 4, 2), classes, [False] * len(boxes), gsd)
+    objects = [dota.DotaObject(np.asarray(b, float).reshape(4, 2), c, 0) for b, c in zip(boxes, classes)]
+    lines = dota.to_lines(objects, gsd, image_source="aerial-synth")
     if not header:
         lines = lines[2:]
     (folder / "labelTxt" / f"{name}.txt").write_text("\n".join(lines) + "\n")
