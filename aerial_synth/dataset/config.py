@@ -18,7 +18,8 @@ from ..errors import ConfigError, ExportError
 from ..formats.registry import parse_names
 from ..render.config import RANDOMISE, RenderConfig
 from ..render.config import RENDER_PRESETS as _RENDER_PRESETS
-from .gsd import widest_camera_config
+from .gsd import parse_range, widest_camera_config
+from .scene_mix import parse_mix
 from .seeds import PLACEMENT_STREAM
 
 __all__ = ["IMAGE_EXTS", "PLACEMENT_STREAM", "SPLITS", "ExportConfig", "ExportResult"]
@@ -150,9 +151,6 @@ class ExportConfig:
             raise ConfigError(f"box: expected a BoxConfig, got {type(self.box).__name__}")
 
     def _check_ranges_and_mix(self) -> None:
-        from .gsd import parse_range
-        from .scene_mix import parse_mix
-
         E = ExportError
         s = object.__setattr__
         for name, opt, hi in (("gsd_range", "--gsd", MAX_GSD_M),

@@ -43,6 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..camera import DEFAULT_GSD_M, CameraConfig
 from ..errors import ExportError
 
 __all__ = ["GSD_STREAM", "DISTRIBUTIONS", "FOOTPRINT_MARGIN", "GsdRange", "parse_range", "arg_range",
@@ -129,8 +130,6 @@ class GsdRange:
     @classmethod
     def of(cls, cfg) -> "GsdRange | None":
         """The range of an ExportConfig (``gsd_range`` or ``altitude_range``), else None."""
-        from ..camera import DEFAULT_GSD_M
-
         g, a = getattr(cfg, "gsd_range", None), getattr(cfg, "altitude_range", None)
         if g is not None:
             f = float(cfg.altitude_m) / math.sqrt(g[0] * g[1])
@@ -157,8 +156,6 @@ class GsdRange:
 
     def camera_config(self, cfg, gsd_m: float):
         """The CameraConfig of an image at ``gsd_m``: this lens, altitude gsd x focal."""
-        from ..camera import CameraConfig
-
         return CameraConfig(altitude_m=gsd_m * self.focal_px, width_px=cfg.width_px,
                             height_px=cfg.height_px, focal_px=self.focal_px,
                             max_tilt_deg=cfg.max_tilt_deg)

@@ -135,7 +135,7 @@ def _from_text(text: str, where: str) -> tuple[MixEntry, ...]:
 
 
 def _is_scene(text: str) -> bool:
-    from ..scene.io import list_scenes
+    from ..scene.io import list_scenes  # lazy: scene I/O, only when a mix is checked
 
     return text in list_scenes() or Path(text).is_file()
 
@@ -210,8 +210,8 @@ def check_names(mix: SceneMix, default_scenario: str) -> None:
     """Refuse a mix naming a scene or scenario that does not exist (one line: which entry,
     what was expected, what arrived). Bundled names are looked up without loading them;
     scene files must exist."""
-    from ..placement import load_scenario
-    from ..scene.io import list_scenes
+    from ..placement import load_scenario  # lazy: the placement package, only when a mix is checked
+    from ..scene.io import list_scenes  # lazy: scene I/O, only when a mix is checked
 
     known = list_scenes()
     for k, e in enumerate(mix.entries):

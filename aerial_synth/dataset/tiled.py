@@ -62,11 +62,12 @@ import warnings
 
 import numpy as np
 
+from .. import validators as V
 from ..camera import Camera
 from ..errors import ExportError, PlacementError
 from ..placement.config import load_scenario
 from ..placement.model import Placement
-from ..placement.tiled import BorderMerge, place_tiled
+from ..placement.tiled import BorderMerge, min_tile_m, place_tiled
 from ..placement.traffic import lane_rule
 from ..render.cull import lowest_sun_deg, secondary_reach_m
 from ..scene.tiles import TiledWorld
@@ -283,17 +284,14 @@ DEFAULT_MARGIN_M = 60.0
 def check_tiled_config(cfg) -> float:
     """Validate the tiled options of an ExportConfig; returns the placement margin to use
     (:data:`DEFAULT_MARGIN_M` when ``margin_m`` is None)."""
-    from .. import validators as v
-    from ..placement.tiled import min_tile_m
-
     E = ExportError
-    tile = v.in_range("--tile-m", cfg.tile_m, 0.0, 1e9, lo_open=True, error=E)
+    tile = V.in_range("--tile-m", cfg.tile_m, 0.0, 1e9, lo_open=True, error=E)
     for flag, field, why in (("--labels", "labels", "label rules are applied to a whole loaded scene"),
                              ("--distractors", "distractors", "distractors are drawn over the whole scene"),
                              ("--lines", "n_lines", "tiled placement asks each tile for vehicles, not lines")):
         val = getattr(cfg, field)
         if val is not None:
-            raise E(f"--tile-m: cannot be combined with {flag} ({why}), got {flag} {v.show(val)}")
+            raise E(f"--tile-m: cannot be combined with {flag} ({why}), got {flag} {V.show(val)}")
     longest = min_tile_m()
     if tile < longest:
         raise E(f"--tile-m: expected a tile size of at least the longest vehicle ({longest:g} m), got {tile:g}")
@@ -304,7 +302,7 @@ def check_tiled_config(cfg) -> float:
                 f"with a {2 * math.degrees(math.atan(0.5 * cam.width_px / cam.f_px)):.0f} deg field of view")
     if cfg.margin_m is None:
         return DEFAULT_MARGIN_M
-    return float(v.in_range("--margin-m", cfg.margin_m, 0.0, 1e9, error=E))
+    return float(V.in_range("--margin-m", cfg.margin_m, 0.0, 1e9, error=E))
 
 
 def load_world(cfg):

@@ -31,6 +31,7 @@ from .labels import (
     read_lines,
     resolve_dota_folder,
 )
+from .plots import line_chart, png_bytes
 
 __all__ = ["PRED_FORMATS", "read_task1_folder", "read_yolo_predictions", "detect_pred_format",
            "run_eval", "summary_table", "write_eval_report"]
@@ -206,7 +207,6 @@ def summary_table(res: EvalResult) -> str:
 
 def write_eval_report(res: EvalResult, out: Path, inputs: dict) -> list[Path]:
     """eval.json, summary.txt and pr_<class>.png (one curve per threshold for coco)."""
-    from .plots import line_chart, png_bytes  # lazy: matplotlib, only for the report's plots
 
     written = []
     data = res.to_dict()

@@ -31,7 +31,7 @@ def add_scoring_args(parser) -> None:
 
 def uses_scoring(args) -> bool:
     """True when a scoring option is given or --gt is a collection of DOTA folders."""
-    from .scoring import is_dota_folder
+    from .scoring import is_dota_folder  # lazy: the scorer, not for --help
 
     gt = Path(args.gt)
     collection = gt.is_dir() and not is_dota_folder(gt) and not any(p.suffix == ".txt" for p in gt.iterdir())
@@ -43,15 +43,15 @@ def run_scored_eval(gt, pred, opts, *, iou: float = 0.5, metric: str = "voc07",
                     pred_format: str = "auto", names: str | None = None, split: str | None = None,
                     classes: list[str] | None = None):
     """Read ``gt`` (a DOTA folder or a collection) and ``pred``, then :func:`.scoring.score`."""
-    from ..errors import EvaluationError
-    from .evaluation import (
+    from ..errors import EvaluationError  # lazy: the scorer, not for --help
+    from .evaluation import (  # lazy: the scorer, not for --help
         PRED_FORMATS,
         detect_pred_format,
         read_task1_folder,
         read_yolo_predictions,
     )
-    from .labels import parse_names
-    from .scoring import read_gt, score
+    from .labels import parse_names  # lazy: the scorer, not for --help
+    from .scoring import read_gt, score  # lazy: the scorer, not for --help
 
     items = read_gt(gt, split)
     pred_dir = Path(pred)
@@ -76,7 +76,7 @@ def run_scored_eval(gt, pred, opts, *, iou: float = 0.5, metric: str = "voc07",
 
 def scored_summary(res) -> str:
     """The overall table, then one line per group."""
-    from .evaluation import summary_table
+    from .evaluation import summary_table  # lazy: the scorer, not for --help
 
     o = res.options.to_dict()
     lines = [summary_table(res.overall),
@@ -99,9 +99,9 @@ def scored_summary(res) -> str:
 
 def cmd_scored_eval(args, out) -> int:
     """``aerial-synth eval`` with scoring options (called by the eval command)."""
-    from ..io_utils import atomic_write_json, atomic_write_text
-    from .evaluation import write_eval_report
-    from .scoring import ScoringOptions
+    from ..io_utils import atomic_write_json, atomic_write_text  # lazy: the scorer, not for --help
+    from .evaluation import write_eval_report  # lazy: the scorer, not for --help
+    from .scoring import ScoringOptions  # lazy: the scorer, not for --help
 
     opts = ScoringOptions.from_text(args.merge_classes, args.iou_type, args.ignore_border, args.group)
     classes = None

@@ -33,6 +33,7 @@ import numpy as np
 
 from ..io_utils import atomic_write_bytes, atomic_write_json, atomic_write_text
 from .labels import image_size, read_dataset
+from .plots import grid, histogram_chart, line_chart, png_bytes
 
 __all__ = ["DISTRIBUTIONS", "box_geometry", "vehicle_pixels", "dataset_stats", "compare_stats",
            "run_stats"]
@@ -400,7 +401,6 @@ def run_stats(path: Path, out: Path, *, compare: Path | None = None, gsd: float 
               compare_gsd: float | None = None, max_images: int = 500, seed: int = 0,
               classes=VEHICLE_CLASSES) -> str:
     """Compute, write ``stats.json`` and PNG plots into ``out``; return the summary text."""
-    from .plots import grid, histogram_chart, line_chart, png_bytes  # lazy: matplotlib, for plots
 
     sa, da, ha = dataset_stats(path, gsd=gsd, max_images=max_images, seed=seed, classes=classes,
                                option="DIR")

@@ -3,8 +3,6 @@ extra the command prints one line (what to install) and exits with status 2."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from ..validators import arg_choice, arg_float, arg_int
 
 __all__ = ["register"]
@@ -69,26 +67,6 @@ def register(sub) -> None:
 
 
 def _cmd_sim2real(args) -> int:
-    from ..evaluate.scoring import parse_ignore_border
-    from .config import Sim2RealConfig, parse_arms
-    from .ultra import require_train_extra
+    from .command import run_command  # lazy: the sim2real pipeline and scorer, not for --help
 
-    require_train_extra()  # first: without the extra nothing else matters
-    classes = None if args.real_classes == "all" else tuple(
-        c.strip() for c in args.real_classes.split(",") if c.strip())
-    cfg = Sim2RealConfig(
-        arms=parse_arms(args.synthetic), real=Path(args.real), out=Path(args.out), model=args.model,
-        weights=None if args.weights is None else Path(args.weights), minutes=args.minutes,
-        epochs=args.epochs, imgsz=args.imgsz, device=args.device, seed=args.seed, batch=args.batch,
-        workers=args.workers, tile=args.tile, overlap=args.overlap, gsd=args.gsd,
-        real_gsd=args.real_gsd, real_classes=classes, conf=args.conf, merge_iou=args.merge_iou,
-        iou_type=args.iou_type, ignore_border=parse_ignore_border(args.ignore_border),
-        group=args.group, contact_images=args.contact_images, force=args.force)
-    from .pipeline import run_sim2real
-
-    report = run_sim2real(cfg)
-    from .report import summary_text
-
-    print(summary_text(report))
-    print(f"report: {args.out}/report.json, summary.txt, pr*.png, contact_*.png")
-    return 0
+    return run_command(args)
