@@ -65,7 +65,7 @@ import numpy as np
 from .. import validators as V
 from ..camera import Camera
 from ..errors import ExportError, PlacementError
-from ..placement.config import load_scenario
+from ..placement.config import DEFAULT_MARGIN_M, load_scenario
 from ..placement.model import Placement
 from ..placement.tiled import BorderMerge, min_tile_m, place_tiled
 from ..placement.traffic import lane_rule
@@ -277,8 +277,6 @@ def tiles_needed(grid, area, dep: float):
 # ------------------------------------------------------------------ config
 
 
-#: the placement margin when --margin-m is left out (as ``place-tiled``)
-DEFAULT_MARGIN_M = 60.0
 
 
 def check_tiled_config(cfg) -> float:

@@ -37,6 +37,10 @@ __all__ = [
     "parse_overrides",
 ]
 
+#: how far a tile's placement window reaches past its core when --margin-m is left out
+#: (place-tiled and a tiled export): the one home of that default
+DEFAULT_MARGIN_M = 60.0
+
 #: Upper bounds that keep a run finite and the geometry sane (metres unless named).
 MAX_COUNT = 10_000_000
 MAX_DISTANCE_M = 10_000.0

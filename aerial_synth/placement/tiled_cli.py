@@ -9,6 +9,7 @@ import argparse
 
 from ..scene.cli import add_osm_args
 from ..validators import arg_float, arg_int
+from .config import DEFAULT_MARGIN_M
 
 __all__ = ["register", "run"]
 
@@ -32,8 +33,8 @@ def register(sub) -> None:
                         "scenario's amount per tile)")
     p.add_argument("--tile-m", type=arg_float("--tile-m", 0.0, lo_open=True), default=500.0, metavar="M",
                    help="tile edge in metres, at least the longest vehicle (500)")
-    p.add_argument("--margin-m", type=arg_float("--margin-m", 0.0), default=60.0, metavar="M",
-                   help="how far each tile's window reaches past its core (60)")
+    p.add_argument("--margin-m", type=arg_float("--margin-m", 0.0), default=DEFAULT_MARGIN_M, metavar="M",
+                   help=f"how far each tile's window reaches past its core ({DEFAULT_MARGIN_M:g})")
     p.add_argument("--workers", type=arg_int("--workers", 1, 1024), default=1, metavar="K",
                    help="place tiles in K processes; the result does not depend on K (1)")
     p.add_argument("--dask", default=None, metavar="tcp://HOST:PORT",

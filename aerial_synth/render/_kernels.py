@@ -1,3 +1,4 @@
+# size: one module on purpose, numba's disk-cache guard (MATERIALS_SHA) in one place; see below
 """Per-pixel kernels of the ray-cast renderer, compiled with numba.
 
 Over 600 lines, kept as one module on purpose: :func:`compose` inlines the helpers of
@@ -24,7 +25,7 @@ from . import _materials
 #: sha256 (first 16 hex digits) of ``_materials.py``. :func:`compose` inlines its helpers,
 #: but numba's disk cache checks only this file's content, so this line must change
 #: whenever ``_materials.py`` does (tests/render/test_materials.py checks it).
-MATERIALS_SHA = "0745efa60eb40c2e"
+MATERIALS_SHA = "e66399def67347b8"
 
 
 _bilinear = _materials._bil  # wrapped bilinear lookup in a 256 x 256 noise tile (one copy)
@@ -226,7 +227,7 @@ def scatter_values(idx, vals, out):  # pragma: no cover - compiled
 # (albedo, texture, light, specular, atmosphere); cut into several kernels it would write
 # and read back whole-image temporaries between them, which the fusion exists to avoid.
 @njit(parallel=True, **_OPTS)
-def compose(
+def compose(  # size: the one fused per-pixel pass of the shader (see the comment above)
     h, w, rays, t, face, normal, depth, ndl, lit, has_lit, own, src, lit_step, nearest, ao,
     has_ao, face_material,
     face_albedo, mat_gain, tiles, textured, fine_t, coarse_t, dry_t, wetk_t, spec_t, shine_t,

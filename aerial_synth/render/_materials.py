@@ -108,7 +108,7 @@ def _sm(x):  # pragma: no cover - compiled
 # loop, one branch per material kind; split into helpers it would pass a dozen per-pixel
 # values in and out of each (inlined all the same), with nothing gained in reading.
 @njit(inline="always")
-def detail(kind, u, v, qx, qy, nz, fp, seed, nf, t0, t1, t2, wear, ar, ag, ab, sk, f0):
+def detail(kind, u, v, qx, qy, nz, fp, seed, nf, t0, t1, t2, wear, ar, ag, ab, sk, f0):  # size: one branch per material kind (comment above)
     # pragma: no cover - compiled
     """Surface detail of one pixel: returns (ar, ag, ab, sk, f0), the albedo and the
     specular strength / sky-reflection F0 after the material's pattern.

@@ -161,7 +161,7 @@ class RayScene:
             self._built.clear()  # static-only builds stay valid
             self._tables_dirty = True
         self._veh_bounds = None
-        self._render_box_cache = {}  # the renderer's per-vehicle boxes (render/raycast.py)
+        self._render_box_cache = {}  # the renderer's per-vehicle boxes (render/buffers.py)
 
     def _vehicle_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """(ids (k,) int64 sorted, bounds (k, 2, 3) float64 [min xyz, max xyz]): world

@@ -8,9 +8,8 @@ outermost surface first, so overlaps never show.
 
 Procedural parts are designed in real metres from the catalog's length, width and height,
 then scaled by a factor close to 1 so the mesh bounds equal the catalog size exactly.
-The parts and their shape helpers are :mod:`.parts`, the trim options :mod:`.options`, the
-buses and trucks :mod:`.large`.
-"""
+Elsewhere: parts and shape helpers :mod:`.parts`, trim options :mod:`.options`, buses and
+trucks :mod:`.large`, tractors and trailers :mod:`.towed`, the car segments :mod:`.bodies`."""
 
 from __future__ import annotations
 
@@ -228,9 +227,7 @@ def _car_like(s: _CarSpec) -> list[Part]:
     """Body, greenhouse, roof, windscreen, rear window, front and rear lights."""
     hw = s.half_w
     c = s.corner
-    # sills tucked in: the body's sides slope in by 6 cm over their lowest 14 cm (rocker
-    # panels), so an oblique view sees the ground in the body's shade under them: the
-    # dark contact line real cars show along their sides
+    # sills tucked in 6 cm over the lowest 14 cm: the dark contact line along a car's sides
     tk, sill = 0.06, s.clear + 0.14
     body_pts = sym(
         [
@@ -351,10 +348,8 @@ def _procedural_parts(model: VehicleModel, height_m: float | None = None) -> lis
 def _car(L, W, H, *, bonnet, ws_run, rw_top_from_rear, rw_base_from_rear, belt, nose_top,
          tail_top, wheel_r, tumble=0.16, clear=0.16, rails=False) -> list[Part]:
     """A passenger car. Lengths in metres; bonnet = nose to windscreen base; ws_run =
-    horizontal run of the windscreen; rw_* = rear window edges measured from the tail.
-    tumble: the side glass leans in by 16 cm at the roof (a 1.8 m car's roof is ~1.3 m
-    wide), so the side windows show from above as dark strips beside the roof (was 10 cm:
-    a 1-2 px line at 4 cm/px, nothing at 0.12 m)."""
+    horizontal run of the windscreen; rw_* = rear window edges measured from the tail;
+    tumble = side glass lean at the roof (16 cm: side windows show from above as dark strips)."""
     x0, x1 = -L / 2, L / 2
     roof_h = H - (0.04 if rails else 0.0)
     spec = _CarSpec(

@@ -132,7 +132,7 @@ def test_rural_spec_errors():
 def test_road_truth_drivable_and_no_cracks(name):
     """The truth's roads are drivable under traces, and no tilted camera ray slips through."""
     from aerial_synth.camera import Camera, CameraConfig
-    from aerial_synth.render.raycast import cast_buffers
+    from aerial_synth.render.buffers import cast_buffers
     from aerial_synth.scene import RayScene
 
     sc = _scene(name)

@@ -41,6 +41,7 @@ World frame: metres, x east, y north, z up; the scene is centred on the origin.
 from __future__ import annotations
 
 import functools
+from dataclasses import dataclass
 from typing import Mapping
 
 import numpy as np
@@ -260,7 +261,6 @@ def _lrect(p, d, n, u0, u1, v0, v1):
 def generate_residential(b: Builder, spec: Mapping) -> None:
     """Fill ``b`` with a residential neighbourhood (see the module doc)."""
     import shapely
-    from shapely.geometry import LineString
 
     cfg = check_residential(spec)
     b.spec = cfg
@@ -273,187 +273,12 @@ def generate_residential(b: Builder, spec: Mapping) -> None:
     shapely.prepare(street_zone)
     inner = b.box.buffer(-1.0)
     shapely.prepare(inner)
-    hs, ys, vs = cfg["houses"], cfg["yards"], cfg["vehicles"]
     houses = HouseSet(var, rng)
-    parcels, drives, pads, hints, yards, sides = [], [], [], [], [], []
-    concrete = []
-    tree_pts = []
+    acc = _Parcels([], [], [], [], [], [], [], [])
     for p, d, n, f, rname in _frames(b, cfg):
-        depth = rng.uniform(*hs["depth_m"])
-        par = _lrect(p, d, n, -f / 2 + 0.3, f / 2 - 0.3, 0.6, depth)
-        if not inner.contains(par) or street_zone.intersects(par):
-            continue
-        if parcels and shapely.intersects(np.array(parcels, dtype=object), par).any():
-            continue
-        parcels.append(par)
-        street = next(r for r in b.roads if r.name == rname)
-        side_w = street.sidewalk_m
-        sb = rng.uniform(*hs["setback_m"])
-        hw = rng.uniform(*hs["width_m"])
-        hd = rng.uniform(*hs["house_depth_m"])
-        hh = rng.uniform(*hs["height_m"])
-        jog = rng.uniform(-1.5, 1.5)
-        double = rng.random() < ys["double_driveway"]
-        dw = rng.uniform(5.2, 6.0) if double else rng.uniform(3.0, 3.6)
-        has_garage = rng.random() < ys["garage"]
-        gw = dw + 0.8
-        half = f / 2 - 0.3
-        # a side pad (RV, boat, trailer) takes 4.6 m beside the house: the house gives way
-        # to it down to 8 m wide, else there is no pad
-        want_pad = rng.random() < ys["pad"]
-        pad_room = 4.6 if want_pad and 2 * half - 2.4 - gw - 3.4 >= 8.0 else 0.0
-        # house and garage slot side by side, 1.2 m or more from the parcel sides
-        if hw + gw > 2 * half - 2.4 - pad_room:
-            hw = 2 * half - 2.4 - gw - pad_room
-        if hw < 6.5:
-            double = False
-            dw = rng.uniform(3.0, 3.4)
-            gw = dw + 0.8
-            hw = min(rng.uniform(*hs["width_m"]), 2 * half - 2.4 - gw)
-            pad_room = 0.0
-            if hw < 6.0:
-                continue
-        gsd = 1.0 if rng.random() < 0.5 else -1.0  # garage on the +u or -u side
-        slack = 2 * half - 2.4 - hw - gw - max(pad_room - 1.2, 0.0)
-        # the pad goes on the house's side away from the garage: -u when the garage is at +u
-        u_lo = -half + 1.2 + (max(pad_room - 1.2, 0.0) if gsd > 0 else 0.0) + rng.uniform(0.0, max(slack, 0.0))
-        if gsd > 0:
-            hu0, hu1 = u_lo, u_lo + hw
-            gu0, gu1 = hu1, hu1 + gw
-        else:
-            gu0, gu1 = u_lo, u_lo + gw
-            hu0, hu1 = gu1, gu1 + hw
-        hv0, hv1 = sb + jog, sb + jog + hd
-        gdep = min(6.5, hv1 - sb - 1.0)
-        if gdep < 5.5:
-            has_garage = False
-        # house
-        hc = _to_world(p, d, n, [(hu0 + hu1) / 2, (hv0 + hv1) / 2])
-        u_ax = d if hw >= hd else n
-        houses.building(hc, u_ax, max(hw, hd), min(hw, hd), hh)
-        # garage or a parking place beside the house
-        gc_u = (gu0 + gu1) / 2
-        if has_garage:
-            gc = _to_world(p, d, n, [gc_u, sb + gdep / 2])
-            houses.building(gc, d if gw >= gdep else n, max(gw, gdep), min(gw, gdep),
-                            rng.uniform(3.2, 4.2), kind="garages",
-                            shape="flat" if rng.random() < 0.2 else None)
-            v_end = sb
-        else:
-            v_end = sb + gdep
-        # driveway: from the street's road edge to the garage door
-        drive = _lrect(p, d, n, gc_u - dw / 2, gc_u + dw / 2, -(side_w + 1.0), v_end)
-        drives.append(drive)
-        if rng.random() < (0.75 if var == "us" else 0.35):
-            concrete.append(drive)
-        hid = len(hints)
-        usable = (v_end - 0.3) - 0.4
-        hints.append({"id": hid, "kind": "driveway",
-                      "center_xy": [round(float(x), 4) for x in _to_world(p, d, n, [gc_u, 0.4 + usable / 2])],
-                      "axis_deg": round(float(np.degrees(np.arctan2(n[1], n[0]))), 4),
-                      "long_m": round(float(usable), 4), "short_m": round(float(dw - 0.3), 4),
-                      "bay_m": list(DRIVEWAY_BAY_M), "occupancy": vs["driveway_occupancy"],
-                      "mix": dict(vs["driveway_mix"])})
-        # side pad for an RV, a boat or a trailer, on the other side of the house
-        pad_end = hv0 + 0.5 * hd
-        if gsd > 0:
-            free = (hu0 - (-half))
-            pu0, pu1 = -half + 0.6, hu0 - 0.4
-        else:
-            free = half - hu1
-            pu0, pu1 = hu1 + 0.4, half - 0.6
-        has_pad = want_pad and free >= 4.4 and pad_end - 0.4 >= 7.6
-        if has_pad:
-            pw = min(pu1 - pu0, 3.8)
-            pc_u = (pu0 + pu1) / 2
-            pad = _lrect(p, d, n, pc_u - pw / 2, pc_u + pw / 2, -(side_w + 1.0), pad_end)
-            pads.append(pad)
-            usable = pad_end - 0.3 - 0.4
-            hints.append({"id": len(hints), "kind": "pad",
-                          "center_xy": [round(float(x), 4) for x in _to_world(p, d, n, [pc_u, 0.4 + usable / 2])],
-                          "axis_deg": round(float(np.degrees(np.arctan2(n[1], n[0]))), 4),
-                          "long_m": round(float(usable), 4), "short_m": round(float(pw - 0.3), 4),
-                          "bay_m": [round(float(usable), 4), round(float(pw - 0.3), 4)],
-                          "occupancy": vs["pad_occupancy"], "mix": dict(vs["pad_mix"])})
-        # fences or hedges round the back yard
-        vf = hv0 + 0.6 * hd
-        v_g = (sb + gdep + 0.3) if has_garage else vf
-        v_g = min(max(v_g, vf), hv1 - 0.3)
-        back = depth - 0.3
-        hedge = rng.random() < ys["hedge"]
-        if hedge:
-            fw, fh, fc = rng.uniform(0.6, 0.9), rng.uniform(1.2, 2.0), (0.06, 0.11, 0.045)
-        elif var == "us" and rng.random() < 0.3:  # chain-link
-            fw, fh, fc = 0.04, 1.2, (0.55, 0.56, 0.57)
-        else:
-            fw, fh = 0.06, rng.uniform(1.6, 1.9)
-            fc = ((0.45, 0.34, 0.24), (0.60, 0.56, 0.50), (0.80, 0.80, 0.78))[int(rng.integers(3))]
-        vl = v_g if gsd < 0 else vf
-        vr = v_g if gsd > 0 else vf
-        if has_pad:
-            if gsd > 0:
-                vl = max(vl, pad_end + 0.3)
-            else:
-                vr = max(vr, pad_end + 0.3)
-        ring = [(-half + fw / 2, vl), (-half + fw / 2, back), (half - fw / 2, back), (half - fw / 2, vr)]
-        houses.fence(LineString(_to_world(p, d, n, ring)), fw, fh, fc, hedge)
-        houses.fence(LineString(_to_world(p, d, n, [(-half + fw, vl), (min(hu0, gu0) + 0.01, vl)])),
-                     fw, fh, fc, hedge)
-        houses.fence(LineString(_to_world(p, d, n, [(max(hu1, gu1) - 0.01, vr), (half - fw, vr)])),
-                     fw, fh, fc, hedge)
-        # back yard things
-        yv0, yv1 = hv1 + 0.8, back - 1.2
-        yu0, yu1 = -half + 1.2, half - 1.2
-        taken = []
-        if yv1 - yv0 > 4.0:
-            if rng.random() < ys["patio"]:
-                pd_ = rng.uniform(3.0, 4.5)
-                pu = rng.uniform(hu0, max(hu0, hu1 - 5.0))
-                pat = _lrect(p, d, n, pu, min(pu + rng.uniform(4.0, 6.5), hu1), hv1, hv1 + pd_)
-                pcol = ((0.62, 0.60, 0.56), (0.58, 0.48, 0.40), (0.50, 0.49, 0.47))[int(rng.integers(3))]
-                houses.patio(pat, pcol)
-                taken.append(pat)
-                if rng.random() < ys["furniture"]:
-                    c = np.asarray(pat.centroid.coords[0])
-                    houses.furniture(c, float(np.arctan2(d[1], d[0])))
-            if rng.random() < ys["pool"] and yv1 - yv0 > 9.0:
-                pl, pw_ = rng.uniform(7.0, 10.0), rng.uniform(3.5, 5.0)
-                for _ in range(6):
-                    cu, cv = rng.uniform(yu0 + pl / 2, yu1 - pl / 2), rng.uniform(yv0 + 1 + pw_ / 2, yv1 - pw_ / 2)
-                    if yu1 - yu0 < pl:
-                        break
-                    pool = _lrect(p, d, n, cu - pl / 2, cu + pl / 2, cv - pw_ / 2, cv + pw_ / 2)
-                    if rng.random() < 0.35:
-                        pool = pool.buffer(-1.2).buffer(1.2, quad_segs=4)  # rounded
-                    if not any(pool.buffer(1.0).intersects(t) for t in taken):
-                        houses.pool(pool)
-                        taken.append(pool.buffer(0.4))
-                        break
-            if rng.random() < ys["trampoline"]:
-                r_t = rng.uniform(1.6, 2.2)
-                for _ in range(6):
-                    cu, cv = rng.uniform(yu0 + r_t, yu1 - r_t), rng.uniform(yv0 + r_t, yv1 - r_t)
-                    c = _to_world(p, d, n, [cu, cv])
-                    disc = shapely.Point(c).buffer(r_t + 0.5)
-                    if not any(disc.intersects(t) for t in taken):
-                        houses.trampoline(c, r_t)
-                        taken.append(disc)
-                        break
-            yard = _lrect(p, d, n, yu0, yu1, yv0, yv1)
-            for t in taken:
-                yard = yard.difference(t.buffer(0.8))
-            yards.append(yard)
-            nt = int(rng.poisson(ys["trees_per_parcel"]))
-            for _ in range(nt):
-                cu, cv = rng.uniform(yu0, yu1), rng.uniform(yv0, yv1 + 0.5)
-                tree_pts.append(_to_world(p, d, n, [cu, cv]))
-        if rng.random() < 0.5:  # a front-lawn tree
-            cu = rng.uniform(-half + 1.5, half - 1.5)
-            if not (gu0 - 2.0 < cu < gu1 + 2.0):
-                tree_pts.append(_to_world(p, d, n, [cu, rng.uniform(1.5, max(2.0, sb - 2.5))]))
-        # strips beside the house walls (AC condensers)
-        sides.append(_lrect(p, d, n, hu0 - 1.4, hu1 + 1.4, hv0 - 0.2, hv1 + 0.2).difference(
-            _lrect(p, d, n, hu0 - 0.3, hu1 + 0.3, hv0 - 0.3, hv1 + 0.3)))
+        _lay_parcel(b, cfg, rng, houses, inner, street_zone, acc, p, d, n, f, rname)
+    drives, pads, hints, yards, sides = acc.drives, acc.pads, acc.hints, acc.yards, acc.sides
+    concrete, tree_pts = acc.concrete, acc.tree_pts
     b.parking.extend(drives + pads)
     b.freeze_areas()
     # trees whose trunks stand clear of houses, yard things, driveways and streets
@@ -480,6 +305,236 @@ def generate_residential(b: Builder, spec: Mapping) -> None:
     b._res = {"houses": houses, "negatives": neg_objs, "neg_meta": neg_meta, "hints": hints,
               "concrete": concrete, "pads": pads}
     b.scene = functools.partial(_residential_scene, b)
+
+
+
+@dataclass
+class _Parcels:
+    """What :func:`_lay_parcel` lays, parcel after parcel."""
+
+    parcels: list
+    drives: list
+    pads: list
+    hints: list
+    yards: list
+    sides: list
+    concrete: list
+    tree_pts: list
+
+
+def _lay_parcel(b, cfg, rng, houses, inner, street_zone, acc, p, d, n, f, rname) -> None:
+    """One parcel of frontage ``f`` at ``p`` (street direction ``d``, inward normal ``n``) on
+    street ``rname``: the house, garage or parking place, driveway, side pad, back yard
+    and its things, trees. Appends to the lists of ``acc`` (a :class:`_Parcels`); a
+    frontage without room for a house adds nothing. Draws from ``rng`` in a fixed order."""
+    import shapely
+
+    var = cfg["variant"]
+    hs, ys, vs = cfg["houses"], cfg["yards"], cfg["vehicles"]
+    parcels, drives, hints, sides = acc.parcels, acc.drives, acc.hints, acc.sides
+    concrete, tree_pts = acc.concrete, acc.tree_pts
+    depth = rng.uniform(*hs["depth_m"])
+    par = _lrect(p, d, n, -f / 2 + 0.3, f / 2 - 0.3, 0.6, depth)
+    if not inner.contains(par) or street_zone.intersects(par):
+        return
+    if parcels and shapely.intersects(np.array(parcels, dtype=object), par).any():
+        return
+    parcels.append(par)
+    street = next(r for r in b.roads if r.name == rname)
+    side_w = street.sidewalk_m
+    sb = rng.uniform(*hs["setback_m"])
+    hw = rng.uniform(*hs["width_m"])
+    hd = rng.uniform(*hs["house_depth_m"])
+    hh = rng.uniform(*hs["height_m"])
+    jog = rng.uniform(-1.5, 1.5)
+    double = rng.random() < ys["double_driveway"]
+    dw = rng.uniform(5.2, 6.0) if double else rng.uniform(3.0, 3.6)
+    has_garage = rng.random() < ys["garage"]
+    gw = dw + 0.8
+    half = f / 2 - 0.3
+    # a side pad (RV, boat, trailer) takes 4.6 m beside the house: the house gives way
+    # to it down to 8 m wide, else there is no pad
+    want_pad = rng.random() < ys["pad"]
+    pad_room = 4.6 if want_pad and 2 * half - 2.4 - gw - 3.4 >= 8.0 else 0.0
+    # house and garage slot side by side, 1.2 m or more from the parcel sides
+    if hw + gw > 2 * half - 2.4 - pad_room:
+        hw = 2 * half - 2.4 - gw - pad_room
+    if hw < 6.5:
+        double = False
+        dw = rng.uniform(3.0, 3.4)
+        gw = dw + 0.8
+        hw = min(rng.uniform(*hs["width_m"]), 2 * half - 2.4 - gw)
+        pad_room = 0.0
+        if hw < 6.0:
+            return
+    gsd = 1.0 if rng.random() < 0.5 else -1.0  # garage on the +u or -u side
+    slack = 2 * half - 2.4 - hw - gw - max(pad_room - 1.2, 0.0)
+    # the pad goes on the house's side away from the garage: -u when the garage is at +u
+    u_lo = -half + 1.2 + (max(pad_room - 1.2, 0.0) if gsd > 0 else 0.0) + rng.uniform(0.0, max(slack, 0.0))
+    if gsd > 0:
+        hu0, hu1 = u_lo, u_lo + hw
+        gu0, gu1 = hu1, hu1 + gw
+    else:
+        gu0, gu1 = u_lo, u_lo + gw
+        hu0, hu1 = gu1, gu1 + hw
+    hv0, hv1 = sb + jog, sb + jog + hd
+    gdep = min(6.5, hv1 - sb - 1.0)
+    if gdep < 5.5:
+        has_garage = False
+    # house
+    hc = _to_world(p, d, n, [(hu0 + hu1) / 2, (hv0 + hv1) / 2])
+    u_ax = d if hw >= hd else n
+    houses.building(hc, u_ax, max(hw, hd), min(hw, hd), hh)
+    # garage or a parking place beside the house
+    gc_u = (gu0 + gu1) / 2
+    if has_garage:
+        gc = _to_world(p, d, n, [gc_u, sb + gdep / 2])
+        houses.building(gc, d if gw >= gdep else n, max(gw, gdep), min(gw, gdep),
+                        rng.uniform(3.2, 4.2), kind="garages",
+                        shape="flat" if rng.random() < 0.2 else None)
+        v_end = sb
+    else:
+        v_end = sb + gdep
+    # driveway: from the street's road edge to the garage door
+    drive = _lrect(p, d, n, gc_u - dw / 2, gc_u + dw / 2, -(side_w + 1.0), v_end)
+    drives.append(drive)
+    if rng.random() < (0.75 if var == "us" else 0.35):
+        concrete.append(drive)
+    hid = len(hints)
+    usable = (v_end - 0.3) - 0.4
+    hints.append({"id": hid, "kind": "driveway",
+                  "center_xy": [round(float(x), 4) for x in _to_world(p, d, n, [gc_u, 0.4 + usable / 2])],
+                  "axis_deg": round(float(np.degrees(np.arctan2(n[1], n[0]))), 4),
+                  "long_m": round(float(usable), 4), "short_m": round(float(dw - 0.3), 4),
+                  "bay_m": list(DRIVEWAY_BAY_M), "occupancy": vs["driveway_occupancy"],
+                  "mix": dict(vs["driveway_mix"])})
+    has_pad, pad_end = _side_pad(acc, vs, want_pad, p, d, n, gsd, half, hu0, hu1, hv0, hd, side_w)
+    back = _yard_fence(houses, rng, ys, var, p, d, n, half, depth, (hu0, hu1, hv0, hv1), (gu0, gu1),
+                       hd, sb, gdep, has_garage, gsd, has_pad, pad_end)
+    _back_yard(houses, rng, ys, acc, p, d, n, hu0, hu1, hv1, back, half)
+    if rng.random() < 0.5:  # a front-lawn tree
+        cu = rng.uniform(-half + 1.5, half - 1.5)
+        if not (gu0 - 2.0 < cu < gu1 + 2.0):
+            tree_pts.append(_to_world(p, d, n, [cu, rng.uniform(1.5, max(2.0, sb - 2.5))]))
+    # strips beside the house walls (AC condensers)
+    sides.append(_lrect(p, d, n, hu0 - 1.4, hu1 + 1.4, hv0 - 0.2, hv1 + 0.2).difference(
+        _lrect(p, d, n, hu0 - 0.3, hu1 + 0.3, hv0 - 0.3, hv1 + 0.3)))
+
+
+def _side_pad(acc, vs, want_pad, p, d, n, gsd, half, hu0, hu1, hv0, hd, side_w):
+    """A side pad for an RV, a boat or a trailer, on the house's side away from the garage,
+    when wanted and there is room: appended to ``acc.pads`` with its hint. Returns
+    (has_pad, pad_end)."""
+    pads, hints = acc.pads, acc.hints
+    pad_end = hv0 + 0.5 * hd
+    if gsd > 0:
+        free = (hu0 - (-half))
+        pu0, pu1 = -half + 0.6, hu0 - 0.4
+    else:
+        free = half - hu1
+        pu0, pu1 = hu1 + 0.4, half - 0.6
+    has_pad = want_pad and free >= 4.4 and pad_end - 0.4 >= 7.6
+    if has_pad:
+        pw = min(pu1 - pu0, 3.8)
+        pc_u = (pu0 + pu1) / 2
+        pad = _lrect(p, d, n, pc_u - pw / 2, pc_u + pw / 2, -(side_w + 1.0), pad_end)
+        pads.append(pad)
+        usable = pad_end - 0.3 - 0.4
+        hints.append({"id": len(hints), "kind": "pad",
+                      "center_xy": [round(float(x), 4) for x in _to_world(p, d, n, [pc_u, 0.4 + usable / 2])],
+                      "axis_deg": round(float(np.degrees(np.arctan2(n[1], n[0]))), 4),
+                      "long_m": round(float(usable), 4), "short_m": round(float(pw - 0.3), 4),
+                      "bay_m": [round(float(usable), 4), round(float(pw - 0.3), 4)],
+                      "occupancy": vs["pad_occupancy"], "mix": dict(vs["pad_mix"])})
+    return has_pad, pad_end
+
+
+def _yard_fence(houses, rng, ys, var, p, d, n, half, depth, house_uv, garage_u, hd, sb, gdep,
+                has_garage, gsd, has_pad, pad_end) -> float:
+    """Fences or hedges round a parcel's back yard; returns the yard's back line ``v``."""
+    from shapely.geometry import LineString
+
+    hu0, hu1, hv0, hv1 = house_uv
+    gu0, gu1 = garage_u
+    vf = hv0 + 0.6 * hd
+    v_g = (sb + gdep + 0.3) if has_garage else vf
+    v_g = min(max(v_g, vf), hv1 - 0.3)
+    back = depth - 0.3
+    hedge = rng.random() < ys["hedge"]
+    if hedge:
+        fw, fh, fc = rng.uniform(0.6, 0.9), rng.uniform(1.2, 2.0), (0.06, 0.11, 0.045)
+    elif var == "us" and rng.random() < 0.3:  # chain-link
+        fw, fh, fc = 0.04, 1.2, (0.55, 0.56, 0.57)
+    else:
+        fw, fh = 0.06, rng.uniform(1.6, 1.9)
+        fc = ((0.45, 0.34, 0.24), (0.60, 0.56, 0.50), (0.80, 0.80, 0.78))[int(rng.integers(3))]
+    vl = v_g if gsd < 0 else vf
+    vr = v_g if gsd > 0 else vf
+    if has_pad:
+        if gsd > 0:
+            vl = max(vl, pad_end + 0.3)
+        else:
+            vr = max(vr, pad_end + 0.3)
+    ring = [(-half + fw / 2, vl), (-half + fw / 2, back), (half - fw / 2, back), (half - fw / 2, vr)]
+    houses.fence(LineString(_to_world(p, d, n, ring)), fw, fh, fc, hedge)
+    houses.fence(LineString(_to_world(p, d, n, [(-half + fw, vl), (min(hu0, gu0) + 0.01, vl)])),
+                 fw, fh, fc, hedge)
+    houses.fence(LineString(_to_world(p, d, n, [(max(hu1, gu1) - 0.01, vr), (half - fw, vr)])),
+                 fw, fh, fc, hedge)
+    return back
+
+
+def _back_yard(houses, rng, ys, acc, p, d, n, hu0, hu1, hv1, back, half) -> None:
+    """A parcel's back yard: patio and furniture, pool, trampoline, the free yard (for hard
+    negatives) and its trees, appended to ``acc``."""
+    import shapely
+
+    yards, tree_pts = acc.yards, acc.tree_pts
+    yv0, yv1 = hv1 + 0.8, back - 1.2
+    yu0, yu1 = -half + 1.2, half - 1.2
+    taken = []
+    if yv1 - yv0 > 4.0:
+        if rng.random() < ys["patio"]:
+            pd_ = rng.uniform(3.0, 4.5)
+            pu = rng.uniform(hu0, max(hu0, hu1 - 5.0))
+            pat = _lrect(p, d, n, pu, min(pu + rng.uniform(4.0, 6.5), hu1), hv1, hv1 + pd_)
+            pcol = ((0.62, 0.60, 0.56), (0.58, 0.48, 0.40), (0.50, 0.49, 0.47))[int(rng.integers(3))]
+            houses.patio(pat, pcol)
+            taken.append(pat)
+            if rng.random() < ys["furniture"]:
+                c = np.asarray(pat.centroid.coords[0])
+                houses.furniture(c, float(np.arctan2(d[1], d[0])))
+        if rng.random() < ys["pool"] and yv1 - yv0 > 9.0:
+            pl, pw_ = rng.uniform(7.0, 10.0), rng.uniform(3.5, 5.0)
+            for _ in range(6):
+                cu, cv = rng.uniform(yu0 + pl / 2, yu1 - pl / 2), rng.uniform(yv0 + 1 + pw_ / 2, yv1 - pw_ / 2)
+                if yu1 - yu0 < pl:
+                    break
+                pool = _lrect(p, d, n, cu - pl / 2, cu + pl / 2, cv - pw_ / 2, cv + pw_ / 2)
+                if rng.random() < 0.35:
+                    pool = pool.buffer(-1.2).buffer(1.2, quad_segs=4)  # rounded
+                if not any(pool.buffer(1.0).intersects(t) for t in taken):
+                    houses.pool(pool)
+                    taken.append(pool.buffer(0.4))
+                    break
+        if rng.random() < ys["trampoline"]:
+            r_t = rng.uniform(1.6, 2.2)
+            for _ in range(6):
+                cu, cv = rng.uniform(yu0 + r_t, yu1 - r_t), rng.uniform(yv0 + r_t, yv1 - r_t)
+                c = _to_world(p, d, n, [cu, cv])
+                disc = shapely.Point(c).buffer(r_t + 0.5)
+                if not any(disc.intersects(t) for t in taken):
+                    houses.trampoline(c, r_t)
+                    taken.append(disc)
+                    break
+        yard = _lrect(p, d, n, yu0, yu1, yv0, yv1)
+        for t in taken:
+            yard = yard.difference(t.buffer(0.8))
+        yards.append(yard)
+        nt = int(rng.poisson(ys["trees_per_parcel"]))
+        for _ in range(nt):
+            cu, cv = rng.uniform(yu0, yu1), rng.uniform(yv0, yv1 + 0.5)
+            tree_pts.append(_to_world(p, d, n, [cu, cv]))
 
 
 def _residential_scene(b: Builder, source: str, meta: dict):

@@ -116,7 +116,7 @@ def _curve(rng, a, b, amp, n=9):
 def generate_rural(b: Builder, spec: Mapping) -> None:
     """Fill ``b`` with farmland (see the module doc)."""
     import shapely
-    from shapely.geometry import LineString, Point
+    from shapely.geometry import Point
     from shapely.ops import substring
 
     cfg = _check(spec)
@@ -124,6 +124,57 @@ def generate_rural(b: Builder, spec: Mapping) -> None:
     rng = b.rng
     W, H = (float(x) for x in cfg["size_m"])
     rc = cfg["roads"]
+    paved, tracks = _rural_roads(b, rng, rc, W, H)
+    road = b.road_area()
+    houses, hints, farm_zones, yard_polys, house_yards, road_buf = _farmyards(b, cfg, rng, tracks, road)
+    b.freeze_areas()
+    # ---- fields
+    fcfg = cfg["fields"]
+    land = b.box.difference(road.buffer(3.0))
+    if farm_zones:
+        land = land.difference(shapely.union_all(farm_zones))
+    ang = rng.uniform(0.0, np.pi)
+    field_objs, field_counts = _fields(rng, land, ang, fcfg, W, H)
+    # ---- trees: windbreaks along field edges and roads, trees round the farms
+    tcfg = cfg["trees"]
+    for _ in range(int(tcfg["windbreaks"])):
+        r = paved[int(rng.integers(len(paved)))]
+        s0 = rng.uniform(0.0, r.line.length * 0.7)
+        seg = substring(r.line, s0, min(s0 + rng.uniform(60.0, 160.0), r.line.length))
+        off = offset_line(seg, (1 if rng.random() < 0.5 else -1) * (r.width_m / 2 + rng.uniform(4.0, 7.0)))
+        if not off.is_empty:
+            b.add_tree_row(off, rng.uniform(6.0, 9.0), [2.5, 4.0], [8.0, 16.0],
+                           species={"broadleaf": 0.4, "columnar": 0.4, "conifer": 0.2})
+    for z in farm_zones:
+        ring = z.buffer(8.0).difference(z)
+        b.add_tree_cluster(int(tcfg["farm_trees"]), ring.difference(road_buf), [2.5, 4.5], [8.0, 15.0],
+                           species={"broadleaf": 0.6, "spreading": 0.2, "conifer": 0.2})
+    # ---- hard negatives
+    standing = houses.footprints + [Point(t[0], t[1]).buffer(0.8) for t in b.trees]
+    farm = None
+    if farm_zones:
+        farm = shapely.union_all(farm_zones).difference(shapely.union_all(yard_polys).buffer(0.5)) \
+            .difference(road_buf)
+    paved_area = shapely.union_all([road_polygon(r) for r in paved]).intersection(b.box)
+    roadside = paved_area.buffer(9.0).difference(road.buffer(2.5)).intersection(b.box.buffer(-2.0))
+    if farm_zones:
+        roadside = roadside.difference(shapely.union_all(farm_zones))
+    regions = {"farm": farm, "roadside": roadside, "road": paved_area.buffer(-1.0),
+               "yard": shapely.union_all(house_yards) if house_yards else None}
+    neg_objs, neg_meta = add_negatives("rural", cfg.get("hard_negatives"), regions, W * H, rng, taken=standing)
+    b._rural = {"houses": houses, "negatives": neg_objs, "neg_meta": neg_meta, "hints": hints,
+                "fields": field_objs, "field_counts": field_counts, "paved": paved_area,
+                "tracks": tracks}
+    b.scene = functools.partial(_rural_scene, b)
+
+
+
+
+def _rural_roads(b: Builder, rng, rc: Mapping, W: float, H: float):
+    """The paved country roads and the farm tracks off them (added to ``b.roads``): returns
+    (paved roads, [(track road, "dirt" | "gravel")])."""
+    from shapely.geometry import LineString
+
     # ---- paved country roads
     paved = []
     a = np.array([-W / 2 - 10, rng.uniform(-0.2, 0.2) * H])
@@ -154,7 +205,15 @@ def generate_rural(b: Builder, spec: Mapping) -> None:
         kind = "dirt" if rng.random() < rc["dirt_share"] else "gravel"
         tracks.append((Road(f"track_{i}_{kind}", LineString(pts), float(w), lanes=0, centre="none"), kind))
     b.roads.extend(t for t, _ in tracks)
-    road = b.road_area()
+    return paved, tracks
+
+
+def _farmyards(b: Builder, cfg: Mapping, rng, tracks, road):
+    """Farmyards at the ends of the first tracks: yard sites (parking), barn, machinery
+    shed, farmhouse with its garden, silos. Returns (houses, hints, farm zones, yard
+    polygons, house gardens, the road area grown by 2 m)."""
+    import shapely
+
     # ---- farmyards at the ends of the first tracks
     houses = HouseSet("farm", rng)
     hints, farm_zones, yard_polys, house_yards = [], [], [], []
@@ -205,45 +264,7 @@ def generate_rural(b: Builder, spec: Mapping) -> None:
         zone = shapely.union_all([yard, rect_poly(barn_c, v, bl, bw), rect_poly(shed_c, u, sl, sw),
                                   rect_poly(house_c, u, hl + 16.0, hw + 14.0)]).convex_hull.buffer(6.0)
         farm_zones.append(zone)
-    b.freeze_areas()
-    # ---- fields
-    fcfg = cfg["fields"]
-    land = b.box.difference(road.buffer(3.0))
-    if farm_zones:
-        land = land.difference(shapely.union_all(farm_zones))
-    ang = rng.uniform(0.0, np.pi)
-    field_objs, field_counts = _fields(rng, land, ang, fcfg, W, H)
-    # ---- trees: windbreaks along field edges and roads, trees round the farms
-    tcfg = cfg["trees"]
-    for _ in range(int(tcfg["windbreaks"])):
-        r = paved[int(rng.integers(len(paved)))]
-        s0 = rng.uniform(0.0, r.line.length * 0.7)
-        seg = substring(r.line, s0, min(s0 + rng.uniform(60.0, 160.0), r.line.length))
-        off = offset_line(seg, (1 if rng.random() < 0.5 else -1) * (r.width_m / 2 + rng.uniform(4.0, 7.0)))
-        if not off.is_empty:
-            b.add_tree_row(off, rng.uniform(6.0, 9.0), [2.5, 4.0], [8.0, 16.0],
-                           species={"broadleaf": 0.4, "columnar": 0.4, "conifer": 0.2})
-    for z in farm_zones:
-        ring = z.buffer(8.0).difference(z)
-        b.add_tree_cluster(int(tcfg["farm_trees"]), ring.difference(road_buf), [2.5, 4.5], [8.0, 15.0],
-                           species={"broadleaf": 0.6, "spreading": 0.2, "conifer": 0.2})
-    # ---- hard negatives
-    standing = houses.footprints + [Point(t[0], t[1]).buffer(0.8) for t in b.trees]
-    farm = None
-    if farm_zones:
-        farm = shapely.union_all(farm_zones).difference(shapely.union_all(yard_polys).buffer(0.5)) \
-            .difference(road_buf)
-    paved_area = shapely.union_all([road_polygon(r) for r in paved]).intersection(b.box)
-    roadside = paved_area.buffer(9.0).difference(road.buffer(2.5)).intersection(b.box.buffer(-2.0))
-    if farm_zones:
-        roadside = roadside.difference(shapely.union_all(farm_zones))
-    regions = {"farm": farm, "roadside": roadside, "road": paved_area.buffer(-1.0),
-               "yard": shapely.union_all(house_yards) if house_yards else None}
-    neg_objs, neg_meta = add_negatives("rural", cfg.get("hard_negatives"), regions, W * H, rng, taken=standing)
-    b._rural = {"houses": houses, "negatives": neg_objs, "neg_meta": neg_meta, "hints": hints,
-                "fields": field_objs, "field_counts": field_counts, "paved": paved_area,
-                "tracks": tracks}
-    b.scene = functools.partial(_rural_scene, b)
+    return houses, hints, farm_zones, yard_polys, house_yards, road_buf
 
 
 def _silo(houses: HouseSet, c, r, h):
