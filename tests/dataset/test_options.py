@@ -53,6 +53,21 @@ def test_enums_are_what_the_cli_accepts():
             _choices(sub, command, "--randomise").type("colours")
 
 
+def test_box_enums_are_what_the_cli_accepts():
+    from aerial_synth.annotate.boxes import BOX_FITS, BOX_MODES, BoxConfig, BoxFit, BoxMode
+
+    assert BOX_MODES == ("visible", "amodal") == tuple(m.value for m in BoxMode)
+    assert BOX_FITS == ("pixels", "dilated") == tuple(f.value for f in BoxFit)
+    assert BoxConfig(box=BoxMode.AMODAL, fit=BoxFit.DILATED).to_dict()["box"] == "amodal"
+    _, sub = _parser()
+    assert _choices(sub, "export", "--box").type("amodal") == "amodal"
+    assert _choices(sub, "export", "--box-fit").type("dilated") == "dilated"
+    with pytest.raises(argparse.ArgumentTypeError, match="visible, amodal"):
+        _choices(sub, "export", "--box").type("tight")
+    with pytest.raises(argparse.ArgumentTypeError, match="pixels, dilated"):
+        _choices(sub, "export", "--box-fit").type("hull")
+
+
 def test_one_camera_default_and_one_set_of_bounds():
     d = CameraConfig()
     e = ExportConfig()
