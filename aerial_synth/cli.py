@@ -16,6 +16,7 @@ import sys
 
 from . import __version__
 from .errors import AerialSynthError
+from .out_guard import refuse_out_is_input
 
 # (module, ...) each exposing register(subparsers) that adds its commands and sets `func`.
 _COMMAND_MODULES = (
@@ -122,6 +123,7 @@ def _main(argv: list[str] | None) -> int:
     except SystemExit as exc:  # usage error (one line, printed) or --help/--version
         return int(exc.code or 0) if not isinstance(exc.code, str) else 2
     try:
+        refuse_out_is_input(args)
         code = int(args.func(args) or 0)
         sys.stdout.flush()
         return code

@@ -187,8 +187,12 @@ def _cmd_export(args) -> int:
 
 
 def _cmd_show(args) -> int:
+    from ..out_guard import out_lock, refuse_here
     from .show import show_dataset
 
-    paths = show_dataset(args.dir, args.out, limit=args.limit, thumb_px=args.thumb)
+    if args.out == "":  # Path('') would silently mean the current folder
+        refuse_here(args.out)
+    with out_lock(args.out, "show"):
+        paths = show_dataset(args.dir, args.out, limit=args.limit, thumb_px=args.thumb)
     print(f"wrote {len(paths) - 1} previews and {paths[-1]}", file=sys.stdout)
     return 0

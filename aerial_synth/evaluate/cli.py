@@ -6,8 +6,10 @@ Imports nothing heavy at import time (``aerial-synth --help`` stays instant).
 from __future__ import annotations
 
 import sys
+from contextlib import nullcontext
 from pathlib import Path
 
+from ..out_guard import out_lock, refuse_here, remove_dead_temps
 from ..validators import arg_choice, arg_float, arg_int
 
 __all__ = ["register"]
@@ -126,11 +128,18 @@ def _classes(text):
 
 
 def _cmd_eval(args) -> int:
-    from .evaluation import check_report_dir, run_eval, summary_table, write_eval_report
+    from .evaluation import check_report_dir
 
     out = None
     if args.out is not None:
         out = check_report_dir(args.out, [("--gt", Path(args.gt)), ("--pred", Path(args.pred))])
+    with out_lock(args.out, "eval") if out is not None else nullcontext():
+        return _eval(args, out)
+
+
+def _eval(args, out) -> int:
+    from .evaluation import run_eval, summary_table, write_eval_report
+
     res = run_eval(args.gt, args.pred, iou=args.iou, metric=args.metric, pred_format=args.pred_format,
                    names=args.names, images=args.images, split=args.split,
                    classes=_classes(args.classes))
@@ -145,6 +154,7 @@ def _cmd_eval(args) -> int:
 def _cmd_mix(args) -> int:
     from .mix import MixConfig, make_mix
 
+    refuse_here(args.out)  # the mix is built beside --out and renamed into place
     classes = None if args.classes == "all" else _classes(args.classes)
     cfg = MixConfig(
         real=Path(args.real), synthetic=Path(args.synthetic), out=Path(args.out),
@@ -155,7 +165,9 @@ def _cmd_mix(args) -> int:
         real_gsd=args.real_gsd,
         classes=classes, force=args.force,
     )
-    res = make_mix(cfg)
+    with out_lock(args.out, "mix"):
+        remove_dead_temps(args.out)  # left by a killed mix: no live run owns them now
+        res = make_mix(cfg)
     c = res["counts"]
     print(f"mix: {c['train_real']} real + {c['train_synthetic']} synthetic training images "
           f"(real share {c['real_share']:.4f}), {c['val_real']} real + {c['val_synthetic']} "
@@ -172,8 +184,10 @@ def _cmd_stats(args) -> int:
 
     inputs = [("DIR", Path(args.dir))] + ([("--compare", Path(args.compare))] if args.compare else [])
     out = check_report_dir(args.out, inputs)
-    text = run_stats(Path(args.dir), out, compare=Path(args.compare) if args.compare else None,
-                     gsd=args.gsd, compare_gsd=args.compare_gsd, max_images=args.max_images,
-                     seed=args.seed, classes=None if args.classes == "all" else _classes(args.classes))
+    with out_lock(args.out, "stats"):
+        text = run_stats(Path(args.dir), out, compare=Path(args.compare) if args.compare else None,
+                         gsd=args.gsd, compare_gsd=args.compare_gsd, max_images=args.max_images,
+                         seed=args.seed,
+                         classes=None if args.classes == "all" else _classes(args.classes))
     print(text)
     return 0

@@ -1,0 +1,217 @@
+"""Reliability, round 2 (issue 27): one test per cause of the hostile-input failures, written
+from the issue's description. Each runs the command as a user would (``main(argv)`` in
+process, or the console script in a subprocess where a crash, a hang or a signal is the
+point) and asserts: one line on stderr, exit status 2 (or the conventional signal status),
+no traceback, nothing written or replaced that should not be."""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from aerial_synth.cli import main
+from tests.evaluate.conftest import make_dota, rect, write_dota_image
+from tests.helpers import REPO, tree_bytes
+
+# -- helpers -----------------------------------------------------------------------------------
+
+
+def run(capsys, *argv):
+    """(exit status, stderr) of ``aerial-synth ARGV`` run in this process."""
+    code = main([str(a) for a in argv])
+    cap = capsys.readouterr()
+    return code, cap.err
+
+
+def one_line(code, err, status=2):
+    assert code == status, err
+    assert len(err.strip().splitlines()) == 1, err
+    assert "Traceback" not in err
+    return err
+
+
+def cli(*argv, timeout=60, cwd=None, env=None):
+    """The console entry point in its own process (crashes, hangs and signals)."""
+    e = dict(os.environ, PYTHONPATH=str(REPO), **(env or {}))
+    return subprocess.run([sys.executable, "-m", "aerial_synth.cli", *map(os.fsdecode, argv)],
+                          capture_output=True, timeout=timeout, cwd=cwd, env=e)
+
+
+@pytest.fixture
+def real_syn(tmp_path):
+    """A real DOTA folder R (3 images 400 x 300 at 0.12 m/px) and a synthetic one S."""
+    make_dota(tmp_path / "R", 3, "r", size=(400, 300))
+    make_dota(tmp_path / "S", 3, "s")
+    return tmp_path / "R", tmp_path / "S"
+
+
+def _hold_lock(out: Path):
+    """Take the output lock of ``out`` as a running export would (its own lock file)."""
+    from aerial_synth.dataset.output import output_lock
+
+    cm = output_lock(out)
+    cm.__enter__()
+    return cm
+
+
+# -- 1. concurrent runs into one --out share export's lock -----------------------------------
+
+
+@pytest.mark.parametrize("cmd", ["mix", "show", "stats", "eval"])
+def test_1_a_second_writer_of_one_out_is_refused(tmp_path, capsys, real_syn, cmd):
+    real, syn = real_syn
+    out = tmp_path / "D"
+    argv = {
+        "mix": ["mix", "--real", real, "--synthetic", syn, "--real-images", "1", "--tile", "100",
+                "--overlap", "0", "--out", out],
+        "show": ["show", real, "--out", out],
+        "stats": ["stats", real, "--out", out],
+        "eval": ["eval", "--gt", real, "--pred", tmp_path / "P", "--out", out],
+    }[cmd]
+    (tmp_path / "P").mkdir()
+    (tmp_path / "P" / "Task1_small-vehicle.txt").write_text("r000 0.9 1 1 5 1 5 5 1 5\n")
+    cm = _hold_lock(out)  # an export (or any other run) is writing D right now
+    try:
+        err = one_line(*run(capsys, *argv))
+    finally:
+        cm.__exit__(None, None, None)
+    assert "another aerial-synth run" in err and str(out) in err
+    assert not out.exists()
+
+
+def test_1_second_mix_does_not_replace_the_first(tmp_path, capsys, real_syn):
+    real, syn = real_syn
+    out = tmp_path / "D"
+    base = ["mix", "--real", real, "--synthetic", syn, "--out", out]
+    assert run(capsys, *base, "--real-images", "1")[0] == 0
+    first = tree_bytes(out)
+    one_line(*run(capsys, *base, "--real-images", "2", "--seed", "3"))  # no --force: refused
+    assert tree_bytes(out) == first
+
+
+# -- 2. an output that is one of the inputs; an image extension that lies --------------------
+
+
+def test_2_scene_show_out_is_the_spec(tmp_path, capsys):
+    spec = tmp_path / "spec.yaml"
+    spec.write_bytes((REPO / "aerial_synth" / "data" / "scenes" / "city_park.yaml").read_bytes())
+    before = spec.read_bytes()
+    err = one_line(*run(capsys, "scene", "show", spec, "--out", spec))
+    assert "input" in err
+    assert spec.read_bytes() == before
+
+
+def test_2_out_is_an_input_for_every_command(tmp_path, capsys, real_syn):
+    real, syn = real_syn
+    lab = tmp_path / "rules.yaml"
+    lab.write_text("rules: []\n")
+    for argv in (["scene", "export", "city_park", "--labels", lab, "--out", lab],
+                 ["stats", real, "--out", real],
+                 ["mix", "--real", real, "--synthetic", syn, "--real-images", "1", "--out", syn]):
+        before = tree_bytes(tmp_path)
+        one_line(*run(capsys, *argv))
+        assert tree_bytes(tmp_path) == before
+
+
+@pytest.mark.parametrize("name", ["map.jpg", "map.tif", "map", "map.png.bak"])
+def test_2_scene_show_refuses_an_extension_that_is_not_png(tmp_path, capsys, name):
+    err = one_line(*run(capsys, "scene", "show", "city_park", "--out", tmp_path / name))
+    assert ".png" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+# -- 5. '' and '.' as --out ---------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("out", ["", "."])
+def test_5_mix_into_the_current_folder_is_refused(tmp_path, capsys, real_syn, monkeypatch, out):
+    real, syn = real_syn
+    here = tmp_path / "here"
+    here.mkdir()
+    monkeypatch.chdir(here)
+    err = one_line(*run(capsys, "mix", "--real", real, "--synthetic", syn, "--real-images", "1",
+                        "--out", out))
+    assert "--out" in err
+    assert list(here.iterdir()) == [] and sorted(p.name for p in tmp_path.iterdir()) == ["R", "S", "here"]
+
+
+def test_5_show_out_empty_is_refused(tmp_path, capsys, real_syn, monkeypatch):
+    real, _ = real_syn
+    here = tmp_path / "here"
+    here.mkdir()
+    monkeypatch.chdir(here)
+    one_line(*run(capsys, "show", real, "--out", ""))
+    assert list(here.iterdir()) == []
+
+
+# -- 7. a killed mix's temporary folder is cleaned by the next mix ------------------------------
+
+
+def test_7_next_mix_removes_a_dead_runs_temporary_folders(tmp_path, capsys, real_syn):
+    real, syn = real_syn
+    out = tmp_path / "D"
+    stale = tmp_path / ".D.k2j3h4.tmp"  # what `kill -9` of a mix leaves (mkdtemp's name)
+    (stale / "dota" / "train" / "images").mkdir(parents=True)
+    (stale / "dota" / "train" / "images" / "real-r000.png").write_bytes(b"\x89PNG" + bytes(1000))
+    old = tmp_path / ".D.abcd12.old"  # killed between the two renames of a --force
+    (old / "old").mkdir(parents=True)
+    assert run(capsys, "mix", "--real", real, "--synthetic", syn, "--real-images", "1",
+               "--out", out)[0] == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["D", "R", "S"]
+
+
+# -- 8. --resume checks what it keeps ------------------------------------------------------------
+
+
+def _tiny_scene(root: Path) -> Path:
+    lines, off = [], 0
+    for name, (x0, y0, x1, y1, z) in {"ground": (-40, -40, 40, 40, 0.0),
+                                      "road_ew": (-40, -4, 40, 4, 0.05)}.items():
+        lines.append(f"o {name}")
+        lines += [f"v {x} {y} {z}" for x, y in ((x0, y0), (x1, y0), (x1, y1), (x0, y1))]
+        lines += [f"f {off + 1} {off + 2} {off + 3}", f"f {off + 1} {off + 3} {off + 4}"]
+        off += 4
+    p = root / "tiny.obj"
+    p.write_text("\n".join(lines) + "\n")
+    return p
+
+
+def test_8_resume_remakes_a_truncated_image(tmp_path):
+    from aerial_synth.dataset.export import ExportConfig, export_dataset
+
+    cfg = ExportConfig(scene=str(_tiny_scene(tmp_path)), images=2, seed=1, images_per_placement=2,
+                       n_vehicles=4, width_px=64, height_px=64, simple_vehicles=True)
+    out = tmp_path / "ds"
+    export_dataset(cfg, out, workers=1, progress=False)
+    whole = tree_bytes(out)
+    img = out / "dota" / "train" / "images" / "000001.png"
+    img.write_bytes(whole["dota/train/images/000001.png"][:200])  # cut short (a full disk)
+    export_dataset(cfg, out, workers=1, resume=True, progress=False)
+    after = tree_bytes(out)
+    assert after["dota/train/images/000001.png"] == whole["dota/train/images/000001.png"]
+    # meta's placement warnings may differ: Open3D's CUDA notice is caught once per process
+    assert {k: v for k, v in after.items() if not k.startswith("meta/")} == \
+        {k: v for k, v in whole.items() if not k.startswith("meta/")}
+
+
+def test_8_image_file_complete():
+    from aerial_synth.png import encode_png
+    from aerial_synth.safe_input import image_file_complete
+
+    data = encode_png(np.zeros((8, 6, 3), np.uint8))
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as d:
+        p = Path(d) / "a.png"
+        p.write_bytes(data)
+        assert image_file_complete(p, (6, 8))
+        assert not image_file_complete(p, (8, 6))  # another size than configured
+        for cut in (0, 10, 30, len(data) - 1):
+            p.write_bytes(data[:cut])
+            assert not image_file_complete(p, (6, 8)), cut
