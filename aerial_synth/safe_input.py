@@ -39,6 +39,8 @@ __all__ = [
     "image_header_size",
     "check_image_pixels",
     "image_file_complete",
+    "read_image",
+    "cv_text",
     "refuse_escaping_link",
 ]
 
@@ -366,6 +368,34 @@ def image_file_complete(path, size_wh: tuple[int, int] | None = None) -> bool:
     if head.startswith(b"\xff\xd8"):
         return tail.rstrip(b"\x00").endswith(b"\xff\xd9")
     return True
+
+
+def read_image(path, flags: int | None = None, error: type[Exception] = ConfigError,
+               where: str | None = None):
+    """Decode an image file with OpenCV, safely: the header's size is checked against
+    OpenCV's limits first (:func:`check_image_pixels`), and the bytes are read by Python
+    and handed to ``cv2.imdecode``, so OpenCV never receives a file name (a name with bytes
+    that are not UTF-8 crashed it). Raises ``error`` naming the file when it cannot be
+    decoded."""
+    import cv2
+    import numpy as np
+
+    label = where if where is not None else shown(path)
+    check_image_pixels(path, error, label)
+    try:
+        data = np.fromfile(os.fspath(path), np.uint8)
+    except OSError as exc:
+        raise error(f"{label}: cannot read the image ({exc.strerror or type(exc).__name__})") from None
+    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED if flags is None else flags) if data.size else None
+    if img is None:
+        raise error(f"{label}: expected an image, cannot decode it")
+    return img
+
+
+def cv_text(text: Any) -> str:
+    """Text OpenCV's Hershey fonts can draw: ASCII only (every other character, and any
+    undecodable byte kept as a surrogate, becomes ``?``)."""
+    return "".join(ch if " " <= ch <= "~" else "?" for ch in str(text))
 
 
 # -- links out of an input folder ------------------------------------------------------------

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import EvaluationError
+from ..safe_input import check_image_pixels, read_image
 
 __all__ = [
     "IMAGE_EXTS",
@@ -272,25 +273,13 @@ def parse_names(text: str, option: str = "--names") -> list[str]:
 
 
 def image_size(path) -> tuple[int, int]:
-    """(width, height) in pixels, from the PNG/JPEG header (whole decode for other types)."""
+    """(width, height) in pixels, from the image header (PNG, JPEG, BMP, GIF, TIFF, WebP;
+    a whole decode for other types); an image over OpenCV's size limit is refused."""
     path = Path(path)
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(32)
-            if head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR":
-                w, h = struct.unpack(">II", head[16:24])
-                return int(w), int(h)
-            if head[:2] == b"\xff\xd8":
-                size = _jpeg_size(fh)
-                if size is not None:
-                    return size
-    except OSError as exc:
-        raise EvaluationError(f"{path}: cannot read the image ({exc.strerror})") from None
-    import cv2
-
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise EvaluationError(f"{path}: expected an image file, cannot decode it")
+    size = check_image_pixels(path, EvaluationError)
+    if size is not None:
+        return size
+    img = read_image(path, error=EvaluationError)
     return int(img.shape[1]), int(img.shape[0])
 
 

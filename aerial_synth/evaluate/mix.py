@@ -40,6 +40,7 @@ import numpy as np
 
 from ..errors import EvaluationError
 from ..io_utils import check_output_dir, dumps_json, is_inside
+from ..safe_input import quote, read_image, shown
 from .labels import (
     IMAGE_EXTS,
     ImageLabels,
@@ -348,12 +349,7 @@ def _link(src: Path, dst: Path) -> str:
 
 
 def _load(path: Path):
-    import cv2
-
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise EvaluationError(f"{path}: expected an image, cannot decode it")
-    return img
+    return read_image(path, error=EvaluationError)
 
 
 class _Writer:
@@ -496,6 +492,10 @@ def make_mix(cfg: MixConfig) -> dict:
         val_items += [_Item("synthetic", s, (1.0, 1.0), (0, 0), None, f"syn-{s.name}") for s in syn_val]
     for group in (chosen, val_items):
         names = [i.out_stem for i in group]
+        for i in group:  # the file system's limit on one name (the source name + tile suffix)
+            if len(os.fsencode(i.out_stem)) + len(".png") > 255:
+                raise EvaluationError(f"{shown(i.src.image_path)}: the mix would name it "
+                                      f"{quote(i.out_stem)}.png, over 255 bytes; rename the source")
         if len(set(names)) != len(names):
             dup = sorted({n for n in names if names.count(n) > 1})[0]
             raise EvaluationError(f"mix: two source images give the output name {dup!r}; rename one")

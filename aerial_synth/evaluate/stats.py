@@ -31,7 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import EvaluationError
 from ..io_utils import atomic_write_bytes, atomic_write_json, atomic_write_text
+from ..safe_input import check_image_pixels
 from .labels import image_size, read_dataset
 
 __all__ = ["DISTRIBUTIONS", "box_geometry", "vehicle_pixels", "dataset_stats", "compare_stats",
@@ -95,7 +97,9 @@ def _nn_distances(centres: np.ndarray) -> np.ndarray:
 def _load_bgr(path: Path) -> np.ndarray | None:
     import cv2
 
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    check_image_pixels(path, EvaluationError)  # over OpenCV's limit: refused, naming it
+    data = np.fromfile(path, np.uint8)  # bytes to OpenCV, never a file name (undecodable names)
+    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
     if img is None:
         return None
     if img.dtype == np.uint16:

@@ -6,7 +6,6 @@ no traceback, nothing written or replaced that should not be."""
 
 from __future__ import annotations
 
-import fcntl
 import os
 import subprocess
 import sys
@@ -16,7 +15,7 @@ import numpy as np
 import pytest
 
 from aerial_synth.cli import main
-from tests.evaluate.conftest import make_dota, rect, write_dota_image
+from tests.evaluate.conftest import make_dota
 from tests.helpers import REPO, tree_bytes
 
 # -- helpers -----------------------------------------------------------------------------------
@@ -215,3 +214,87 @@ def test_8_image_file_complete():
         for cut in (0, 10, 30, len(data) - 1):
             p.write_bytes(data[:cut])
             assert not image_file_complete(p, (6, 8)), cut
+
+
+# -- 4. file names that are not UTF-8 never reach OpenCV as text -------------------------------
+
+BAD_NAMES = [b"\xff\xfe_r000", "🚗_émoji".encode(), b"n" * 251]  # 251 + ".png" = 255 bytes
+
+
+def _rename_first(root: Path, stem: bytes) -> None:
+    """Give image and label r000 of DOTA folder ``root`` the name ``stem`` (bytes)."""
+    for sub, ext in ((b"images", b".png"), (b"labelTxt", b".txt")):
+        d = os.fsencode(root) + b"/" + sub + b"/"
+        os.rename(d + b"r000" + ext, d + stem + ext)
+
+
+@pytest.mark.parametrize("stem", BAD_NAMES, ids=["invalid-utf8", "emoji", "255-bytes"])
+def test_4_stats_show_and_mix_on_odd_file_names(tmp_path, stem):
+    make_dota(tmp_path / "R", 2, "r", size=(240, 200))
+    make_dota(tmp_path / "S", 2, "s")
+    _rename_first(tmp_path / "R", stem)
+    r = cli("stats", tmp_path / "R", "--out", tmp_path / "st")
+    assert r.returncode == 0, r.stderr  # was -11 (SIGSEGV) for b"\xff\xfe"
+    assert b"2 images" in r.stdout
+    r = cli("mix", "--real", tmp_path / "R", "--synthetic", tmp_path / "S", "--real-images", "1",
+            "--tile", "100", "--overlap", "0", "--out", tmp_path / "mx")
+    if len(stem) > 200:  # "real-<name>__1__0___0.png" cannot be a file name: one line, nothing
+        one_line(r.returncode, r.stderr.decode())
+        assert b"over 255 bytes" in r.stderr and not (tmp_path / "mx").exists()
+    else:
+        assert r.returncode == 0, r.stderr
+    r = cli("show", tmp_path / "R", "--out", tmp_path / "sh")
+    assert r.returncode == 0, r.stderr
+    assert os.fsencode(tmp_path / "sh") + b"/" + stem + b".jpg" in \
+        [os.fsencode(tmp_path / "sh") + b"/" + n for n in os.listdir(os.fsencode(tmp_path / "sh"))]
+
+
+def test_4_place_draws_a_title_from_an_undecodable_scene_name(tmp_path):
+    scene = os.fsencode(tmp_path) + b"/\xff\xfe_depot.obj"
+    with open(scene, "wb") as fh:
+        fh.write(_tiny_scene(tmp_path).read_bytes())
+    r = cli("place", "--scene", os.fsdecode(scene), "--vehicles", "3", "--out", tmp_path / "X",
+            timeout=120)
+    assert r.returncode == 0, r.stderr  # was 139 (SIGSEGV) in placement/draw.py's title
+    assert (tmp_path / "X" / "placement.png").is_file()
+
+
+def test_4_cv_text_and_shown():
+    from aerial_synth.safe_input import cv_text, quote, shown
+
+    assert cv_text("a\udcffb🚗") == "a?b?"
+    assert shown(os.fsdecode(b"x\xff.txt")) == "x\\xff.txt"
+    assert quote("root:*:19000:0:99999:7:::" * 4) == "'" + ("root:*:19000:0:99999:7:::" * 4)[:40] + "...'"
+    assert quote("a\x1b[2Jb\udcfe") == "'a\\x1b[2Jb\\xfe'"
+
+
+# -- 12. images over OpenCV's pixel limit ---------------------------------------------------------
+
+
+def _png_header_only(path: Path, w: int, h: int) -> None:
+    import struct
+    import zlib
+
+    def chunk(t, d):
+        return struct.pack(">I", len(d)) + t + d + struct.pack(">I", zlib.crc32(t + d) & 0xFFFFFFFF)
+
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
+                     + chunk(b"IDAT", zlib.compress(b"\0" * 10)) + chunk(b"IEND", b""))
+
+
+@pytest.mark.parametrize("cmd", ["stats", "show", "mix-tile", "mix-gsd"])
+def test_12_image_over_opencvs_limit_is_refused_naming_it(tmp_path, cmd):
+    real = make_dota(tmp_path / "R", 2, "r")
+    make_dota(tmp_path / "S", 2, "s")
+    _png_header_only(real / "images" / "r000.png", 100_000, 100_000)
+    argv = {"stats": ["stats", real, "--out", tmp_path / "o"],
+            "show": ["show", real, "--out", tmp_path / "o"],
+            "mix-tile": ["mix", "--real", real, "--synthetic", tmp_path / "S", "--real-images", "1",
+                         "--tile", "100", "--overlap", "0", "--out", tmp_path / "o"],
+            "mix-gsd": ["mix", "--real", real, "--synthetic", tmp_path / "S", "--real-images", "1",
+                        "--gsd", "0.2", "--out", tmp_path / "o"]}[cmd]
+    r = cli(*argv)
+    err = r.stderr.decode()
+    one_line(r.returncode, err)
+    assert "r000.png" in err and "100000 x 100000" in err and "1,073,741,824" in err
+    assert not (tmp_path / "o").exists()
