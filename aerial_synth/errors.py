@@ -18,6 +18,7 @@ __all__ = [
     "ExportError",
     "OutputError",
     "EvaluationError",
+    "LabelFormatError",
 ]
 
 
@@ -65,3 +66,10 @@ class OutputError(AerialSynthError):
 
 class EvaluationError(AerialSynthError):
     """Evaluation, mixing or statistics input cannot be used (bad label or prediction file, ...)."""
+
+
+class LabelFormatError(ExportError, EvaluationError):
+    """A label file does not follow its format (names the file and line, what was expected and
+    what arrived). Raised by :mod:`aerial_synth.formats` for the exporter's own files and for
+    real-world files read by ``eval``, ``mix``, ``stats`` and ``show``, so it is both an
+    :class:`ExportError` and an :class:`EvaluationError`."""

@@ -11,6 +11,7 @@ centre to the middle of its front edge (corner 1 -> corner 2), the class, kept b
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import shutil
@@ -23,6 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ExportError, OutputError
+from ..formats import dota, meta
+from ..formats.registry import get, names
 from ..io_utils import atomic_write_bytes, check_output_dir, is_inside
 from ..safe_input import check_image_pixels, cv_text
 
@@ -87,11 +90,6 @@ def contact_sheet(images: list[np.ndarray], thumb_px: int = 256, cols: int | Non
 
 
 def _items_from_dataset(root: Path):
-    import json
-
-    from ..formats import meta
-    from ..formats.registry import get, names
-
     fmts = [get(n) for n in names()]
     for mp in sorted((root / "meta").glob("*.json")):
         try:
@@ -110,17 +108,16 @@ def _items_from_dataset(root: Path):
 
 
 def _items_from_dota(root: Path):
-    from ..formats import dota
-
     for lp in sorted((root / "labelTxt").glob("*.txt")):
-        lab = dota.read(lp, categories=None)
+        lab = dota.read_labels(lp)
         img = None
         for ext in ("png", "jpg", "jpeg", "tif", "bmp"):
             cand = root / "images" / f"{lp.stem}.{ext}"
             if cand.is_file():
                 img = cand
                 break
-        yield lp.stem, img, [Drawn(o.polygon_xy_px, o.category, bool(o.difficult)) for o in lab.objects]
+        yield lp.stem, img, [Drawn(p, c, bool(d))
+                             for p, c, d in zip(lab.polygons_xy_px, lab.classes, lab.difficult)]
 
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"

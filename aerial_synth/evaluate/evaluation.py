@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import EvaluationError
+from ..formats import yolo_obb
 from ..io_utils import (
     atomic_write_bytes,
     atomic_write_json,
@@ -26,7 +27,6 @@ from .labels import (
     find_image,
     image_size,
     parse_names,
-    parse_yolo_obb_lines,
     read_dota_folder,
     read_lines,
     resolve_dota_folder,
@@ -139,11 +139,11 @@ def read_yolo_predictions(pred_dir: Path, gt: list[ImageLabels], names: list[str
                 raise EvaluationError(f"{f}: YOLO-OBB coordinates are normalised and no image "
                                       f"{g.name}.* was found to size them (give --images DIR)")
             g.size_wh = image_size(path)
-        polys, c, conf = parse_yolo_obb_lines(_read_lines(f), str(f), names, g.size_wh, with_conf=True)
-        img += [i] * len(c)
-        cls += c
-        score.append(conf)
-        xy.append(polys)
+        pred = yolo_obb.labels_from_lines(_read_lines(f), str(f), names, g.size_wh, with_conf=True)
+        img += [i] * len(pred)
+        cls += pred.classes
+        score.append(pred.scores)
+        xy.append(pred.polygons_xy_px)
     return Detections(np.asarray(img, np.int64), cls,
                       np.concatenate(score) if score else np.zeros(0),
                       np.concatenate(xy) if xy else np.zeros((0, 4, 2)))

@@ -39,18 +39,17 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import EvaluationError
+from ..formats import dota, yolo_obb
+from ..formats.labels import ImageLabels
 from ..io_utils import check_output_dir, dumps_json, is_inside
 from ..safe_input import quote, read_image, shown
 from .labels import (
     IMAGE_EXTS,
-    ImageLabels,
-    dota_lines,
     find_data_yaml,
     image_size,
     parse_names,
-    parse_yolo_obb_lines,
     read_dota_folder,
-    read_lines,
+    read_yolo_labels,
 )
 
 __all__ = ["MixConfig", "make_mix", "tile_origins", "clip_to_tile", "rescale_polygons",
@@ -271,14 +270,7 @@ def _read_split(spec: tuple, option: str) -> list[ImageLabels]:
     names = spec[3]
     items = []
     for p in sorted(q for q in img.iterdir() if q.suffix.lower() in IMAGE_EXTS and q.is_file()):
-        size = image_size(p)
-        lp = lab / (p.stem + ".txt")
-        if lp.is_file():
-            polys, classes, _ = parse_yolo_obb_lines(read_lines(lp), str(lp), names, size, with_conf=False)
-        else:
-            polys, classes = np.zeros((0, 4, 2)), []
-        items.append(ImageLabels(p.stem, polys, classes, np.zeros(len(classes), bool), None, None,
-                                 lp if lp.is_file() else None, p, size))
+        items.append(read_yolo_labels(lab / (p.stem + ".txt"), p, names, image_size(p)))
     if not items:
         raise EvaluationError(f"{option} {img}: no images found")
     return items
@@ -419,14 +411,13 @@ class _Writer:
             first = first or dst
             images.append(str(dst.relative_to(self.root)))
             if fmt == "dota":
-                text = "\n".join(dota_lines(P, C, D, gsd, src.image_source or item.origin)) + "\n"
+                out = ImageLabels(item.out_stem, P, C, D)
+                text = dota.text(dota.from_labels(out), gsd, src.image_source or item.origin)
             else:
-                lines = []
-                for p, c in zip(P, C):
-                    k = self.classes.index(c) if self.classes else 0
-                    q = np.clip(p / (w, h), 0.0, 1.0).reshape(-1)
-                    lines.append(f"{k} " + " ".join(f"{v:.6f}" for v in q))
-                text = "".join(ln + "\n" for ln in lines)
+                text = yolo_obb.text(
+                    yolo_obb.YoloObbObject(self.classes.index(c) if self.classes else 0,
+                                           tuple(map(tuple, np.clip(p / (w, h), 0.0, 1.0))))
+                    for p, c in zip(P, C))
             (lab_dir / (item.out_stem + ".txt")).write_text(text, encoding="utf-8")
         return {
             "split": split, "origin": item.origin, "image": images[0], "images": images,

@@ -2,20 +2,20 @@
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 
-from ..errors import ExportError
+from ..errors import LabelFormatError
 from ..vehicles import CLASSES
 
-__all__ = ["CATEGORIES", "LabelFormatError", "fmt_num", "parse_float", "polygon4", "read_text", "read_json"]
+__all__ = ["CATEGORIES", "fmt_num", "parse_float", "parse_number", "polygon4", "read_text",
+           "read_json"]
 
 #: Detection classes, in class-index order (YOLO index 0.., COCO id 1..), as DOTA/EAGLE name
 #: them. The one list is the vehicle catalog's (``aerial_synth.vehicles.CLASSES``).
 CATEGORIES: tuple[str, ...] = CLASSES
-
-
-class LabelFormatError(ExportError):
-    """A label file does not follow its format (names the file/line and what was expected)."""
 
 
 def fmt_num(x: float, decimals: int) -> str:
@@ -36,6 +36,17 @@ def parse_float(token: str, where: str) -> float:
     return v
 
 
+def parse_number(token: str, where: str, what: str) -> float:
+    """A finite float; else LabelFormatError "<where>: expected <what> as a (finite) number"."""
+    try:
+        v = float(token)
+    except ValueError:
+        raise LabelFormatError(f"{where}: expected {what} as a number, got {token!r}") from None
+    if not np.isfinite(v):
+        raise LabelFormatError(f"{where}: expected {what} as a finite number, got {token!r}")
+    return v
+
+
 def polygon4(points) -> tuple[tuple[float, float], ...]:
     """(4, 2) array-like -> tuple of 4 (x, y) float tuples."""
     p = np.asarray(points, dtype=float).reshape(4, 2)
@@ -44,8 +55,6 @@ def polygon4(points) -> tuple[tuple[float, float], ...]:
 
 def read_text(path) -> str:
     """A label file's UTF-8 text; a file that is not UTF-8 text raises LabelFormatError."""
-    from pathlib import Path
-
     try:
         return Path(path).read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:
@@ -55,8 +64,6 @@ def read_text(path) -> str:
 
 def read_json(path):
     """A JSON file's value; malformed JSON raises LabelFormatError naming the line."""
-    import json
-
     try:
         return json.loads(read_text(path))
     except json.JSONDecodeError as exc:

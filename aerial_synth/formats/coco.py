@@ -19,8 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import LabelFormatError
 from ..io_utils import RawJson, StreamedList, atomic_write_text, dumps_json, iter_json
-from ._common import CATEGORIES, LabelFormatError, read_json
+from ._common import CATEGORIES, read_json
 from .registry import DatasetInfo, LabelFormat
 
 _json_str = json.encoder.encode_basestring_ascii  # how json.dumps prints a str

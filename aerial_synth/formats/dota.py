@@ -6,6 +6,12 @@
 
 Corners in pixels (image frame, x right, y down), front-left first then clockwise on screen;
 category ``small-vehicle`` or ``large-vehicle``; difficult 0 or 1.
+
+Two readers: :func:`from_lines` / :func:`read` are strict (exactly what the exporter writes);
+:func:`labels_from_lines` / :func:`read_labels` are lenient, for real-world files (headers
+optional, blank lines, 9 or 10 fields, ``difficult`` 2 as the devkit's splitter writes, any
+one-word category, empty files) and return the one label model,
+:class:`~aerial_synth.formats.labels.ImageLabels`.
 """
 
 from __future__ import annotations
@@ -13,12 +19,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
+from ..errors import LabelFormatError
 from ..io_utils import atomic_write_text
-from ._common import CATEGORIES, LabelFormatError, fmt_num, parse_float, polygon4, read_text
+from ._common import CATEGORIES, fmt_num, parse_float, parse_number, polygon4, read_text
+from .labels import ImageLabels, read_lines
 from .registry import LabelFormat
 
 __all__ = ["FORMAT", "DotaFormat", "DotaObject", "DotaLabel", "to_lines", "from_lines",
-           "from_annotations", "text", "write", "read"]
+           "from_annotations", "from_labels", "text", "write", "read", "labels_from_lines",
+           "read_labels"]
 
 IMAGE_SOURCE = "aerial-synth"
 DECIMALS = 2
@@ -47,6 +58,12 @@ def from_annotations(annotations) -> list[DotaObject]:
         for a in annotations
         if a.kept and a.box is not None
     ]
+
+
+def from_labels(labels: ImageLabels) -> list[DotaObject]:
+    """The objects of an :class:`~aerial_synth.formats.labels.ImageLabels` (to write it)."""
+    return [DotaObject(polygon4(p), c, int(bool(d)))
+            for p, c, d in zip(labels.polygons_xy_px, labels.classes, labels.difficult)]
 
 
 def to_lines(objects, gsd_m: float | None, image_source: str = IMAGE_SOURCE) -> list[str]:
@@ -102,6 +119,95 @@ def write(path, objects, gsd_m, image_source: str = IMAGE_SOURCE) -> Path:
 def read(path, categories=CATEGORIES) -> DotaLabel:
     content = read_text(path)
     return from_lines(content.splitlines(), where=str(path), categories=categories)
+
+
+def labels_from_lines(lines, where: str = "<labelTxt>", name: str = "") -> ImageLabels:
+    """Lenient DOTA v1 parser for real-world files -> :class:`ImageLabels`.
+
+    Header lines ``imagesource:...`` and ``gsd:...`` are optional (real DOTA has them, the
+    devkit skips them); blank lines are skipped. Object lines: ``x1 y1 .. x4 y4 category``
+    with an optional ``difficult`` (an integer; anything but 0 is difficult, as the devkit's
+    splitter writes 2 for small cut-off parts). Any one-word category."""
+    fast = _lenient_fast(lines)
+    if fast is not None:
+        polys, classes, diff, gsd, source = fast
+        return ImageLabels(name, polys, classes, diff, gsd, source)
+    polys, classes, diff = [], [], []
+    gsd = None
+    source = None
+    for n, raw in enumerate(lines, start=1):
+        ln = raw.strip()
+        if not ln:
+            continue
+        if ln.startswith("imagesource:"):
+            source = ln[len("imagesource:"):]
+            continue
+        if ln.startswith("gsd:"):
+            g = ln[4:].strip()
+            if g not in ("", "null", "None", "none"):
+                gsd = parse_number(g, f"{where}:{n}", "gsd")
+                if gsd <= 0:
+                    raise LabelFormatError(f"{where}:{n}: expected gsd > 0, got {g!r}")
+            continue
+        f = ln.split()
+        if len(f) not in (9, 10):
+            raise LabelFormatError(
+                f"{where}:{n}: expected 'x1 y1 x2 y2 x3 y3 x4 y4 category [difficult]' "
+                f"(9 or 10 fields), got {len(f)} fields: {ln[:80]!r}")
+        xy = [parse_number(t, f"{where}:{n}", f"coordinate {i + 1}") for i, t in enumerate(f[:8])]
+        d = 0
+        if len(f) == 10:
+            try:
+                d = int(f[9])
+            except ValueError:
+                raise LabelFormatError(
+                    f"{where}:{n}: expected difficult as an integer (0 or 1), got {f[9]!r}") from None
+        polys.append(xy)
+        classes.append(f[8])
+        diff.append(d != 0)
+    arr = np.asarray(polys, dtype=np.float64).reshape(-1, 4, 2)
+    return ImageLabels(name, arr, classes, np.asarray(diff, dtype=bool), gsd, source)
+
+
+def _lenient_fast(lines):
+    """The common case in one numpy conversion; None when anything is unusual (the
+    line-by-line parser then finds and names the line)."""
+    body = []
+    gsd = source = None
+    for raw in lines:
+        ln = raw.strip()
+        if not ln:
+            continue
+        if ln.startswith("imagesource:"):
+            source = ln[len("imagesource:"):]
+        elif ln.startswith("gsd:"):
+            g = ln[4:].strip()
+            if g not in ("", "null", "None", "none"):
+                try:
+                    gsd = float(g)
+                except ValueError:
+                    return None
+                if not (np.isfinite(gsd) and gsd > 0):
+                    return None
+        else:
+            body.append(ln.split())
+    if any(len(f) != 10 for f in body) or any(f[9] not in ("0", "1", "2") for f in body):
+        return None
+    try:
+        xy = np.array([f[:8] for f in body], dtype=np.float64).reshape(-1, 4, 2)
+    except ValueError:
+        return None
+    if not np.isfinite(xy).all():
+        return None
+    return xy, [f[8] for f in body], np.array([f[9] != "0" for f in body], bool), gsd, source
+
+
+def read_labels(path, name: str | None = None) -> ImageLabels:
+    """A real-world DOTA label file, read leniently (:func:`labels_from_lines`)."""
+    path = Path(path)
+    lab = labels_from_lines(read_lines(path), str(path), path.stem if name is None else name)
+    lab.label_path = path
+    return lab
 
 
 class DotaFormat(LabelFormat):

@@ -17,8 +17,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..errors import LabelFormatError
 from ..io_utils import atomic_write_text
-from ._common import CATEGORIES, LabelFormatError, fmt_num, parse_float, polygon4, read_text
+from ._common import CATEGORIES, fmt_num, parse_float, polygon4, read_text
 from .registry import LabelFormat
 
 __all__ = ["FORMAT", "EagleFormat", "HEADER", "EagleObject", "to_lines", "from_lines",

@@ -19,8 +19,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..annotate.boxes import VehicleAnnotation
+from ..errors import LabelFormatError
 from ..io_utils import atomic_write_text, dumps_json
-from ._common import LabelFormatError, read_json
+from ._common import read_json
 
 __all__ = ["FORMAT", "VERSION", "ImageRecord", "to_dict", "from_dict", "write", "read"]
 

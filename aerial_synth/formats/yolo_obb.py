@@ -12,6 +12,11 @@ by the image border may have a corner a little outside the image (Ultralytics' o
 converter writes such corners too, and its loader accepts them). Clipping each corner on its
 own would turn the rectangle into an irregular quadrilateral that Ultralytics refits up to
 44 % larger.
+
+Two readers: :func:`from_lines` / :func:`read` are strict (exactly what the exporter writes);
+:func:`labels_from_lines` is lenient, for real-world label and prediction files (class names
+from a data YAML, an optional confidence column) and returns the one label model,
+:class:`~aerial_synth.formats.labels.ImageLabels`, in pixels.
 """
 
 from __future__ import annotations
@@ -21,8 +26,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import LabelFormatError
 from ..io_utils import atomic_write_text
-from ._common import CATEGORIES, LabelFormatError, fmt_num, parse_float, polygon4, read_text
+from ._common import CATEGORIES, fmt_num, parse_float, parse_number, polygon4, read_text
+from .labels import ImageLabels
 from .registry import DatasetInfo, LabelFormat
 
 __all__ = [
@@ -38,6 +45,7 @@ __all__ = [
     "text",
     "write",
     "read",
+    "labels_from_lines",
 ]
 
 DECIMALS = 6
@@ -129,6 +137,39 @@ def write(path, objects) -> Path:
 def read(path, n_classes: int | None = len(CATEGORIES)):
     content = read_text(path)
     return from_lines(content.splitlines(), where=str(path), n_classes=n_classes)
+
+
+def labels_from_lines(lines, where: str, names, size_wh, *, with_conf: bool = False,
+                      name: str = "") -> ImageLabels:
+    """Lenient parser of Ultralytics YOLO-OBB lines ``cls x1 y1 .. x4 y4 [conf]``
+    (normalised) -> :class:`ImageLabels` in pixels of an image ``size_wh`` (w, h); class
+    indices name ``names``; with ``with_conf`` the 10th field is the score (``scores``)."""
+    w, h = size_wh
+    nf = 10 if with_conf else 9
+    what = "'cls x1 y1 x2 y2 x3 y3 x4 y4 conf'" if with_conf else "'cls x1 y1 x2 y2 x3 y3 x4 y4'"
+    polys, classes, conf = [], [], []
+    for n, raw in enumerate(lines, start=1):
+        ln = raw.strip()
+        if not ln:
+            continue
+        f = ln.split()
+        if len(f) != nf:
+            raise LabelFormatError(f"{where}:{n}: expected {what} ({nf} fields), got {len(f)} fields: {ln[:80]!r}")
+        try:
+            c = int(f[0])
+        except ValueError:
+            raise LabelFormatError(f"{where}:{n}: expected a class index, got {f[0]!r}") from None
+        if not 0 <= c < len(names):
+            raise LabelFormatError(
+                f"{where}:{n}: expected a class index in 0..{len(names) - 1} (--names), got {c}")
+        xy = np.array([parse_number(t, f"{where}:{n}", f"coordinate {i + 1}") for i, t in enumerate(f[1:9])])
+        polys.append(xy.reshape(4, 2) * (w, h))
+        classes.append(names[c])
+        if with_conf:
+            conf.append(parse_number(f[9], f"{where}:{n}", "confidence"))
+    arr = np.asarray(polys, dtype=np.float64).reshape(-1, 4, 2)
+    return ImageLabels(name, arr, classes, np.zeros(len(classes), bool), size_wh=(w, h),
+                       scores=np.asarray(conf, dtype=np.float64) if with_conf else None)
 
 
 class YoloObbFormat(LabelFormat):

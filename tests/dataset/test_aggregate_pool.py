@@ -18,9 +18,8 @@ from aerial_synth.dataset.aggregate import MetaRecords, summarise, write_aggrega
 from aerial_synth.dataset.export import ExportConfig, export_dataset
 from aerial_synth.dataset.layout import meta_path
 from aerial_synth.dataset.worker import record_counts
-from aerial_synth.errors import ExportError
+from aerial_synth.errors import ExportError, LabelFormatError
 from aerial_synth.formats import CATEGORIES, registry
-from aerial_synth.formats._common import LabelFormatError
 from aerial_synth.formats.registry import LabelFormat
 
 from ..helpers import REPO, tree_bytes

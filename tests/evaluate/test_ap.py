@@ -16,7 +16,7 @@ from aerial_synth.evaluate.ap import (
     pairwise_iou,
     voc07_ap,
 )
-from aerial_synth.evaluate.labels import ImageLabels
+from aerial_synth.formats.labels import ImageLabels
 
 
 def rect(cx, cy, w, h, angle_deg=0.0):

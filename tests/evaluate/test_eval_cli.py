@@ -9,7 +9,8 @@ import pytest
 
 from aerial_synth.cli import main
 from aerial_synth.evaluate.evaluation import run_eval
-from aerial_synth.evaluate.labels import image_size, parse_dota_lines
+from aerial_synth.evaluate.labels import image_size
+from aerial_synth.formats import dota
 
 from .conftest import make_dota, rect, write_dota_image
 
@@ -20,7 +21,8 @@ def task1_from_gt(gt_dir, pred_dir, drop=(), shift=0.0):
     files = {}
     k = 0
     for p in sorted((gt_dir / "labelTxt").glob("*.txt")):
-        polys, cls, _, _, _ = parse_dota_lines(p.read_text().splitlines(), str(p))
+        lab = dota.read_labels(p)
+        polys, cls = lab.polygons_xy_px, lab.classes
         if p.stem in drop:
             continue
         for poly, c in zip(polys, cls):
@@ -178,7 +180,7 @@ def test_bad_input_one_line_exit_2_nothing_written(case, capsys):
 def test_ten_thousand_boxes_match_themselves(tmp_path):
     """Sanity (not a timing): 200 images x 50 boxes evaluate and match themselves."""
     from aerial_synth.evaluate.ap import Detections, evaluate
-    from aerial_synth.evaluate.labels import ImageLabels
+    from aerial_synth.formats.labels import ImageLabels
 
     rng = np.random.default_rng(0)
     gt, rows = [], []

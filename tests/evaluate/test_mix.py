@@ -12,8 +12,8 @@ import shapely
 
 from aerial_synth.cli import main
 from aerial_synth.errors import EvaluationError
-from aerial_synth.evaluate.labels import parse_dota_lines, parse_yolo_obb_lines
 from aerial_synth.evaluate.mix import MixConfig, clip_to_tile, make_mix, mix_counts, tile_origins
+from aerial_synth.formats import dota, yolo_obb
 
 from .conftest import make_dota, rect, write_dota_image
 
@@ -21,7 +21,8 @@ from .conftest import make_dota, rect, write_dota_image
 def labels_of(folder):
     out = {}
     for p in sorted(folder.glob("*.txt")):
-        out[p.stem] = parse_dota_lines(p.read_text().splitlines(), str(p))
+        lab = dota.labels_from_lines(p.read_text().splitlines(), str(p))
+        out[p.stem] = (lab.polygons_xy_px, lab.classes, lab.difficult, lab.gsd_m, lab.image_source)
     return out
 
 
@@ -153,15 +154,16 @@ def test_gsd_rescale_keeps_boxes_on_their_objects(tmp_path):
     dota_img, yolo_img = (tmp_path / "mix" / p for p in e["images"])
     assert os.stat(dota_img).st_ino == os.stat(yolo_img).st_ino  # one file, linked
     assert yolo_img.parent == tmp_path / "mix/yolo-obb/images/train"
-    dpolys, _, _, dgsd, _ = parse_dota_lines(
+    dlab = dota.labels_from_lines(
         (tmp_path / "mix/dota/train/labelTxt" / (dota_img.stem + ".txt")).read_text().splitlines(), "x")
+    dpolys, dgsd = dlab.polygons_xy_px, dlab.gsd_m
     assert dgsd == 0.12  # the rescaled image's header says the new GSD
     np.testing.assert_allclose(dpolys, np.array(boxes) * 2.5, atol=0.013)
     img = cv2.imread(str(yolo_img), cv2.IMREAD_GRAYSCALE)
     assert img.shape == (400, 500)
     lab = yolo_img.as_posix().replace("/images/", "/labels/").replace(".png", ".txt")
-    polys, cls, _ = parse_yolo_obb_lines(open(lab).read().splitlines(), lab,
-                                         ["small-vehicle", "large-vehicle"], (500, 400), with_conf=False)
+    polys = yolo_obb.labels_from_lines(open(lab).read().splitlines(), lab,
+                                       ["small-vehicle", "large-vehicle"], (500, 400)).polygons_xy_px
     assert len(polys) == 2
     for p, b in zip(polys, boxes):
         np.testing.assert_allclose(p, b * 2.5, atol=0.013)  # labels hold 2 decimals
@@ -267,7 +269,8 @@ def test_real_yolo_obb_folder_with_a_given_gsd(tmp_path):
                              real_images=2, gsd=0.12, real_gsd=0.24))
     assert man["counts"]["train_real"] == 2 and man["counts"]["val_real"] == 1
     lab = tmp_path / "mix/dota/train/labelTxt/real-t0__2.txt"
-    polys, cls, diff, gsd, _ = parse_dota_lines(lab.read_text().splitlines(), str(lab))
+    got = dota.read_labels(lab)
+    polys, cls, gsd = got.polygons_xy_px, got.classes, got.gsd_m
     assert cls == ["small-vehicle", "large-vehicle"] and gsd == 0.12  # names from the YAML
     np.testing.assert_allclose(polys, np.array(boxes) * 2, atol=0.01)
     img = cv2.imread(str(tmp_path / "mix/dota/train/images/real-t0__2.png"))
