@@ -16,7 +16,8 @@ import sys
 
 from . import __version__
 from .errors import AerialSynthError
-from .out_guard import refuse_out_is_input
+from .out_guard import INPUT_OPTIONS, refuse_out_is_input
+from .safe_input import input_roots
 
 # (module, ...) each exposing register(subparsers) that adds its commands and sets `func`.
 _COMMAND_MODULES = (
@@ -102,6 +103,11 @@ def console_main(argv: list[str] | None = None) -> int:
     from ._open3d import stub_viewer
 
     stub_viewer()
+    for stream in (sys.stdout, sys.stderr):  # a file name with bytes that are not UTF-8,
+        try:                                 # printed under a UTF-8 locale: escaped, no crash
+            stream.reconfigure(errors="backslashreplace")
+        except (AttributeError, ValueError):
+            pass
     return main(argv)
 
 
@@ -124,7 +130,8 @@ def _main(argv: list[str] | None) -> int:
         return int(exc.code or 0) if not isinstance(exc.code, str) else 2
     try:
         refuse_out_is_input(args)
-        code = int(args.func(args) or 0)
+        with input_roots(getattr(args, d, None) for d in INPUT_OPTIONS):
+            code = int(args.func(args) or 0)
         sys.stdout.flush()
         return code
     except BrokenPipeError:

@@ -20,6 +20,9 @@ from __future__ import annotations
 import json
 import os
 import struct
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 from typing import Any
 
@@ -42,6 +45,9 @@ __all__ = [
     "read_image",
     "cv_text",
     "refuse_escaping_link",
+    "input_roots",
+    "check_link",
+    "class_name",
 ]
 
 #: Deepest nesting of lists and mappings a YAML or JSON input may have (ours need < 10).
@@ -328,6 +334,7 @@ def check_image_pixels(path, error: type[Exception] = ConfigError,
     100,000 PNG would make ``cv2.imread`` fail with its own messages, or take all memory).
     Returns the header's (width, height), or None for a header it does not know."""
     label = where if where is not None else shown(path)
+    check_link(path, error)
     try:
         size = image_header_size(path)
     except OSError as exc:
@@ -415,3 +422,56 @@ def refuse_escaping_link(path, root, option: str, error: type[Exception] = Confi
         raise error(f"{option} {shown(p)}: a symbolic link to {shown(real)}, outside the input "
                     f"folder {shown(root)}; copy the file in instead")
     return p
+
+
+#: The input folders of the running command (set by the CLI): files found below one of them
+#: must not be links to a place outside it.
+_INPUT_ROOTS: ContextVar[tuple[str, ...]] = ContextVar("aerial_synth_input_roots", default=())
+
+
+@contextmanager
+def input_roots(paths: Iterable) -> Iterator[None]:
+    """For the body, every file read below one of the folders ``paths`` (the command's input
+    folders) is checked by :func:`check_link`. Paths that are not folders are ignored."""
+    roots = []
+    for p in paths:
+        try:
+            if p is not None and os.fspath(p) and os.path.isdir(p):
+                roots.append(os.path.abspath(p))
+        except (TypeError, ValueError, OSError):
+            continue
+    token = _INPUT_ROOTS.set(tuple(roots))
+    try:
+        yield
+    finally:
+        _INPUT_ROOTS.reset(token)
+
+
+def _below(path: str, root: str) -> bool:
+    return path == root or path.startswith(root.rstrip(os.sep) + os.sep)
+
+
+def check_link(path, error: type[Exception] = ConfigError) -> None:
+    """Refuse ``path`` when it lies below one of the command's input folders
+    (:func:`input_roots`) but resolves, through a symbolic link, to a place outside it: a
+    label file linked to ``/etc/shadow`` is refused by name and its content never read."""
+    roots = _INPUT_ROOTS.get()
+    if not roots:
+        return
+    a = os.path.abspath(path)
+    for r in roots:
+        if _below(a, r):
+            if not _below(os.path.realpath(a), os.path.realpath(r)):
+                raise error(f"{shown(path)}: a symbolic link to {shown(os.path.realpath(a))}, outside "
+                            f"the input folder {shown(r)}; copy the file in instead")
+            return
+
+
+def class_name(text: Any, where: str, error: type[Exception] = ConfigError) -> str:
+    """A class name as a label file holds it: printable text without spaces (undecodable
+    bytes of a file name or an argument are refused here, not at the first ``print``)."""
+    s = text if isinstance(text, str) else None
+    if not s or not s.isprintable() or any(ch.isspace() or "\ud800" <= ch <= "\udfff" for ch in s):
+        raise error(f"{where}: expected a class name of printable UTF-8 text without spaces, "
+                    f"got {quote(s if s is not None else repr(text))}")
+    return s

@@ -16,7 +16,15 @@ import numpy as np
 from ..errors import EvaluationError
 from ..formats import dota, vedai, yolo_obb
 from ..formats.labels import ImageLabels, read_lines
-from ..safe_input import check_image_pixels, read_image
+from ..safe_input import (
+    check_image_pixels,
+    check_link,
+    class_name,
+    load_yaml,
+    quote,
+    read_image,
+    shown,
+)
 
 __all__ = [
     "IMAGE_EXTS",
@@ -39,14 +47,14 @@ def parse_names(text: str, option: str = "--names") -> list[str]:
     """Class names from a data YAML (``names:`` list or {index: name}) or a comma list."""
     p = Path(text)
     if text.endswith((".yaml", ".yml")) or p.is_file():
-        import yaml
-
         try:
-            data = yaml.safe_load(p.read_text(encoding="utf-8-sig"))
+            check_link(p, EvaluationError)
+            raw = p.read_text(encoding="utf-8-sig")
         except FileNotFoundError:
-            raise EvaluationError(f"{option} {text}: no such file") from None
-        except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
-            raise EvaluationError(f"{option} {text}: cannot read it as YAML ({type(exc).__name__})") from None
+            raise EvaluationError(f"{option} {shown(text)}: no such file") from None
+        except (OSError, UnicodeDecodeError) as exc:
+            raise EvaluationError(f"{option} {shown(text)}: cannot read it as YAML ({type(exc).__name__})") from None
+        data = load_yaml(raw, f"{option} {shown(text)}", EvaluationError)  # nesting, alias budgets
         names = data.get("names") if isinstance(data, dict) else None
         if isinstance(names, dict):
             try:
@@ -55,16 +63,21 @@ def parse_names(text: str, option: str = "--names") -> list[str]:
                 keys = None
             if keys is None or keys != list(range(len(keys))):
                 raise EvaluationError(f"{option} {text}: expected names with indices 0..n-1, got {list(names)[:5]}")
-            out = [str(names[k]) for k in keys]
+            out = [names[k] for k in keys]
         elif isinstance(names, list):
-            out = [str(x) for x in names]
+            out = list(names)
         else:
             raise EvaluationError(f"{option} {text}: expected a 'names:' list or mapping in the YAML")
     else:
         out = [t.strip() for t in text.split(",")]
-    out = [n.replace(" ", "-") for n in out]
-    if not out or any(not n for n in out):
-        raise EvaluationError(f"{option}: expected class names (a data YAML or a comma list), got {text!r}")
+    if not out or any(n is None or n == "" for n in out):
+        raise EvaluationError(f"{option}: expected class names (a data YAML or a comma list), "
+                              f"got {quote(text)}")
+    # a name is a word or a number (YAML reads 1 as an int); a list or mapping is no name
+    out = [class_name(n.replace(" ", "-") if isinstance(n, str) else
+                      (str(n) if isinstance(n, (int, float)) and not isinstance(n, bool) else n),
+                      f"{option} {shown(text)}: names[{i}]", EvaluationError)
+           for i, n in enumerate(out)]
     return out
 
 

@@ -22,6 +22,7 @@ import numpy as np
 
 from .. import validators as V
 from ..errors import ConfigError, PlacementError
+from ..safe_input import load_yaml
 from .parking_config import PARKING_KEYS, PARKING_KINDS, ParkingConfig, parse_parking
 from .spacing import SpacingSampler
 
@@ -446,7 +447,6 @@ def load_scenario(name_or_path: str | ScenarioConfig, overrides: Mapping | None 
     Errors name the file and field (``scenarios/jam.yaml: spacing.mean_m: ...``), or the
     override (``--set spacing.mean_m: ...``; ``override_label`` replaces ``--set``).
     """
-    import yaml
 
     if overrides is not None and not isinstance(overrides, Mapping):
         raise ConfigError(f"overrides: expected a mapping of key: value, got {V.show(overrides)}")
@@ -479,12 +479,7 @@ def load_scenario(name_or_path: str | ScenarioConfig, overrides: Mapping | None 
         key = (str(p), source, text, override_label)
         if not overrides and key in _PARSED:
             return _PARSED[key]
-        try:
-            base = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            raise ConfigError(f"{source}: broken YAML ({' '.join(str(exc).split())})") from None
-        except (ValueError, TypeError, OverflowError, RecursionError) as exc:
-            raise ConfigError(f"{source}: broken YAML ({type(exc).__name__})") from None
+        base = load_yaml(text, source, ConfigError)  # nesting and alias budgets
         if base is None:
             base = {}
         if not isinstance(base, dict):

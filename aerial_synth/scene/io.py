@@ -24,6 +24,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..errors import AerialSynthError, SceneError
+from ..safe_input import load_yaml, shown
 from .model import (
     DEFAULT_COLOR_FOR_MATERIAL,
     DEFAULT_MATERIAL_FOR_LABEL,
@@ -180,7 +181,6 @@ def _default_rule_objects() -> tuple[LabelRule, ...]:
 
 
 def _read_yaml(path: Path, what: str) -> Any:
-    import yaml
 
     try:
         text = path.read_text(encoding="utf-8")
@@ -188,13 +188,7 @@ def _read_yaml(path: Path, what: str) -> Any:
         raise SceneError(f"{what} {path}: file not found") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise SceneError(f"{what} {path}: cannot read ({exc})") from None
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        problem = getattr(exc, "problem", None) or " ".join(str(exc).split())
-        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark is not None else ""
-        raise SceneError(f"{what} {path}: broken YAML ({where}{problem})") from None
+    return load_yaml(text, f"{what} {shown(path)}", SceneError)  # nesting and alias budgets
 
 
 def load_rules(path: str | Path | None) -> LabelRules:

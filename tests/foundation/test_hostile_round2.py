@@ -298,3 +298,183 @@ def test_12_image_over_opencvs_limit_is_refused_naming_it(tmp_path, cmd):
     one_line(r.returncode, err)
     assert "r000.png" in err and "100000 x 100000" in err and "1,073,741,824" in err
     assert not (tmp_path / "o").exists()
+
+
+# -- 3. links out of the input folder; at most 40 characters of a line quoted --------------------
+
+SECRET = "root:*:19000:0:99999:7:::supersecretvalue"
+
+
+@pytest.mark.parametrize("cmd", ["stats", "eval", "mix", "show"])
+def test_3_a_label_file_linked_out_of_the_folder_is_refused_unread(tmp_path, capsys, cmd):
+    real = make_dota(tmp_path / "R", 2, "r")
+    make_dota(tmp_path / "S", 2, "s")
+    secret = tmp_path / "shadow"
+    secret.write_text(SECRET + "\n")
+    (real / "labelTxt" / "r001.txt").unlink()
+    (real / "labelTxt" / "r001.txt").symlink_to(secret)
+    (tmp_path / "P").mkdir()
+    (tmp_path / "P" / "Task1_small-vehicle.txt").write_text("r000 0.9 1 1 5 1 5 5 1 5\n")
+    argv = {"stats": ["stats", real, "--out", tmp_path / "o"],
+            "eval": ["eval", "--gt", real, "--pred", tmp_path / "P"],
+            "mix": ["mix", "--real", real, "--synthetic", tmp_path / "S", "--real-images", "1",
+                    "--out", tmp_path / "o"],
+            "show": ["show", real, "--out", tmp_path / "o"]}[cmd]
+    code, err = run(capsys, *argv)
+    one_line(code, err)
+    assert "r001.txt" in err and "symbolic link" in err
+    assert "root" not in err.replace(str(tmp_path), "") and "secret" not in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_3_an_image_linked_out_of_the_folder_is_refused(tmp_path, capsys):
+    real = make_dota(tmp_path / "R", 2, "r")
+    outside = tmp_path / "elsewhere.png"
+    os.replace(real / "images" / "r001.png", outside)
+    (real / "images" / "r001.png").symlink_to(outside)
+    one_line(*run(capsys, "stats", real, "--out", tmp_path / "o"))
+
+
+def test_3_links_inside_the_folder_are_fine(tmp_path, capsys):
+    real = make_dota(tmp_path / "R", 2, "r")
+    (real / "pool").mkdir()
+    os.replace(real / "images" / "r001.png", real / "pool" / "r001.png")
+    (real / "images" / "r001.png").symlink_to(real / "pool" / "r001.png")
+    assert run(capsys, "stats", real, "--out", tmp_path / "o")[0] == 0
+
+
+def test_3_a_bad_line_is_quoted_short_and_escaped(tmp_path, capsys):
+    real = make_dota(tmp_path / "R", 2, "r")
+    line = "\x1b[2J" + SECRET * 5 + "\x07"
+    (real / "labelTxt" / "r001.txt").write_text(line + "\n")
+    err = one_line(*run(capsys, "stats", real, "--out", tmp_path / "o"))
+    assert "r001.txt:1" in err
+    assert "\x1b" not in err and "\x07" not in err and "\\x1b" in err
+    quoted = err[err.rindex(": '") + 2:].strip()
+    assert quoted == "'\\x1b[2J" + SECRET[:36] + "...'", quoted  # 40 characters, escaped
+
+
+# -- 6. a YAML bomb in a YOLO data.yaml --------------------------------------------------------
+
+
+def _bomb(levels=9, fan=9) -> str:
+    lines = ["a0: &a0 [" + ",".join(['"x"'] * fan) + "]"]
+    for k in range(1, levels):
+        lines.append(f"a{k}: &a{k} [" + ",".join([f"*a{k - 1}"] * fan) + "]")
+    lines.append("names: [" + ",".join([f"*a{levels - 1}"] * fan) + "]")
+    return "\n".join(lines) + "\n"
+
+
+def _yolo_folder(root: Path, data_yaml: str) -> Path:
+    import cv2
+
+    (root / "images").mkdir(parents=True)
+    (root / "labels").mkdir()
+    cv2.imwrite(str(root / "images" / "a.png"), np.full((64, 64, 3), 90, np.uint8))
+    (root / "labels" / "a.txt").write_text("0 0.1 0.1 0.3 0.1 0.3 0.2 0.1 0.2\n")
+    (root / "data.yaml").write_text(data_yaml)
+    return root
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("cmd", ["stats", "mix"])
+def test_6_yaml_bomb_in_data_yaml_is_refused_at_once(tmp_path, cmd):
+    y = _yolo_folder(tmp_path / "Y", _bomb())
+    make_dota(tmp_path / "S", 2, "s")
+    argv = {"stats": ["stats", y, "--out", tmp_path / "o"],
+            "mix": ["mix", "--real", y, "--synthetic", tmp_path / "S", "--real-images", "1",
+                    "--out", tmp_path / "o"]}[cmd]
+    r = cli(*argv, timeout=20)  # the bomb ran 29 s and then dropped every box: the hang fails
+    err = r.stderr.decode()
+    one_line(r.returncode, err)
+    assert "data.yaml" in err and "alias" in err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("names", ["names: [[a, b], c]", "names: {0: [x]}", "names: [~]",
+                                   "names: [{a: 1}]", "names: [true]"])
+def test_6_names_that_are_not_words_are_refused_not_read_as_no_objects(tmp_path, capsys, names):
+    y = _yolo_folder(tmp_path / "Y", names + "\n")
+    err = one_line(*run(capsys, "stats", y, "--out", tmp_path / "o"))
+    assert "data.yaml" in err
+    assert not (tmp_path / "o").exists()
+
+
+# -- 9. deeply nested YAML or JSON --------------------------------------------------------------
+
+
+def _deep_yaml(path: Path, key: str = "a", n: int = 5000) -> Path:
+    path.write_text(f"{key}: " + "[" * n + "]" * n + "\n")
+    return path
+
+
+@pytest.mark.timeout(60)
+def test_9_deep_documents_give_one_line(tmp_path, capsys):
+    deep = _deep_yaml(tmp_path / "deep.yaml")
+    deep_names = _deep_yaml(tmp_path / "deep_names.yaml", "names")
+    obj = _tiny_scene(tmp_path)
+    gt = make_dota(tmp_path / "R", 1, "r")
+    cases = [
+        ["scene", "show", deep, "--out", tmp_path / "a.png"],
+        ["assets", "list", "--catalog", deep],
+        ["scene", "show", obj, "--labels", deep, "--out", tmp_path / "b.png"],
+        ["eval", "--gt", gt, "--pred", gt, "--pred-format", "yolo-obb", "--names", deep_names],
+        ["place", "--scenario", deep, "--no-png", "--out", tmp_path / "pl"],
+    ]
+    for argv in cases:
+        err = one_line(*run(capsys, *argv))
+        assert "deep" in err and "100 deep" in err, err
+
+
+@pytest.mark.timeout(60)
+def test_9_show_on_a_dataset_whose_meta_is_nested_100000_deep(tmp_path, capsys, tiny_export_r2):
+    ds = tmp_path / "ds"
+    import shutil
+
+    shutil.copytree(tiny_export_r2, ds)
+    (ds / "meta" / "000000.json").write_text("[" * 100_000 + "]" * 100_000)
+    err = one_line(*run(capsys, "show", ds, "--out", tmp_path / "o"))
+    assert "000000.json" in err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.fixture(scope="module")
+def tiny_export_r2(tmp_path_factory):
+    from aerial_synth.dataset.export import ExportConfig, export_dataset
+
+    root = tmp_path_factory.mktemp("r2export")
+    cfg = ExportConfig(scene=str(_tiny_scene(root)), images=1, seed=1, images_per_placement=1,
+                       n_vehicles=3, width_px=64, height_px=64, simple_vehicles=True)
+    export_dataset(cfg, root / "ds", workers=1, progress=False)
+    return root / "ds"
+
+
+# -- 10. class names that are not UTF-8 -----------------------------------------------------------
+
+
+#: stdout as a desktop's UTF-8 locale has it (strict); the C and C.UTF-8 locales escape
+STRICT_UTF8 = {"PYTHONIOENCODING": "utf-8"}
+
+
+def test_10_pred_file_with_an_undecodable_class_name(tmp_path):
+    gt = make_dota(tmp_path / "R", 2, "r")
+    pred = tmp_path / "P"
+    pred.mkdir()
+    with open(os.fsencode(pred) + b"/Task1_\xff\xfe.txt", "w") as fh:
+        fh.write("r000 0.9 1 1 5 1 5 5 1 5\n")
+    r = cli("eval", "--gt", gt, "--pred", pred, env=STRICT_UTF8)
+    err = r.stderr.decode()
+    one_line(r.returncode, err)  # was UnicodeEncodeError ... surrogates not allowed
+    assert "\\xff\\xfe" in err
+
+
+def test_10_names_with_undecodable_bytes(tmp_path):
+    gt = make_dota(tmp_path / "R", 2, "r")
+    pred = tmp_path / "P"
+    pred.mkdir()
+    (pred / "r000.txt").write_text("0 0.1 0.1 0.3 0.1 0.3 0.2 0.1 0.2 0.9\n")
+    r = cli("eval", "--gt", gt, "--pred", pred, "--pred-format", "yolo-obb",
+            "--names", os.fsdecode(b"\xff,\xfe"), env=STRICT_UTF8)
+    err = r.stderr.decode()
+    one_line(r.returncode, err)
+    assert "--names" in err and "\\xff" in err
