@@ -33,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .camera_bounds import MAX_ALTITUDE_M, MAX_FOCAL_PX, MAX_GSD_M, MAX_IMAGE_PX
 from .errors import CameraError
 from .validators import in_range
 
@@ -44,10 +45,12 @@ __all__ = [
     "rotation_nadir",
     "DEFAULT_GSD_M",
     "MAX_IMAGE_PX",
+    "MAX_ALTITUDE_M",
+    "MAX_GSD_M",
+    "MAX_FOCAL_PX",
 ]
 
 DEFAULT_GSD_M = 0.12
-MAX_IMAGE_PX = 16384
 MAX_TILT_LIMIT_DEG = 89.0
 
 
@@ -80,7 +83,7 @@ class CameraConfig:
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
-        set_(self, "altitude_m", _finite("altitude_m", self.altitude_m, lo=0.0))
+        set_(self, "altitude_m", _finite("altitude_m", self.altitude_m, lo=0.0, hi=MAX_ALTITUDE_M))
         for name in ("width_px", "height_px"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) and not (
@@ -98,9 +101,9 @@ class CameraConfig:
                 f"focal length), got {' and '.join(given)}"
             )
         if self.gsd_m is not None:
-            set_(self, "gsd_m", _finite("gsd_m", self.gsd_m, lo=0.0))
+            set_(self, "gsd_m", _finite("gsd_m", self.gsd_m, lo=0.0, hi=MAX_GSD_M))
         if self.focal_px is not None:
-            set_(self, "focal_px", _finite("focal_px", self.focal_px, lo=0.0))
+            set_(self, "focal_px", _finite("focal_px", self.focal_px, lo=0.0, hi=MAX_FOCAL_PX))
         if self.fov_deg is not None:
             set_(self, "fov_deg", _finite("fov_deg", self.fov_deg, lo=0.0, hi=180.0, hi_open=True))
         set_(
@@ -441,6 +444,11 @@ def sample_pose_targeted(
     return cam
 
 
+#: Most frames one grid may have (a render writes each): an overlap of 0.999 asked for
+#: millions and ran for hours.
+MAX_GRID_FRAMES = 10_000
+
+
 def grid_poses(
     cfg: CameraConfig,
     bounds_xy,
@@ -472,6 +480,11 @@ def grid_poses(
     sx, sy = fw * (1 - ov), fh * (1 - ov)
     nx = max(1, math.ceil(((x1 - x0) - fw) / sx) + 1) if (x1 - x0) > fw else 1
     ny = max(1, math.ceil(((y1 - y0) - fh) / sy) + 1) if (y1 - y0) > fh else 1
+    if nx * ny > MAX_GRID_FRAMES:  # before a list of millions of poses (and their renders)
+        raise CameraError(
+            f"--overlap {ov:g}: the grid would need {nx:,} x {ny:,} = {nx * ny:,} frames to cover "
+            f"{x1 - x0:.0f} m x {y1 - y0:.0f} m, more than {MAX_GRID_FRAMES:,}; lower --overlap or "
+            "render larger frames")
     # centre the tile pattern on the bounds
     xs = (x0 + x1) / 2 + (np.arange(nx) - (nx - 1) / 2) * sx
     ys = (y0 + y1) / 2 - (np.arange(ny) - (ny - 1) / 2) * sy

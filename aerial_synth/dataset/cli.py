@@ -5,10 +5,9 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ..camera_bounds import MAX_ALTITUDE_M, MAX_GSD_M, MAX_IMAGE_PX
+
 __all__ = ["register"]
-
-
-MAX_IMAGE_PX = 16384  # as aerial_synth.camera.MAX_IMAGE_PX (not imported: --help stays instant)
 
 
 def _format_list(text: str):
@@ -71,9 +70,10 @@ def register(sub) -> None:
                    help="square image size in pixels (1024)")
     c.add_argument("--width", type=arg_int("--width", 1, MAX_IMAGE_PX), default=None, metavar="PX")
     c.add_argument("--height", type=arg_int("--height", 1, MAX_IMAGE_PX), default=None, metavar="PX")
-    c.add_argument("--altitude", type=arg_float("--altitude", 0.0, lo_open=True), default=60.0,
-                   metavar="M", help="metres (60)")
-    c.add_argument("--gsd", type=arg_float("--gsd", 0.0, lo_open=True), default=None, metavar="M",
+    c.add_argument("--altitude", type=arg_float("--altitude", 0.0, MAX_ALTITUDE_M, lo_open=True),
+                   default=60.0, metavar="M", help="metres (60)")
+    c.add_argument("--gsd", type=arg_float("--gsd", 0.0, MAX_GSD_M, lo_open=True), default=None,
+                   metavar="M",
                    help="metres per pixel at nadir (0.12)")
     c.add_argument("--max-tilt", type=arg_float("--max-tilt", 0.0, 89.0, hi_open=True),
                    default=15.0, metavar="DEG", help="tilt drawn in [-DEG, DEG], 0 <= DEG < 89 (15)")

@@ -134,6 +134,7 @@ class ExportConfig:
             raise E(f"--margin-m: only with --tile-m (a tiled export), got --margin-m {v.show(self.margin_m)}")
         if not isinstance(self.box, BoxConfig):
             raise ConfigError(f"box: expected a BoxConfig, got {type(self.box).__name__}")
+        self.camera_config()  # the camera's bounds (aerial_synth.camera_bounds), checked now
 
     # --------------------------------------------------------------- derived
     @property

@@ -309,10 +309,18 @@ def _plan_real(items: list[ImageLabels], cfg: MixConfig) -> list[list[_Item]]:
             else:
                 f = it.gsd_m / cfg.gsd
                 if abs(f - 1.0) > 1e-9:
+                    least = cfg.tile or 1
+                    if w * f < least or h * f < least:
+                        raise EvaluationError(
+                            f"--gsd {cfg.gsd:g}: {shown(it.image_path)} ({w} x {h} px at {it.gsd_m:g} "
+                            f"m/px) would shrink to {w * f:.3g} x {h * f:.3g} px, less than "
+                            + (f"one --tile ({cfg.tile} px)" if cfg.tile else "1 px")
+                            + "; choose a smaller --gsd")
                     nw, nh = max(1, int(round(w * f))), max(1, int(round(h * f)))
                     sx, sy = nw / w, nh / h
                     w, h = nw, nh
-                    gsd = cfg.gsd
+                    # the GSD the rounded size gives (the labels' gsd: header must be true)
+                    gsd = it.gsd_m / ((sx + sy) / 2)
         scale_tag = "" if (sx, sy) == (1.0, 1.0) else f"__{sx:.4g}"
         out = []
         if cfg.tile is None:

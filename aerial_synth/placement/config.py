@@ -62,6 +62,11 @@ def _opt(check, name, v, **kw):
     return None if v is None else check(name, v, **kw)
 
 
+#: Most steps one probe direction may march (max_distance_m / step_m): the thesis's 0.05 m
+#: over 16 m is 320; 1e-9 m asked for 1.6e10 and never finished.
+MAX_PROBE_STEPS = 20_000
+
+
 @dataclass(frozen=True)
 class ProbeConfig:
     """Line-trace probing (thesis §3.2.2): 0.05 m steps, every 10 degrees.
@@ -104,6 +109,12 @@ class ProbeConfig:
         s(self, "max_turn_deg", V.in_range(p + "max_turn_deg", self.max_turn_deg, 0.0, 180.0,
                                            lo_open=True))
         s(self, "edge_jump_m", V.in_range(p + "edge_jump_m", self.edge_jump_m, 0.0, 20.0, lo_open=True))
+        steps = self.max_distance_m / self.step_m
+        if steps > MAX_PROBE_STEPS:  # each probe marches this many steps in every direction
+            raise ConfigError(
+                f"{p}step_m: expected at least {p}max_distance_m / {MAX_PROBE_STEPS:,} = "
+                f"{self.max_distance_m / MAX_PROBE_STEPS:g} m (a probe would march {steps:,.0f} "
+                f"steps), got {V.show(self.step_m)}")
 
 
 @dataclass(frozen=True)

@@ -17,10 +17,11 @@ import argparse
 import sys
 import time
 
+from ..camera_bounds import MAX_ALTITUDE_M, MAX_FOCAL_PX, MAX_GSD_M, MAX_IMAGE_PX
+
 __all__ = ["register", "add_camera_args", "camera_config_from_args", "run"]
 
 PLACEMENT_KEY = 0x504C  # "PL"
-MAX_IMAGE_PX = 16384
 
 
 def add_camera_args(p: argparse.ArgumentParser) -> None:
@@ -28,16 +29,16 @@ def add_camera_args(p: argparse.ArgumentParser) -> None:
     from ..validators import arg_float, arg_int
 
     g = p.add_argument_group("camera")
-    g.add_argument("--altitude", type=arg_float("--altitude", 0.0, 100_000.0, lo_open=True),
+    g.add_argument("--altitude", type=arg_float("--altitude", 0.0, MAX_ALTITUDE_M, lo_open=True),
                    default=60.0, metavar="M",
                    help="camera height above the target ground, metres (default 60)")
     g.add_argument("--width", type=arg_int("--width", 1, MAX_IMAGE_PX), default=1024,
                    metavar="PX", help="image width (1024)")
     g.add_argument("--height", type=arg_int("--height", 1, MAX_IMAGE_PX), default=1024,
                    metavar="PX", help="image height (1024)")
-    g.add_argument("--gsd", type=arg_float("--gsd", 0.0, 1000.0, lo_open=True), default=None,
+    g.add_argument("--gsd", type=arg_float("--gsd", 0.0, MAX_GSD_M, lo_open=True), default=None,
                    metavar="M", help="ground sampling distance at nadir, m/px (default 0.12)")
-    g.add_argument("--focal", type=arg_float("--focal", 0.0, 1e7, lo_open=True), default=None,
+    g.add_argument("--focal", type=arg_float("--focal", 0.0, MAX_FOCAL_PX, lo_open=True), default=None,
                    metavar="PX", help="focal length, px")
     g.add_argument("--fov", type=arg_float("--fov", 0.0, 180.0, lo_open=True, hi_open=True),
                    default=None, metavar="DEG", help="horizontal field of view, degrees")

@@ -24,7 +24,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..errors import AerialSynthError, SceneError
-from ..safe_input import load_yaml, shown
+from ..safe_input import load_yaml, quote, shown
 from .model import (
     DEFAULT_COLOR_FOR_MATERIAL,
     DEFAULT_MATERIAL_FOR_LABEL,
@@ -423,6 +423,24 @@ def _georeference(path: Path, tscene, rules, items, raw_max_m: float, ext: str):
     return origin, crs
 
 
+#: Largest coordinate (metres) a scene file may place geometry at, after its node transforms
+#: and units: 100,000 km, far beyond any map projection's coordinates of the Earth (a UTM
+#: northing is below 10,000 km), far below where float64 arithmetic overflows.
+MAX_COORD_M = 1e8
+
+
+def _check_plausible(path: Path, name: str, v: np.ndarray, t: np.ndarray) -> None:
+    """Refuse a node whose transformed vertices or translation are not finite or lie
+    beyond :data:`MAX_COORD_M` (a translation of 1e308 overflowed later, in the georeference)."""
+    for what, arr in (("translation", t), ("transformed vertices", v)):
+        a = np.abs(np.asarray(arr, np.float64))
+        with np.errstate(invalid="ignore", over="ignore"):
+            worst = float(a.max()) if a.size else 0.0
+        if not np.isfinite(a).all() or worst > MAX_COORD_M:
+            raise SceneError(f"scene file {shown(path)}: node {quote(name)}: expected {what} within "
+                             f"{MAX_COORD_M:g} m of the origin (finite), got {worst:g}")
+
+
 def load_mesh_scene(path: str | Path, labels: str | Path | None = None) -> Scene:
     """Load a glTF/GLB, OBJ or PLY file as a labelled :class:`Scene`.
 
@@ -504,6 +522,7 @@ def load_mesh_scene(path: str | Path, labels: str | Path | None = None) -> Scene
             if scale != 1.0:
                 v = v * scale
                 t = t * scale
+            _check_plausible(path, name, v, t)
             if np.linalg.det(R) < 0:
                 faces = faces[:, ::-1]  # mirrored node: keep counter-clockwise winding
             items.append((g, name, v, t, faces, mat_name, col))

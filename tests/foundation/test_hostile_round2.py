@@ -478,3 +478,151 @@ def test_10_names_with_undecodable_bytes(tmp_path):
     err = r.stderr.decode()
     one_line(r.returncode, err)
     assert "--names" in err and "\\xff" in err
+
+
+# -- 11. glTF node transforms that are not finite or not plausible ----------------------------------
+
+
+@pytest.mark.parametrize("translation", [[1e308, 0, 0], [0, 0, 1e9], [0, -1e300, 0]])
+def test_11_huge_node_translation_is_refused(tmp_path, capsys, translation):
+    import json
+
+    import trimesh
+
+    trimesh.load(str(_tiny_scene(tmp_path)), force="scene").export(str(tmp_path / "node.gltf"))
+    doc = json.loads((tmp_path / "node.gltf").read_text())
+    for node in doc["nodes"]:
+        if "mesh" in node:
+            node["translation"] = translation
+    (tmp_path / "node_huge.gltf").write_text(json.dumps(doc))
+    err = one_line(*run(capsys, "place", "--scene", tmp_path / "node_huge.gltf", "--vehicles", "3",
+                        "--no-png", "--out", tmp_path / "X"))
+    assert "node_huge.gltf" in err and "translation" in err  # was OverflowError
+    assert not (tmp_path / "X").exists()
+
+
+# -- 13. an address-space limit counts as a memory limit ----------------------------------------
+
+
+def test_13_export_under_ulimit_v_is_refused_in_one_line(tmp_path):
+    import resource
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (3_000_000 * 1024, resource.RLIM_INFINITY))
+
+    e = dict(os.environ, PYTHONPATH=str(REPO))
+    r = subprocess.run([sys.executable, "-m", "aerial_synth.cli", "export", "--scene", "depot",
+                        "--images", "2", "--size", "3000", "--preset", "fast", "--no-progress",
+                        "--out", str(tmp_path / "ds")], capture_output=True, text=True, timeout=300,
+                       env=e, preexec_fn=limit)
+    one_line(r.returncode, r.stderr)  # was cv2.error ... Insufficient memory, 34 lines
+    assert "ulimit -v" in r.stderr
+    assert sorted(os.listdir(tmp_path)) == []
+
+
+def test_13_address_space_room_follows_the_soft_limit():
+    import resource
+
+    from aerial_synth.render import budget
+
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    try:
+        resource.setrlimit(resource.RLIMIT_AS, (resource.RLIM_INFINITY, hard))
+        assert budget.address_space_room() is None
+        resource.setrlimit(resource.RLIMIT_AS, (8 << 30, hard))
+        room = budget.address_space_room()
+        assert 0 < room <= (8 << 30) - budget.RENDER_PROCESS_VM_BYTES
+    finally:
+        resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
+
+
+# -- 14. values whose work is absurd -------------------------------------------------------------
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("argv", [
+    ["render", "--sampler", "grid", "--overlap", "0.999", "--width", "64", "--height", "64",
+     "--vehicles", "3"],
+    ["render", "--sampler", "grid", "--overlap", "0.9999", "--width", "64", "--height", "64",
+     "--vehicles", "3"],
+    ["render", "--sampler", "grid", "--overlap", "0.99", "--width", "64", "--height", "64",
+     "--vehicles", "3"],
+    ["place", "--set", "probe.step_m=0.000000001", "--vehicles", "3", "--no-png"],
+], ids=["overlap-0.999", "overlap-0.9999", "overlap-0.99", "probe-step-1e-9"])
+def test_14_absurd_work_is_refused_naming_the_limit(tmp_path, argv):
+    r = cli(*argv, "--out", tmp_path / "o", timeout=60)  # ran past 120 s: the hang fails here
+    err = r.stderr.decode()
+    one_line(r.returncode, err)
+    assert ("10,000" in err) or ("20,000" in err)
+    assert not (tmp_path / "o").exists()
+
+
+def test_14_grid_and_probe_limits_leave_the_usual_values():
+    from aerial_synth.camera import CameraConfig, grid_poses
+    from aerial_synth.errors import CameraError
+    from aerial_synth.placement.config import ProbeConfig
+
+    assert len(grid_poses(CameraConfig(width_px=64, height_px=64), [[0, 0], [507, 505]])) == 6806
+    with pytest.raises(CameraError, match="10,000"):
+        grid_poses(CameraConfig(width_px=64, height_px=64), [[0, 0], [507, 505]], overlap=0.5)
+    assert ProbeConfig(step_m=0.001).step_m == 0.001  # 16 m / 0.001 = 16,000 steps
+    with pytest.raises(Exception, match="20,000"):
+        ProbeConfig(step_m=0.0005)
+
+
+# -- 15. one set of camera bounds ----------------------------------------------------------------
+
+
+@pytest.mark.parametrize("cmd", ["export", "render"])
+@pytest.mark.parametrize("opt", [("--altitude", "1e30"), ("--altitude", "100001"), ("--gsd", "1e30"),
+                                 ("--gsd", "1000.5")])
+def test_15_camera_values_beyond_the_bounds_are_refused(tmp_path, capsys, cmd, opt):
+    err = one_line(*run(capsys, cmd, *opt, "--out", tmp_path / "o"))
+    assert opt[0] in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_15_camera_config_holds_the_bounds():
+    from aerial_synth.camera import CameraConfig
+    from aerial_synth.camera_bounds import MAX_ALTITUDE_M, MAX_GSD_M
+    from aerial_synth.dataset.config import ExportConfig
+    from aerial_synth.errors import AerialSynthError
+
+    CameraConfig(altitude_m=MAX_ALTITUDE_M, gsd_m=MAX_GSD_M)
+    for kw in ({"altitude_m": 1e30}, {"gsd_m": 1e30}, {"focal_px": 1e30}):
+        with pytest.raises(AerialSynthError):
+            CameraConfig(**kw)
+    for kw in ({"altitude_m": 1e30}, {"gsd_m": 1e30}):
+        with pytest.raises(AerialSynthError):
+            ExportConfig(**kw)
+
+
+# -- 16. mix --gsd writes the GSD it produced ------------------------------------------------------
+
+
+@pytest.mark.parametrize("gsd", ["100", "1001", "1e30"])
+def test_16_rescale_to_less_than_a_pixel_or_tile_is_refused(tmp_path, capsys, real_syn, gsd):
+    real, syn = real_syn
+    err = one_line(*run(capsys, "mix", "--real", real, "--synthetic", syn, "--real-images", "1",
+                        "--gsd", gsd, "--out", tmp_path / "o"))
+    assert "--gsd" in err
+    assert not (tmp_path / "o").exists()
+    err = one_line(*run(capsys, "mix", "--real", real, "--synthetic", syn, "--real-images", "1",
+                        "--gsd", "0.5", "--tile", "200", "--overlap", "0", "--out", tmp_path / "o"))
+    assert "--tile" in err  # 400 x 300 px at 0.12 -> 96 x 72 px: less than one 200 px tile
+
+
+def test_16_the_gsd_header_is_the_one_produced(tmp_path, capsys, real_syn):
+    real, syn = real_syn
+    assert run(capsys, "mix", "--real", real, "--synthetic", syn, "--real-images", "3",
+               "--val-fraction", "0", "--gsd", "0.35", "--out", tmp_path / "o")[0] == 0
+    labels = sorted((tmp_path / "o" / "dota" / "train" / "labelTxt").glob("real-*.txt"))
+    assert len(labels) == 3
+    import cv2
+
+    for lp in labels:
+        gsd = float(lp.read_text().splitlines()[1][4:])
+        img = cv2.imread(str(lp.parent.parent / "images" / (lp.stem + ".png")))
+        assert img.shape[:2] == (103, 137)  # 300 x 400 px * 0.12 / 0.35, rounded
+        true = 0.12 / ((137 / 400 + 103 / 300) / 2)  # mean of the two axes' exact scales
+        assert abs(gsd - true) < 1e-5, (gsd, true)
