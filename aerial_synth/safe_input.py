@@ -20,6 +20,7 @@ from __future__ import annotations
 import json
 import os
 import struct
+import sys
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -34,6 +35,7 @@ __all__ = [
     "MAX_IMAGE_PIXELS",
     "MAX_IMAGE_SIDE",
     "QUOTE_CHARS",
+    "MAX_COORD_PX",
     "quote",
     "shown",
     "load_yaml",
@@ -43,6 +45,8 @@ __all__ = [
     "check_image_pixels",
     "image_file_complete",
     "read_image",
+    "decode_image",
+    "quiet_native_stderr",
     "cv_text",
     "refuse_escaping_link",
     "input_roots",
@@ -57,6 +61,10 @@ MAX_NODES = 1_000_000
 #: OpenCV's own decoding limits (``CV_IO_MAX_IMAGE_PIXELS``, ``CV_IO_MAX_IMAGE_WIDTH/HEIGHT``).
 MAX_IMAGE_PIXELS = 1 << 30
 MAX_IMAGE_SIDE = 1 << 20
+#: Largest pixel coordinate (absolute) a label or prediction may hold: ten times OpenCV's
+#: largest image side. 1e300 passed as "finite" and overflowed in box areas, where numpy's
+#: warnings named no file.
+MAX_COORD_PX = 1e7
 #: Characters of an input line quoted in an error message.
 QUOTE_CHARS = 40
 
@@ -354,26 +362,27 @@ _PNG_END = b"IEND\xaeB`\x82"
 
 
 def image_file_complete(path, size_wh: tuple[int, int] | None = None) -> bool:
-    """True when ``path`` is a whole PNG or JPEG: its header can be read (and declares
-    ``size_wh`` when given) and the container's end is there (PNG ``IEND`` chunk, JPEG
-    end-of-image marker). Two small reads: a check for every file a resumed export keeps,
-    where a file cut short (a full disk, a copy interrupted) must be made again."""
+    """False when ``path`` is a PNG or JPEG cut short (no header, or no ``IEND`` chunk /
+    end-of-image marker at its end), or when its header does not declare ``size_wh`` (if
+    given). Other image types are judged by their header size only. Two small reads: a
+    check for every file a resumed export keeps, where a file cut short (a full disk, a copy
+    interrupted) must be made again, and before any decode of a user's image."""
     try:
-        size = image_header_size(path)
-        if size is None or (size_wh is not None and tuple(int(v) for v in size) != tuple(size_wh)):
-            return False
         with open(path, "rb") as fh:
             head = fh.read(4)
             fh.seek(0, os.SEEK_END)
             n = fh.tell()
             fh.seek(max(0, n - 16))
             tail = fh.read()
+        size = image_header_size(path)
     except OSError:
         return False
+    if size_wh is not None and (size is None or tuple(int(v) for v in size) != tuple(size_wh)):
+        return False
     if head.startswith(b"\x89PNG"):
-        return tail.endswith(_PNG_END)
+        return size is not None and tail.endswith(_PNG_END)
     if head.startswith(b"\xff\xd8"):
-        return tail.rstrip(b"\x00").endswith(b"\xff\xd9")
+        return size is not None and tail.rstrip(b"\x00").endswith(b"\xff\xd9")
     return True
 
 
@@ -389,14 +398,53 @@ def read_image(path, flags: int | None = None, error: type[Exception] = ConfigEr
 
     label = where if where is not None else shown(path)
     check_image_pixels(path, error, label)
+    if not image_file_complete(path):  # libpng would decode the half it has, with grey rows
+        raise error(f"{label}: truncated or damaged image (its header or end is missing)")
     try:
         data = np.fromfile(os.fspath(path), np.uint8)
     except OSError as exc:
         raise error(f"{label}: cannot read the image ({exc.strerror or type(exc).__name__})") from None
-    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED if flags is None else flags) if data.size else None
+    img = decode_image(data, cv2.IMREAD_UNCHANGED if flags is None else flags)
     if img is None:
         raise error(f"{label}: expected an image, cannot decode it")
     return img
+
+
+@contextmanager
+def quiet_native_stderr() -> Iterator[None]:
+    """Send what native code writes to file descriptor 2 (libpng's ``libpng error: ...``,
+    OpenCV's ``[ERROR:0@..]`` lines) to /dev/null for the body: a damaged image then gives
+    our one line only. Python's own ``sys.stderr`` is flushed first and restored after."""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, AttributeError, ValueError):
+        yield
+        return
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(null, 2)
+        finally:
+            os.close(null)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+def decode_image(data, flags: int):
+    """``cv2.imdecode(data, flags)`` with the decoders' own messages silenced; None when
+    the bytes are not a decodable image."""
+    import cv2
+
+    if data is None or len(data) == 0:
+        return None
+    with quiet_native_stderr():
+        try:
+            return cv2.imdecode(data, flags)
+        except cv2.error:
+            return None
 
 
 def cv_text(text: Any) -> str:

@@ -27,7 +27,7 @@ from ..errors import ExportError, OutputError
 from ..formats import dota, meta
 from ..formats.registry import get, names
 from ..io_utils import atomic_write_bytes, check_output_dir, is_inside
-from ..safe_input import check_image_pixels, cv_text
+from ..safe_input import check_image_pixels, cv_text, decode_image
 
 __all__ = ["Drawn", "draw_labels", "contact_sheet", "show_dataset"]
 
@@ -141,7 +141,7 @@ def _decode(path: Path) -> np.ndarray:
     if ext in (".jpg", ".jpeg") and (not data.startswith(b"\xff\xd8")
                                      or not data.rstrip(b"\x00").endswith(b"\xff\xd9")):
         raise ExportError(f"show {path}: truncated or damaged JPEG (no end-of-image marker)")
-    bgr = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    bgr = decode_image(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)  # libpng silenced
     if bgr is None:
         raise ExportError(f"show {path}: cannot decode the image")
     return bgr

@@ -9,6 +9,7 @@ import sys
 from contextlib import nullcontext
 from pathlib import Path
 
+from ..errors import EvaluationError
 from ..out_guard import out_lock, refuse_here, remove_dead_temps
 from ..validators import arg_choice, arg_float, arg_int
 
@@ -74,8 +75,8 @@ def register(sub) -> None:
                    help="share of real source images held out for val when --real has no val split (0.2)")
     m.add_argument("--tile", type=arg_int("--tile", 1), default=None, metavar="PX",
                    help="cut real images into PX x PX tiles (DOTA devkit splitter)")
-    m.add_argument("--overlap", type=arg_int("--overlap", 0), default=200, metavar="PX",
-                   help="tile overlap (200)")
+    m.add_argument("--overlap", type=arg_int("--overlap", 0), default=None, metavar="PX",
+                   help="tile overlap (200; with --tile only)")
     m.add_argument("--keep-threshold", type=arg_float("--keep-threshold", 0.0, 1.0, lo_open=True),
                    default=0.7, metavar="F",
                    help="keep a cut box when this share of its area is inside the tile (0.7)")
@@ -155,12 +156,16 @@ def _cmd_mix(args) -> int:
     from .mix import MixConfig, make_mix
 
     refuse_here(args.out)  # the mix is built beside --out and renamed into place
+    if args.overlap is not None and args.tile is None:
+        raise EvaluationError(f"--overlap {args.overlap}: applies to tiles; give --tile PX too, "
+                              "or drop --overlap")
     classes = None if args.classes == "all" else _classes(args.classes)
     cfg = MixConfig(
         real=Path(args.real), synthetic=Path(args.synthetic), out=Path(args.out),
         real_fraction=args.real_fraction, real_images=args.real_images,
         synthetic_images=args.synthetic_images, format=args.format, seed=args.seed,
-        val=args.val, val_fraction=args.val_fraction, tile=args.tile, overlap=args.overlap,
+        val=args.val, val_fraction=args.val_fraction, tile=args.tile,
+        overlap=200 if args.overlap is None else args.overlap,
         keep_threshold=args.keep_threshold, gsd=args.gsd, gsd_missing=args.gsd_missing,
         real_gsd=args.real_gsd,
         classes=classes, force=args.force,
@@ -182,6 +187,9 @@ def _cmd_stats(args) -> int:
     from .evaluation import check_report_dir
     from .stats import run_stats
 
+    if args.compare_gsd is not None and args.compare is None:
+        raise EvaluationError(f"--compare-gsd {args.compare_gsd:g}: is the GSD of --compare DIR2; "
+                              "give --compare too, or drop --compare-gsd")
     inputs = [("DIR", Path(args.dir))] + ([("--compare", Path(args.compare))] if args.compare else [])
     out = check_report_dir(args.out, inputs)
     with out_lock(args.out, "stats"):

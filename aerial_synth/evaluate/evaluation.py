@@ -21,7 +21,7 @@ from ..io_utils import (
     check_output_dir,
     is_inside,
 )
-from ..safe_input import class_name, quote, shown
+from ..safe_input import MAX_COORD_PX, class_name, quote, shown
 from .ap import METRICS, Detections, EvalResult, evaluate
 from .labels import (
     ImageLabels,
@@ -87,9 +87,12 @@ def read_task1_folder(pred_dir: Path, image_index: dict[str, int]) -> Detections
                     v = float(tok)
                 except ValueError:
                     v = float("nan")
+                what = "score" if k == 0 else f"coordinate {k}"
                 if not np.isfinite(v):
-                    what = "score" if k == 0 else f"coordinate {k}"
                     raise EvaluationError(f"{f}:{n}: expected {what} as a finite number, got {quote(tok)}")
+                if k and abs(v) > MAX_COORD_PX:
+                    raise EvaluationError(f"{f}:{n}: expected {what} within +-{MAX_COORD_PX:g}, "
+                                          f"got {quote(tok)}")
                 vals.append(v)
             img.append(i)
             cls.append(name)
@@ -111,7 +114,7 @@ def _task1_fast(lines, image_index):
         vals = np.array([r[1:] for r in rows], dtype=np.float64).reshape(-1, 9)
     except (KeyError, ValueError):
         return None
-    if not np.isfinite(vals).all():
+    if not np.isfinite(vals).all() or (vals.size and np.abs(vals[:, 1:]).max() > MAX_COORD_PX):
         return None
     return idx, vals[:, 0], vals[:, 1:].reshape(-1, 4, 2)
 

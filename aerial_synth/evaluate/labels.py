@@ -146,6 +146,12 @@ def resolve_dota_folder(path, split: str | None = None, option: str = "--gt") ->
                 lab = base / s / "labelTxt"
                 img = base / s / "images"
                 return lab, (img if img.is_dir() else None)
+    if split:  # the split asked for is not there: say so, not "found none"
+        have = sorted({s.name for base in (path, path / "dota") if base.is_dir()
+                       for s in base.iterdir() if (s / "labelTxt").is_dir()})
+        raise EvaluationError(
+            f"--split {quote(split)}: {shown(path)} has no {shown(split)}/labelTxt/ (nor "
+            f"dota/{shown(split)}/labelTxt/); its splits: {', '.join(have) or 'none'}")
     if path.name == "labelTxt" or any(p.suffix == ".txt" for p in path.iterdir()):
         img = path.parent / "images"
         return path, (img if img.is_dir() else None)

@@ -42,7 +42,7 @@ from ..errors import EvaluationError
 from ..formats import dota, yolo_obb
 from ..formats.labels import ImageLabels
 from ..io_utils import check_output_dir, dumps_json, is_inside
-from ..safe_input import quote, read_image, shown
+from ..safe_input import image_file_complete, quote, read_image, shown
 from .labels import (
     IMAGE_EXTS,
     find_data_yaml,
@@ -405,6 +405,9 @@ class _Writer:
                 how_here = _link(first, dst)
                 how = "copy" if "copy" in (how, how_here) else how
             elif untouched:
+                if not image_file_complete(src.image_path):  # linked as is: check it first
+                    raise EvaluationError(f"{shown(src.image_path)}: truncated or damaged image "
+                                          "(its header or end is missing)")
                 how = _link(src.image_path, dst)
             else:
                 arr = self.image(item)

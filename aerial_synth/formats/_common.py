@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import LabelFormatError
-from ..safe_input import check_link, load_json, quote
+from ..safe_input import MAX_COORD_PX, check_link, load_json, quote
 from ..vehicles import CLASSES
 
 __all__ = ["CATEGORIES", "fmt_num", "parse_float", "parse_number", "polygon4", "read_text",
@@ -33,6 +33,14 @@ def parse_float(token: str, where: str) -> float:
         raise LabelFormatError(f"{where}: expected a number, got {quote(token)}") from None
     if not np.isfinite(v):
         raise LabelFormatError(f"{where}: expected a finite number, got {quote(token)}")
+    return v
+
+
+def parse_coordinate(token: str, where: str, what: str, limit: float = MAX_COORD_PX) -> float:
+    """:func:`parse_number` within +-``limit`` (pixels, or image widths when normalised)."""
+    v = parse_number(token, where, what)
+    if abs(v) > limit:
+        raise LabelFormatError(f"{where}: expected {what} within +-{limit:g}, got {quote(token)}")
     return v
 
 

@@ -24,7 +24,16 @@ import numpy as np
 from ..errors import LabelFormatError
 from ..io_utils import atomic_write_text
 from ..safe_input import quote
-from ._common import CATEGORIES, fmt_num, parse_float, parse_number, polygon4, read_text
+from ._common import (
+    CATEGORIES,
+    MAX_COORD_PX,
+    fmt_num,
+    parse_coordinate,
+    parse_float,
+    parse_number,
+    polygon4,
+    read_text,
+)
 from .labels import ImageLabels, read_lines
 from .registry import LabelFormat
 
@@ -155,7 +164,7 @@ def labels_from_lines(lines, where: str = "<labelTxt>", name: str = "") -> Image
             raise LabelFormatError(
                 f"{where}:{n}: expected 'x1 y1 x2 y2 x3 y3 x4 y4 category [difficult]' "
                 f"(9 or 10 fields), got {len(f)} fields: {quote(ln)}")
-        xy = [parse_number(t, f"{where}:{n}", f"coordinate {i + 1}") for i, t in enumerate(f[:8])]
+        xy = [parse_coordinate(t, f"{where}:{n}", f"coordinate {i + 1}") for i, t in enumerate(f[:8])]
         d = 0
         if len(f) == 10:
             try:
@@ -198,7 +207,7 @@ def _lenient_fast(lines):
         xy = np.array([f[:8] for f in body], dtype=np.float64).reshape(-1, 4, 2)
     except ValueError:
         return None
-    if not np.isfinite(xy).all():
+    if not np.isfinite(xy).all() or (xy.size and np.abs(xy).max() > MAX_COORD_PX):
         return None
     return xy, [f[8] for f in body], np.array([f[9] != "0" for f in body], bool), gsd, source
 

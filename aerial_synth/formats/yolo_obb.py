@@ -29,7 +29,15 @@ import numpy as np
 from ..errors import LabelFormatError
 from ..io_utils import atomic_write_text
 from ..safe_input import quote
-from ._common import CATEGORIES, fmt_num, parse_float, parse_number, polygon4, read_text
+from ._common import (
+    CATEGORIES,
+    fmt_num,
+    parse_coordinate,
+    parse_float,
+    parse_number,
+    polygon4,
+    read_text,
+)
 from .labels import ImageLabels
 from .registry import DatasetInfo, LabelFormat
 
@@ -163,7 +171,8 @@ def labels_from_lines(lines, where: str, names, size_wh, *, with_conf: bool = Fa
         if not 0 <= c < len(names):
             raise LabelFormatError(
                 f"{where}:{n}: expected a class index in 0..{len(names) - 1} (--names), got {c}")
-        xy = np.array([parse_number(t, f"{where}:{n}", f"coordinate {i + 1}") for i, t in enumerate(f[1:9])])
+        xy = np.array([parse_coordinate(t, f"{where}:{n}", f"coordinate {i + 1}", 1e3)
+                       for i, t in enumerate(f[1:9])])  # normalised: within 1,000 image sides
         polys.append(xy.reshape(4, 2) * (w, h))
         classes.append(names[c])
         if with_conf:

@@ -627,6 +627,8 @@ def load_scene(
     crs    : OSM only: projected CRS to build in (default: the local UTM zone)
     """
     s = str(name_or_path)
+    if not s.strip():  # Path('') would be the current folder: "scene file .: unsupported ..."
+        raise SceneError(f"scene: expected a bundled scene name or a scene file, got {quote(s)}")
     p = Path(s)
     from .osm.read import is_osm_path
 
@@ -646,6 +648,9 @@ def load_scene(
         _no_labels_for_spec(labels, s)
         return _load_spec(p, seed)
     if p.suffix or "/" in s or "\\" in s or p.exists():
+        if seed is not None:  # a mesh's geometry is fixed: a seed would be silently ignored
+            raise SceneError(f"--scene-seed {seed}: applies to procedural scene specs and OSM "
+                             f"extracts, but {quote(s)} is a mesh file; drop --scene-seed")
         return load_mesh_scene(p, labels)
     spec = SCENES_DIR / f"{s}.yaml"
     if not spec.is_file():

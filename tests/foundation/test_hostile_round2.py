@@ -626,3 +626,139 @@ def test_16_the_gsd_header_is_the_one_produced(tmp_path, capsys, real_syn):
         assert img.shape[:2] == (103, 137)  # 300 x 400 px * 0.12 / 0.35, rounded
         true = 0.12 / ((137 / 400 + 103 / 300) / 2)  # mean of the two axes' exact scales
         assert abs(gsd - true) < 1e-5, (gsd, true)
+
+
+# -- 17. blame the right input -------------------------------------------------------------------
+
+
+def test_17_eval_split_that_is_not_there_names_the_split(tmp_path, capsys):
+    ds = tmp_path / "DS"
+    make_dota(ds / "train", 1, "r")
+    make_dota(ds / "val", 1, "v")
+    err = one_line(*run(capsys, "eval", "--gt", ds, "--pred", ds / "val" / "labelTxt", "--split",
+                        "holdout"))
+    assert "--split 'holdout'" in err and "train, val" in err  # was "--gt ... found none"
+
+
+def test_17_empty_scene_name(tmp_path, capsys):
+    err = one_line(*run(capsys, "place", "--scene", "", "--out", tmp_path / "X"))
+    assert "got ''" in err and "scene file ." not in err
+
+
+def test_17_mix_on_a_full_disk_blames_out(tmp_path, capsys, real_syn, monkeypatch):
+    import errno
+    import shutil
+
+    real, syn = real_syn
+
+    def full(src, dst, *a, **k):  # as shutil's sendfile copy reports ENOSPC: source first
+        raise OSError(errno.ENOSPC, "No space left on device", str(src), None, str(dst))
+
+    def no_link(src, dst, *a, **k):
+        raise OSError(errno.EXDEV, "Invalid cross-device link", str(src), None, str(dst))
+
+    monkeypatch.setattr(os, "link", no_link)
+    monkeypatch.setattr(shutil, "copyfile", full)
+    out = tmp_path / "mixout"
+    err = one_line(*run(capsys, "mix", "--real", real, "--synthetic", syn, "--real-images", "1",
+                        "--out", out))
+    assert err.startswith(f"aerial-synth: error: --out {out}: No space left")
+    assert str(real) not in err and str(syn) not in err
+    assert not out.exists()
+
+
+# -- 18. options that would be silently ignored ------------------------------------------------
+
+
+def test_18_options_that_do_nothing_are_refused(tmp_path, capsys, real_syn):
+    real, syn = real_syn
+    obj = _tiny_scene(tmp_path)
+    for argv, opt in (
+        (["scene", "show", obj, "--scene-seed", "3", "--out", tmp_path / "a.png"], "--scene-seed"),
+        (["stats", real, "--compare-gsd", "0.1", "--out", tmp_path / "st"], "--compare-gsd"),
+        (["mix", "--real", real, "--synthetic", syn, "--real-images", "1", "--overlap", "10",
+          "--out", tmp_path / "mx"], "--overlap"),
+    ):
+        err = one_line(*run(capsys, *argv))
+        assert opt in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["R", "S", "tiny.obj"]
+
+
+def test_18_export_with_a_mesh_scene_and_a_scene_seed(tmp_path, capsys):
+    obj = _tiny_scene(tmp_path)
+    err = one_line(*run(capsys, "export", "--scene", obj, "--scene-seed", "2", "--images", "1",
+                        "--size", "64", "--no-progress", "--out", tmp_path / "ds"))
+    assert "--scene-seed" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["tiny.obj"]
+
+
+# -- 20. one line of ours, nothing else -------------------------------------------------------------
+
+
+def test_20_a_damaged_png_gives_our_line_only(tmp_path):
+    real = make_dota(tmp_path / "R", 2, "r")
+    p = real / "images" / "r000.png"
+    d = bytearray(p.read_bytes())
+    d[60] ^= 0xFF
+    d[61] ^= 0xFF
+    p.write_bytes(bytes(d))
+    for argv in (["show", real, "--out", tmp_path / "o"],
+                 ["mix", "--real", real, "--synthetic", make_dota(tmp_path / "S", 1, "s"),
+                  "--real-fraction", "1", "--val-fraction", "0", "--tile", "100", "--overlap", "0",
+                  "--out", tmp_path / "o"]):
+        r = cli(*argv)
+        err = r.stderr.decode()
+        one_line(r.returncode, err)  # libpng's and OpenCV's own lines came first
+        assert err.startswith("aerial-synth: error:") and "r000.png" in err
+
+
+def test_20_a_truncated_png_is_not_half_decoded(tmp_path, capsys):
+    real = make_dota(tmp_path / "R", 2, "r")
+    p = real / "images" / "r000.png"
+    p.write_bytes(p.read_bytes()[:300])
+    syn = make_dota(tmp_path / "S", 1, "s")
+    for extra in ([], ["--tile", "100", "--overlap", "0"]):
+        err = one_line(*run(capsys, "mix", "--real", real, "--synthetic", syn, "--real-fraction", "1",
+                            "--val-fraction", "0", *extra, "--out", tmp_path / "o"))
+        assert "r000.png" in err and "truncated" in err
+    assert run(capsys, "stats", real, "--out", tmp_path / "st")[0] == 0
+    text = (tmp_path / "st" / "stats.json").read_text()
+    assert '"unreadable_images": [\n        "' + str(p) + '"' in text  # listed, not half decoded
+
+
+@pytest.mark.parametrize("coord", ["1e300", "-1e300", "1e8"])
+def test_20_absurd_coordinates_are_refused_with_the_file(tmp_path, coord):
+    real = make_dota(tmp_path / "R", 2, "r")
+    with open(real / "labelTxt" / "r000.txt", "a") as fh:
+        fh.write(f"{coord} 1 5 1 5 5 1 5 small-vehicle 0\n")
+    r = cli("stats", real, "--out", tmp_path / "o")
+    err = r.stderr.decode()
+    one_line(r.returncode, err)  # numpy's overflow warnings named no file
+    assert "r000.txt:" in err and coord in err
+
+
+@pytest.mark.timeout(240)
+@pytest.mark.parametrize("sig", ["SIGTERM", "SIGHUP"])
+def test_20_sigterm_and_sighup_end_the_exporter_with_one_line(tmp_path, sig):
+    import signal
+    import time
+
+    signum = getattr(signal, sig)
+    obj = _tiny_scene(tmp_path)
+    out = tmp_path / "ds"
+    part = tmp_path / ".ds.aerial-synth-partial"
+    e = dict(os.environ, PYTHONPATH=str(REPO))
+    p = subprocess.Popen([sys.executable, "-m", "aerial_synth.cli", "export", "--scene", str(obj),
+                          "--images", "40", "--images-per-placement", "2", "--size", "96",
+                          "--vehicles", "4", "--simple-vehicles", "--workers", "2", "--no-progress",
+                          "--out", str(out)], env=e, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                         preexec_fn=lambda: signal.signal(signum, signal.SIG_DFL))
+    t0 = time.time()
+    while not list((part / "meta").glob("*.json")) and p.poll() is None and time.time() - t0 < 180:
+        time.sleep(0.05)
+    p.send_signal(signum)
+    _, err = p.communicate(timeout=60)
+    err = err.decode()
+    assert p.returncode == 128 + signum, err  # was -15 / -1: killed, no line of ours
+    assert err.strip() == f"aerial-synth: terminated ({sig})", err  # no leaked-semaphore report
+    assert not out.exists() and (part / "manifest.json").is_file()  # resumable, as after Ctrl-C
