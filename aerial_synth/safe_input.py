@@ -191,6 +191,40 @@ def _children(node, SequenceNode, MappingNode) -> list:
     return []
 
 
+def _flow_too_deep(text: str, limit: int) -> int:
+    """The line where ``[`` / ``{`` brackets outside quotes and comments nest deeper than
+    ``limit``, or 0. One linear pass; it may count a bracket PyYAML reads as text (in a
+    plain scalar), never misses a real one."""
+    depth = 0
+    line = 1
+    quote_ch = ""
+    comment = False
+    prev = " "
+    for ch in text:
+        if ch == "\n":
+            line += 1
+            comment = False
+            if quote_ch == "'":  # a single-quoted scalar may span lines; keep it
+                pass
+        elif comment:
+            pass
+        elif quote_ch:
+            if ch == quote_ch and not (quote_ch == '"' and prev == "\\"):
+                quote_ch = ""
+        elif ch in "'\"" and (prev in " \t[{,:" or prev == "\n"):
+            quote_ch = ch
+        elif ch == "#" and prev in " \t\n":
+            comment = True
+        elif ch in "[{":
+            depth += 1
+            if depth > limit:
+                return line
+        elif ch in "]}":
+            depth = max(0, depth - 1)
+        prev = ch
+    return 0
+
+
 def load_yaml(text: str, where: str, error: type[Exception] = ConfigError) -> Any:
     """``yaml.safe_load(text)`` within the nesting and alias budgets. A document that is not
     YAML or is over a budget raises ``error`` with one line starting with ``where``."""
@@ -199,6 +233,10 @@ def load_yaml(text: str, where: str, error: type[Exception] = ConfigError) -> An
     global _LOADER
     if _LOADER is None:
         _LOADER = _loader_class()
+    line = _flow_too_deep(text, MAX_DEPTH)
+    if line:  # PyYAML's scanner would spend ~1 s on 1,000 open brackets before the composer
+        raise error(f"{where}: expected YAML with nesting at most {MAX_DEPTH} deep, got deeper "
+                    f"(line {line})")
     try:
         return yaml.load(text, Loader=_LOADER)  # noqa: S506 - a SafeLoader subclass
     except _Budget as exc:
