@@ -105,6 +105,9 @@ def check_output_file(path: str | os.PathLike, option: str = "--out") -> Path:
 def check_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:
     """Refuse an output folder path that is not a folder or cannot be created/written."""
     path, st = _stat_output(path, option, "a folder path")
+    real = Path(os.path.realpath(path))
+    if real.parent == real:
+        raise OutputError(f"{option} {path}: expected a folder to write into, not the file-system root")
     if st is not None:
         if not stat.S_ISDIR(st.st_mode):
             raise OutputError(f"{option} {path}: expected a folder, found {_kind(st.st_mode)}"

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import os
+import stat
 import struct
 import sys
 from collections.abc import Iterable, Iterator
@@ -538,9 +539,18 @@ def _below(path: str, root: str) -> bool:
 
 
 def check_link(path, error: type[Exception] = ConfigError) -> None:
-    """Refuse ``path`` when it lies below one of the command's input folders
+    """Refuse ``path`` when it is not a regular file (a FIFO would block the read forever, a
+    device could be endless) or when it lies below one of the command's input folders
     (:func:`input_roots`) but resolves, through a symbolic link, to a place outside it: a
     label file linked to ``/etc/shadow`` is refused by name and its content never read."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        mode = None  # missing or unreadable: the read that follows names it
+    if mode is not None and not stat.S_ISREG(mode):
+        what = ("a folder" if stat.S_ISDIR(mode) else "a FIFO" if stat.S_ISFIFO(mode) else
+                "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "not a regular file")
+        raise error(f"{shown(path)}: expected a regular file, found {what}")
     roots = _INPUT_ROOTS.get()
     if not roots:
         return
