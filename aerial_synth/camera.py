@@ -33,7 +33,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .camera_bounds import MAX_ALTITUDE_M, MAX_FOCAL_PX, MAX_GSD_M, MAX_IMAGE_PX
 from .errors import CameraError
 from .validators import in_range
 
@@ -51,7 +50,12 @@ __all__ = [
 ]
 
 DEFAULT_GSD_M = 0.12
+MAX_IMAGE_PX = 16384
 MAX_TILT_LIMIT_DEG = 89.0
+#: The one set of camera bounds (CameraConfig, and every command's camera options from it)
+MAX_ALTITUDE_M = 100_000.0
+MAX_GSD_M = 1000.0
+MAX_FOCAL_PX = 1e7
 
 
 def _finite(name: str, value, lo=None, hi=None, lo_open=True, hi_open=False) -> float:
@@ -64,10 +68,10 @@ def _finite(name: str, value, lo=None, hi=None, lo_open=True, hi_open=False) -> 
 class CameraConfig:
     """Camera settings (validated at construction; bad values raise :class:`CameraError`).
 
-    altitude_m   : camera height above the ground at its target, metres (> 0)
+    altitude_m   : camera height above the ground at its target, metres, in (0, 1e5]
     width_px, height_px : image size, 1..16384
-    gsd_m        : ground sampling distance at nadir, metres per pixel
-    focal_px     : focal length in pixels (square pixels)
+    gsd_m        : ground sampling distance at nadir, metres per pixel, in (0, 1e3]
+    focal_px     : focal length in pixels (square pixels), in (0, 1e7]
     fov_deg      : horizontal field of view across ``width_px``, degrees, in (0, 180)
                    Give at most one of gsd_m / focal_px / fov_deg; none = gsd 0.12 m.
     max_tilt_deg : tilt off nadir is sampled uniformly in [-max, max]; 0 <= max < 89

@@ -41,7 +41,7 @@ def _render(n: int) -> list[np.ndarray]:
     from aerial_synth.dataset.worker import ImageWorker
 
     cfg = ExportConfig(scene="city_park", scenario="jam", images=n, formats=("dota",), seed=0)
-    w = ImageWorker(cfg, Path(tempfile.mkdtemp()), nthreads=1)
+    w = ImageWorker.for_config(cfg, Path(tempfile.mkdtemp()), nthreads=1)
     return [w.record(i)[1] for i in range(n)]
 
 

@@ -79,9 +79,9 @@ def main(argv=None) -> int:
                          "default: glibc's own, which maps them again every frame of this loop")
     ap.add_argument("--primary", choices=("raster", "embree"), default="raster",
                     help="how the frame finds each pixel's first surface "
-                         "(aerial_synth.render.raycast.PRIMARY)")
+                         "(aerial_synth.render.buffers.PRIMARY)")
     a = ap.parse_args(argv)
-    from aerial_synth.render import raycast as render_raycast
+    from aerial_synth.render import buffers as render_raycast
 
     render_raycast.PRIMARY = a.primary
     print(f"primary visibility: {a.primary}")

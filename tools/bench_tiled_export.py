@@ -40,7 +40,7 @@ cfg = ExportConfig(scene=scene, images=images, images_per_placement=images, n_ve
 if sys.argv[6] == "group":  # the world's part only: group 0's scene, placement and RayScene
     from aerial_synth.dataset.worker import ImageWorker
     t0 = time.perf_counter()
-    w = ImageWorker(cfg, Path(out))
+    w = ImageWorker.for_config(cfg, Path(out))
     w._ensure_group(0)
     print(json.dumps({"seconds": round(time.perf_counter() - t0, 1), "vehicles": len(w._placement.vehicles),
                       "triangles": int(w._rayscene.scene.n_triangles),

@@ -18,7 +18,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from aerial_synth.camera import Camera, CameraConfig  # noqa: E402
-from aerial_synth.render.raycast import cast_buffers  # noqa: E402
+from aerial_synth.render.buffers import cast_buffers  # noqa: E402
 from aerial_synth.scene import RayScene, load_scene  # noqa: E402
 
 

@@ -26,6 +26,7 @@ from ..errors import AerialSynthError, ExportError
 from ..io_utils import atomic_write_chunks, atomic_write_json, atomic_write_text
 from .config import ExportConfig
 from .layout import meta_path, split_of
+from .parent import watch_parent
 from .worker import record_counts
 
 __all__ = ["MetaRecords", "POOL_MIN_RECORDS", "aggregate_pool", "dataset_info", "write_aggregates", "summarise"]
@@ -315,11 +316,9 @@ def _init_worker(cfg: ExportConfig, out: str, parent_pid: int) -> None:
     """Pool initializer: die with the exporter, leave Ctrl-C to it, read ``out``'s records."""
     import signal
 
-    from .worker import _watch_parent
-
     global _WORKER_RECORDS
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    _watch_parent(parent_pid)
+    watch_parent(parent_pid)
     _WORKER_RECORDS = MetaRecords(cfg, Path(out), workers=1)
 
 

@@ -5,8 +5,6 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..camera_bounds import MAX_ALTITUDE_M, MAX_GSD_M, MAX_IMAGE_PX
-
 __all__ = ["register"]
 
 
@@ -22,12 +20,16 @@ def _format_list(text: str):
 
 
 def register(sub) -> None:
-    from ..annotate.boxes import BOX_FITS, BOX_MODES
+    from ..annotate.boxes import BOX_FITS, BOX_MODES, BoxConfig
     from ..formats.registry import names as format_names
     from ..placement.config import SCENARIOS
+    from ..render.cli import add_camera_args
+    from ..render.config import RANDOMISE, RENDER_PRESETS
     from ..scene.cli import add_scene_args
     from ..validators import arg_choice, arg_float, arg_int
-    from .config import IMAGE_EXTS, MAX_IMAGES, RANDOMISE_MODES, RENDER_PRESETS
+    from .config import IMAGE_EXTS, MAX_IMAGES
+
+    box = BoxConfig()  # the one home of the box thresholds' defaults
 
     fmts = ", ".join(format_names())
     p = sub.add_parser(
@@ -65,29 +67,20 @@ def register(sub) -> None:
                    metavar="N", help="vehicles per placement (default: the scenario's)")
     g.add_argument("--lines", type=arg_int("--lines", 1, 1_000_000), default=None, metavar="N",
                    help="traffic lines per placement (default: the scenario's)")
-    c = p.add_argument_group("camera")
-    c.add_argument("--size", type=arg_int("--size", 1, MAX_IMAGE_PX), default=None, metavar="PX",
-                   help="square image size in pixels (1024)")
-    c.add_argument("--width", type=arg_int("--width", 1, MAX_IMAGE_PX), default=None, metavar="PX")
-    c.add_argument("--height", type=arg_int("--height", 1, MAX_IMAGE_PX), default=None, metavar="PX")
-    c.add_argument("--altitude", type=arg_float("--altitude", 0.0, MAX_ALTITUDE_M, lo_open=True),
-                   default=60.0, metavar="M", help="metres (60)")
-    c.add_argument("--gsd", type=arg_float("--gsd", 0.0, MAX_GSD_M, lo_open=True), default=None,
-                   metavar="M",
-                   help="metres per pixel at nadir (0.12)")
-    c.add_argument("--max-tilt", type=arg_float("--max-tilt", 0.0, 89.0, hi_open=True),
-                   default=15.0, metavar="DEG", help="tilt drawn in [-DEG, DEG], 0 <= DEG < 89 (15)")
+    add_camera_args(p, size=True, lens=False)
     b = p.add_argument_group("boxes and flags (docs/formats.md)")
-    b.add_argument("--box", type=arg_choice("--box", BOX_MODES), default="visible",
+    b.add_argument("--box", type=arg_choice("--box", BOX_MODES), default=box.box,
                    metavar="|".join(BOX_MODES),
                    help="visible: rectangle of the visible mask (thesis); amodal: whole vehicle")
     b.add_argument("--difficult-fraction", type=arg_float("--difficult-fraction", 0.0, 1.0),
-                   default=0.5, metavar="F", help="difficult when the visible fraction is below F (0.5)")
+                   default=box.difficult_visible_fraction, metavar="F",
+                   help=f"difficult when the visible fraction is below F ({box.difficult_visible_fraction:g})")
     b.add_argument("--min-visible-fraction", type=arg_float("--min-visible-fraction", 0.0, 1.0),
-                   default=0.1, metavar="F", help="dropped when the visible fraction is below F (0.1)")
-    b.add_argument("--min-visible-px", type=arg_int("--min-visible-px", 0), default=20, metavar="N",
-                   help="dropped when fewer visible pixels than N (20)")
-    b.add_argument("--box-fit", type=arg_choice("--box-fit", BOX_FITS), default="pixels",
+                   default=box.min_visible_fraction, metavar="F",
+                   help=f"dropped when the visible fraction is below F ({box.min_visible_fraction:g})")
+    b.add_argument("--min-visible-px", type=arg_int("--min-visible-px", 0), default=box.min_visible_px,
+                   metavar="N", help=f"dropped when fewer visible pixels than N ({box.min_visible_px})")
+    b.add_argument("--box-fit", type=arg_choice("--box-fit", BOX_FITS), default=box.fit,
                    metavar="|".join(BOX_FITS),
                    help="rectangle of the region's pixels (default) or of the dilated contour")
     p.add_argument("--image-ext", type=arg_choice("--image-ext", IMAGE_EXTS), default="png",
@@ -95,7 +88,7 @@ def register(sub) -> None:
     r = p.add_argument_group("rendering (docs/rendering.md)")
     r.add_argument("--preset", type=arg_choice("--preset", RENDER_PRESETS), default="full",
                    help="shading preset: full (every realism factor) or fast (full)")
-    r.add_argument("--randomise", type=arg_choice("--randomise", RANDOMISE_MODES),
+    r.add_argument("--randomise", type=arg_choice("--randomise", RANDOMISE),
                    default="none", help="textures: domain-randomised materials and light (none)")
     r.add_argument("--distractors", type=arg_float("--distractors", 0.0, 1000.0), default=0.0,
                    metavar="PER_HA", help="unlabelled street objects (manholes, containers, "
@@ -131,9 +124,10 @@ def register(sub) -> None:
 
 def config_from_args(args):
     from ..annotate.boxes import BoxConfig
-    from .export import ExportConfig
+    from ..render.cli import camera_config_from_args
+    from .config import ExportConfig
 
-    size = args.size if args.size is not None else 1024
+    cam = camera_config_from_args(args)
     box = BoxConfig(
         box=args.box,
         fit=args.box_fit,
@@ -155,11 +149,11 @@ def config_from_args(args):
         images_per_placement=args.images_per_placement,
         n_vehicles=args.vehicles,
         n_lines=args.lines,
-        width_px=args.width if args.width is not None else size,
-        height_px=args.height if args.height is not None else size,
-        altitude_m=args.altitude,
-        gsd_m=args.gsd,
-        max_tilt_deg=args.max_tilt,
+        width_px=cam.width_px,
+        height_px=cam.height_px,
+        altitude_m=cam.altitude_m,
+        gsd_m=cam.gsd_m,
+        max_tilt_deg=cam.max_tilt_deg,
         box=box,
         image_ext=args.image_ext,
         simple_vehicles=args.simple_vehicles,
@@ -175,12 +169,7 @@ def _cmd_export(args) -> int:
     from .export import export_dataset
 
     cfg = config_from_args(args)
-    if args.dask is not None and args.workers is not None:
-        from ..errors import ExportError
-
-        raise ExportError(f"--dask and --workers: choose one engine (the cluster's workers do the work), "
-                          f"got --dask {args.dask} --workers {args.workers}")
-    res = export_dataset(cfg, args.out, workers=args.workers or 1, resume=args.resume,
+    res = export_dataset(cfg, args.out, workers=args.workers, resume=args.resume,
                          force=args.force, progress=False if args.no_progress else None, dask=args.dask)
     print(res.text())
     return 0

@@ -13,8 +13,13 @@ from pathlib import Path
 
 from .. import validators as v
 from ..annotate.boxes import BoxConfig
+from ..camera import CameraConfig
 from ..errors import ConfigError, ExportError
+from ..formats.registry import parse_names
+from ..render.config import RANDOMISE, RenderConfig
+from ..render.config import RENDER_PRESETS as _RENDER_PRESETS
 from .seeds import PLACEMENT_STREAM
+from .tiled import check_tiled_config
 
 __all__ = ["IMAGE_EXTS", "PLACEMENT_STREAM", "SPLITS", "ExportConfig", "ExportResult"]
 
@@ -26,10 +31,10 @@ MAX_IMAGES = 1_000_000
 #: parameters that appear in the manifest only when set (added after manifest version 1)
 _OPTIONAL_FIELDS = ("bbox", "crs", "render_preset", "randomise", "distractors", "tile_m",
                     "margin_m")
-#: render presets and randomisation modes (aerial_synth.render.shading); kept here as text so
-#: that reading a config imports no renderer
-RENDER_PRESETS = ("full", "fast")
-RANDOMISE_MODES = ("none", "textures")
+#: render presets and randomisation modes: the values of the enums of aerial_synth.render.config
+#: (reading a config imports no renderer)
+RENDER_PRESETS = _RENDER_PRESETS
+RANDOMISE_MODES = RANDOMISE
 
 
 @dataclass(frozen=True)
@@ -74,11 +79,11 @@ class ExportConfig:
     images_per_placement: int = 10
     n_vehicles: int | None = None
     n_lines: int | None = None
-    width_px: int = 1024
-    height_px: int = 1024
-    altitude_m: float = 60.0
-    gsd_m: float | None = None
-    max_tilt_deg: float = 15.0
+    width_px: int = CameraConfig.width_px  # the camera's defaults are CameraConfig's
+    height_px: int = CameraConfig.height_px
+    altitude_m: float = CameraConfig.altitude_m
+    gsd_m: float | None = CameraConfig.gsd_m
+    max_tilt_deg: float = CameraConfig.max_tilt_deg
     box: BoxConfig = field(default_factory=BoxConfig)
     image_ext: str = "png"
     simple_vehicles: bool = False
@@ -89,8 +94,6 @@ class ExportConfig:
     margin_m: float | None = None
 
     def __post_init__(self):
-        from ..formats.registry import parse_names
-
         E = ExportError
         s = object.__setattr__
         for name in ("scene", "labels", "scenario"):  # paths are stored as text (manifest)
@@ -126,15 +129,13 @@ class ExportConfig:
             s(self, "distractors", v.in_range("--distractors", self.distractors, 0.0, 1000.0,
                                               error=E))
         if self.tile_m is not None:
-            from .tiled import check_tiled_config
-
             s(self, "tile_m", float(v.in_range("--tile-m", self.tile_m, 0.0, 1e9, lo_open=True, error=E)))
             s(self, "margin_m", check_tiled_config(self))
         elif self.margin_m is not None:
             raise E(f"--margin-m: only with --tile-m (a tiled export), got --margin-m {v.show(self.margin_m)}")
         if not isinstance(self.box, BoxConfig):
             raise ConfigError(f"box: expected a BoxConfig, got {type(self.box).__name__}")
-        self.camera_config()  # the camera's bounds (aerial_synth.camera_bounds), checked now
+        self.camera_config()  # the camera's bounds (aerial_synth.camera), checked now
 
     # --------------------------------------------------------------- derived
     @property
@@ -146,9 +147,7 @@ class ExportConfig:
         """Split name -> number of images."""
         return {"train": self.n_train, "val": self.images - self.n_train}
 
-    def camera_config(self):
-        from ..camera import CameraConfig
-
+    def camera_config(self) -> CameraConfig:
         return CameraConfig(
             altitude_m=self.altitude_m,
             width_px=self.width_px,
@@ -159,8 +158,6 @@ class ExportConfig:
 
     def render_config(self):
         """The :class:`~aerial_synth.render.RenderConfig` of every image."""
-        from ..render import RenderConfig
-
         return RenderConfig.preset(self.render_preset or "full",
                                    randomise=self.randomise or "none")
 

@@ -1,19 +1,21 @@
 """The export's worker processes: forks of one fork server that has imported what a worker
-needs (:func:`pool_context`), used by the local pool (:mod:`.export`), the LocalCluster's
-workers (:mod:`.engine_dask`) and the aggregate files' readers (:mod:`.aggregate`)."""
+needs (:func:`pool_context`), used by the local pool (:mod:`.engines.pool`), the
+LocalCluster's workers (:mod:`.engines.dask`) and the aggregate files' readers
+(:mod:`.aggregate`)."""
 
 from __future__ import annotations
 
 from ..errors import EntryPointError
 
-__all__ = ["pool_context", "start_pool_server", "check_entry_point"]
+__all__ = ["WORKER_MODULES", "FORK_SERVER_PRELOAD", "pool_context", "start_pool_server", "check_entry_point"]
 
 
 #: What a pool worker imports; the fork server imports it once, before it forks workers.
-_WORKER_MODULES = (
+WORKER_MODULES = (
     "aerial_synth.dataset._server_guard",  # first: see that module
     "aerial_synth.dataset._server_open3d",  # before anything imports open3d
-    "aerial_synth.numba_setup", "aerial_synth.dataset.worker", "aerial_synth.render.frame",
+    "aerial_synth.numba_setup", "aerial_synth.dataset.worker", "aerial_synth.dataset.engines.pool",
+    "aerial_synth.render.frame", "aerial_synth.render.backends.raycast", "aerial_synth.scene.hints",
     "aerial_synth.render.shading", "aerial_synth.render._kernels", "aerial_synth.render._tone",
     "aerial_synth.render._vis_kernels", "aerial_synth.render.smooth", "aerial_synth.render.raster",
     "aerial_synth.render.world",
@@ -21,9 +23,19 @@ _WORKER_MODULES = (
     "aerial_synth.annotate", "aerial_synth.formats.registry", "aerial_synth.formats.coco",
     "aerial_synth.formats.dota", "aerial_synth.formats.meta", "aerial_synth.png",
     "isal.isal_zlib", "open3d", "scipy.special",
+    # trimesh imports networkx in a try/except BaseException: a SIGTERM (the pool's stop,
+    # Ctrl-C) landing in a worker during that import was swallowed, and the worker rendered
+    # its whole task after Ctrl-C; imported here, no worker imports them
+    "trimesh", "networkx", "shapely",
     "scipy.spatial", "scipy.ndimage", "cv2",
     "aerial_synth.dataset._server_warm",  # last: see that module
 )
+#: What the export's fork server imports after the workers' modules when a ``--dask local:K``
+#: cluster's workers fork from it (:func:`pool_context`): Dask distributed, then
+#: :mod:`._server_freeze` (last: it freezes the server's objects so that a forked worker's
+#: garbage collections do not copy the server's heap: 0.1 s of CPU per worker on its first
+#: scene alone).
+FORK_SERVER_PRELOAD = ("distributed", "aerial_synth.dataset.engines.dask", "aerial_synth.dataset._server_freeze")
 
 
 def pool_context(dask: bool = False):
@@ -38,15 +50,13 @@ def pool_context(dask: bool = False):
     The server's objects are frozen last (:mod:`._server_freeze`: a worker's collections
     then never copy the server's heap). ``dask``: Dask distributed is preloaded before
     that (a ``--dask local:K`` cluster's workers are forked from the same server, see
-    :data:`.engine_dask.FORK_SERVER_PRELOAD`)."""
+    :data:`FORK_SERVER_PRELOAD`)."""
     import multiprocessing as mp
 
     if "forkserver" not in mp.get_all_start_methods():
         return mp.get_context("spawn")
     ctx = mp.get_context("forkserver")
-    from .engine_dask import FORK_SERVER_PRELOAD
-
-    ctx.set_forkserver_preload(list(_WORKER_MODULES) + list(
+    ctx.set_forkserver_preload(list(WORKER_MODULES) + list(
         FORK_SERVER_PRELOAD if dask else ("aerial_synth.dataset._server_freeze",)))
     return ctx
 
@@ -67,7 +77,7 @@ def check_entry_point() -> None:
 
 
 def start_pool_server(dask: bool = False) -> None:
-    """Start the fork server now (it imports :data:`_WORKER_MODULES` in the background,
+    """Start the fork server now (it imports :data:`WORKER_MODULES` in the background,
     on another core, while this process loads the scene); a no-op with spawn. A server
     already running is kept (its imports are the first caller's)."""
     ctx = pool_context(dask)

@@ -66,6 +66,8 @@ from ..errors import ExportError, PlacementError
 from .seeds import PLACEMENT_STREAM
 
 __all__ = [
+    "GroupPlacer",
+    "grow_rect",
     "TILE_STREAM",
     "MAX_PAD_M",
     "camera_reach_m",
@@ -250,7 +252,9 @@ def id_stride(grid, catalog) -> int:
     return int(w * h / smallest) + 2
 
 
-def _grow(rect, d: float, bounds=None):
+def grow_rect(rect, d: float, bounds=None):
+    """``rect`` (x0, y0, x1, y1) grown by ``d`` on every side, clipped to ``bounds``
+    ([[xmin, ymin], [xmax, ymax]]) when given."""
     x0, y0, x1, y1 = rect
     r = (x0 - d, y0 - d, x1 + d, y1 + d)
     if bounds is not None:
@@ -264,7 +268,7 @@ def tiles_needed(grid, area, dep: float):
     whose core meets it grown by ``dep`` (:func:`dependency_m`), raster order."""
     if not math.isfinite(dep):
         return grid.tiles()
-    return grid.touching(_grow(area, dep))
+    return grid.touching(grow_rect(area, dep))
 
 
 # ------------------------------------------------------------------ config
@@ -320,7 +324,7 @@ def group_tile(cfg, grid, group: int, draw: int = 0):
     return grid.tile(k % nx, k // nx)
 
 
-class _GroupPlacer:
+class GroupPlacer:
     """Places the tiles a group needs, one ``place_tiled(only=[tile])`` call each (the whole
     grid's seeds), and merges them in raster order with ``place_tiled``'s border rule."""
 
@@ -424,7 +428,7 @@ def group_placement(world, grid, cfg, group: int, catalog=None, placer=None):
         from ..vehicles import load_catalog
 
         catalog = load_catalog()
-    placer = placer or _GroupPlacer(world, grid, cfg, catalog)
+    placer = placer or GroupPlacer(world, grid, cfg, catalog)
     bounds = grid.bounds
     for draw in range(TILE_DRAWS):
         tile = group_tile(cfg, grid, group, draw)
@@ -434,8 +438,8 @@ def group_placement(world, grid, cfg, group: int, catalog=None, placer=None):
     else:
         raise ExportError(f"placement group {group}: {TILE_DRAWS} tiles drawn, none holds a vehicle "
                           f"(scenario {cfg.scenario!r} on scene {cfg.scene!r}: no road?)")
-    within = _grow(tile.core, placer.reach, bounds)
-    area = _grow(within, placer.pads.vehicle_m, bounds)
+    within = grow_rect(tile.core, placer.reach, bounds)
+    area = grow_rect(within, placer.pads.vehicle_m, bounds)
     pl, warned = placer.placement(group, tile, area)
     if placer.pads.warning is not None:
         warned = sorted({*warned, placer.pads.warning})

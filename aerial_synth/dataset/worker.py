@@ -3,31 +3,48 @@
 :func:`render_image` ``(cfg, out_dir, index)`` is engine-agnostic and deterministic: it
 renders image ``index`` of the export described by ``cfg`` into ``out_dir`` and returns its
 counts. The bytes it writes depend only on (cfg, index), never on which process runs it or
-in which order, so a process pool (:mod:`.export`) or a Dask cluster can call it.
+in which order, so any engine (:mod:`.engines`) can call it.
 
 Seeds: image ``i`` draws its camera and rendering from ``SeedSequence([seed, i])`` (spawned
 into a camera and a render stream); placement group ``g = i // images_per_placement`` draws
 its placement from ``SeedSequence([seed, g, 1])`` on a fresh RayScene.
 
-Pool workers watch their parent: on Linux they ask the kernel to kill them when the parent
-dies (``prctl(PR_SET_PDEATHSIG, SIGKILL)``), and everywhere they check the parent pid
-between images and before every file they write; an orphaned worker exits at once, quietly,
-without writing.
+Pool workers watch their parent (:mod:`.parent`): a worker checks it between images and
+before every file it writes, and an orphaned worker exits at once, quietly, without writing.
+The engines that run workers are in :mod:`.engines`.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import os
+import queue
+import threading
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 
+from ..annotate.boxes import annotate_frame
+from ..camera import sample_pose_targeted
 from ..errors import ExportError
+from ..formats import coco, meta
+from ..formats.registry import get as get_format
 from ..io_utils import atomic_write_bytes, atomic_write_text
+from ..placement import place
+from ..png import encode_png
+from ..render import add_placement, render_frame
+from ..render.cull import vehicles_for_views
+from ..render.distractors import DISTRACTOR_KEY, add_distractors
+from ..scene import load_scene
+from ..scene.raycast import RayScene
+from ..vehicles import load_catalog
 from .config import PLACEMENT_STREAM, ExportConfig
 from .layout import image_name, image_paths, meta_path, split_of
+from .parent import check_parent
+from .tiled import GroupPlacer, group_placement, grow_rect, load_world
 
 __all__ = [
     "ImageWorker",
@@ -35,66 +52,7 @@ __all__ = [
     "encode_image",
     "write_image_files",
     "record_counts",
-    "init_pool_worker",
-    "run_group",
 ]
-
-
-# ------------------------------------------------------------- parent watch
-
-_PARENT_PID: int | None = None  # this process's parent when the watch started
-_EXPORTER_PID: int | None = None  # the exporting process (the parent, or its fork server's parent)
-
-
-def _watch_parent(parent_pid: int) -> None:
-    """Die with the exporter ``parent_pid``: PR_SET_PDEATHSIG on Linux, and
-    :func:`_check_parent` everywhere. A worker forked by the pool's fork server has that
-    server as its parent; the server exits when the exporter does, so the death signal
-    still follows the exporter, and :func:`_check_parent` also asks after the exporter.
-
-    A worker's results go back through a pipe that only the exporter reads: a worker that
-    finishes a task in the milliseconds between the exporter's death and its own (the kill
-    chain runs through the fork server) would get a BrokenPipeError and print its traceback
-    on the user's terminal. SIGPIPE's default action is restored instead (Python ignores it),
-    so that write ends the worker silently, as the death signal would a moment later."""
-    import signal
-
-    global _PARENT_PID, _EXPORTER_PID
-    if hasattr(signal, "SIGPIPE"):
-        signal.signal(signal.SIGPIPE, signal.SIG_DFL)
-    _EXPORTER_PID = int(parent_pid)
-    _PARENT_PID = os.getppid()
-    if _PARENT_PID != _EXPORTER_PID and not _alive(_EXPORTER_PID):
-        os._exit(0)
-    if hasattr(os, "sched_getaffinity"):  # Linux
-        try:
-            import ctypes
-
-            libc = ctypes.CDLL(None, use_errno=True)
-            PR_SET_PDEATHSIG = 1
-            libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
-        except (OSError, AttributeError):  # no prctl: the pid checks still apply
-            pass
-    _check_parent()  # the parent may have died before prctl took effect
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except OSError:  # exists, but not ours to signal
-        return True
-    return True
-
-
-def _check_parent() -> None:
-    """Exit at once, quietly and without writing, when this worker's parent is gone (or,
-    for a worker of the fork server, the exporter)."""
-    if _PARENT_PID is None:
-        return
-    if os.getppid() != _PARENT_PID or (_EXPORTER_PID != _PARENT_PID and not _alive(_EXPORTER_PID)):
-        os._exit(0)
 
 
 # ------------------------------------------------------------------- worker
@@ -104,29 +62,25 @@ def _load_scene(cfg: ExportConfig):
     """The export's scene, with its distractors (drawn once per dataset, so every worker and
     engine builds the same scene). A tiled export (``cfg.tile_m``) gets its TiledWorld."""
     if getattr(cfg, "tile_m", None) is not None:
-        from .tiled import load_world
-
         return load_world(cfg)
-    from ..scene import load_scene
-
     scene = load_scene(cfg.scene, labels=cfg.labels, seed=cfg.scene_seed, bbox=cfg.bbox,
                        crs=cfg.crs)
     if cfg.distractors:
-        from ..render.distractors import DISTRACTOR_KEY, add_distractors
-
         rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, DISTRACTOR_KEY]))
         scene, _ = add_distractors(scene, rng, per_hectare=cfg.distractors)
     return scene
 
 
 class ImageWorker:
-    """Per-process state: scene, catalog and the current placement group."""
+    """Per-process state: scene, catalog and the current placement group. Make one with
+    :meth:`for_config`, which picks the tiled worker for a tiled export."""
 
-    def __new__(cls, cfg=None, *args, **kwargs):
-        """A tiled export (``cfg.tile_m``) gets a :class:`TiledImageWorker`."""
-        if cls is ImageWorker and getattr(cfg, "tile_m", None) is not None:
-            cls = TiledImageWorker
-        return super().__new__(cls)
+    @staticmethod
+    def for_config(cfg: ExportConfig, out, nthreads: int = 0, scene=None, catalog=None) -> "ImageWorker":
+        """The worker for the export ``cfg``: a :class:`TiledImageWorker` when ``cfg.tile_m``
+        is set, else an :class:`ImageWorker`."""
+        cls = TiledImageWorker if getattr(cfg, "tile_m", None) is not None else ImageWorker
+        return cls(cfg, out, nthreads=nthreads, scene=scene, catalog=catalog)
 
     def __init__(self, cfg: ExportConfig, out: Path, nthreads: int = 0, scene=None, catalog=None):
         self.cfg = cfg
@@ -165,18 +119,12 @@ class ImageWorker:
     @property
     def catalog(self):
         if self._catalog is None:
-            from ..vehicles import load_catalog
-
             self._catalog = load_catalog()
         return self._catalog
 
     def _ensure_group(self, group: int):
         if self._group == group:
             return
-        from ..placement import place
-        from ..render import add_placement
-        from ..scene.raycast import RayScene
-
         rs = RayScene(self.scene, nthreads=self.nthreads)  # fresh: independent of history
         rng = np.random.default_rng(np.random.SeedSequence([self.cfg.seed, group, PLACEMENT_STREAM]))
         with warnings.catch_warnings(record=True) as caught:
@@ -213,8 +161,6 @@ class ImageWorker:
     def _draw_camera(self, index: int, pl):
         """Image ``index``'s camera: the first of ``SeedSequence([seed, index])``'s two
         streams (the second draws its rendering)."""
-        from ..camera import sample_pose_targeted
-
         cam_ss, _ = np.random.SeedSequence([self.cfg.seed, index]).spawn(2)
         return sample_pose_targeted(self.cfg.camera_config(), pl, np.random.default_rng(cam_ss),
                                     within_xy=self.scene_xy_bounds, clear=self._open_sky)
@@ -231,20 +177,12 @@ class ImageWorker:
         see in ``rs``'s scene, directly, in a shadow or a reflection
         (:func:`aerial_synth.render.cull.vehicles_for_views`): the group's Embree scenes
         and meshes are built for those only."""
-        import dataclasses
-
-        from ..render.cull import vehicles_for_views
-
         kept = vehicles_for_views(pl.vehicles, self._cameras.values(), self.render_config,
                                   z_low=float(rs.scene.bounds()[0, 2]))
         return pl if len(kept) == len(pl.vehicles) else dataclasses.replace(pl, vehicles=kept)
 
     def record(self, index: int):
         """Render and annotate image ``index``: (ImageRecord, RGB (H, W, 3) uint8)."""
-        from ..annotate.boxes import annotate_frame
-        from ..formats import coco, meta
-        from ..render import render_frame
-
         cfg = self.cfg
         group = index // cfg.images_per_placement
         self._ensure_group(group)
@@ -304,7 +242,7 @@ class ImageWorker:
         next image renders; with ``wait`` (the default) this returns only once they are on
         disk (or raises the writer's error). With ``wait=False`` call :meth:`drain` before
         reporting the image as finished."""
-        _check_parent()
+        check_parent()
         self._writer_error()  # a failed write stops the run before more rendering
         rec, rgb = self.record(index)
         self.writer.submit(self.cfg, self.out, rec, rgb)
@@ -337,14 +275,24 @@ class ImageWorker:
         """Render a run of images in order, writing in the background; returns once all
         their files are on disk: [(index, counts)]. ``progress(n)`` is called in this
         thread with the number of images newly on disk."""
-        out, seen = [], self.written
+        out: list[tuple[int, dict]] = []
+        for n in self.iter_run(indices, out):
+            if progress is not None:
+                progress(n)
+        return out
+
+    def iter_run(self, indices, out: list | None = None) -> Iterator[int]:
+        """:meth:`render_run` as a generator: yields the number of images newly on disk as
+        they land (the last once all are); appends (index, counts) to ``out``."""
+        out = [] if out is None else out
+        seen = self.written
         try:
             for i in indices:
-                _check_parent()
+                check_parent()
                 out.append((int(i), self.render(int(i), wait=False)))
-                if progress is not None and self.written != seen:
-                    progress(self.written - seen)
-                    seen = self.written
+                if self.written != seen:
+                    n, seen = self.written - seen, self.written
+                    yield n
         except BaseException as exc:
             if self._writer is not None:  # nothing keeps writing after a failure
                 try:
@@ -354,9 +302,8 @@ class ImageWorker:
                         exc.__context__ = werr
             raise
         self.drain()
-        if progress is not None and self.written != seen:
-            progress(self.written - seen)
-        return out
+        if self.written != seen:
+            yield self.written - seen
 
     def close(self) -> None:
         """Drain and stop the writer thread."""
@@ -394,19 +341,15 @@ class TiledImageWorker(ImageWorker):
     def _ensure_group(self, group: int):
         if self._group == group:
             return
-        from ..render import add_placement
-        from ..scene.raycast import RayScene
-        from .tiled import _GroupPlacer, _grow, group_placement
-
         world, grid = self.scene, self.grid
         if self._placer is None:
-            self._placer = _GroupPlacer(world, grid, self.cfg, self.catalog)
+            self._placer = GroupPlacer(world, grid, self.cfg, self.catalog)
         tile, within, area, pl, warned = group_placement(world, grid, self.cfg, group, self.catalog,
                                                          self._placer)
         if not pl.vehicles:
             raise ExportError(f"placement group {group}: scenario {self.cfg.scenario!r} placed no "
                               f"vehicles near tile {list(tile.key)} of scene {self.cfg.scene!r}")
-        rect = _grow(within, self._placer.pads.render_m, grid.bounds)
+        rect = grow_rect(within, self._placer.pads.render_m, grid.bounds)
         if self._window_cache is not None and self._window_cache[0] == rect:
             scene = self._window_cache[1]
         else:
@@ -437,7 +380,7 @@ def render_image(cfg: ExportConfig, out_dir, index: int) -> dict:
         for old in _CACHE.values():
             old.close()
         _CACHE.clear()
-        w = _CACHE[key] = ImageWorker(cfg, Path(out_dir))
+        w = _CACHE[key] = ImageWorker.for_config(cfg, Path(out_dir))
     return w.render(int(index))  # waits: the files are on disk when this returns
 
 
@@ -457,9 +400,6 @@ class ImageWriter:
     failed or was cut short is simply not done."""
 
     def __init__(self, depth: int = 1):
-        import queue
-        import threading
-
         self._q: queue.Queue = queue.Queue(maxsize=max(1, int(depth)))
         self._error: BaseException | None = None  # to raise in the submitting thread
         self._failed = False  # a write failed: skip the queued images until drained
@@ -526,10 +466,8 @@ def encode_image(rgb: np.ndarray, ext: str) -> bytes:
     (OpenCV, quality 95) bytes."""
     a = np.ascontiguousarray(rgb, dtype=np.uint8)
     if ext == "png":
-        from ..png import encode_png
-
         return encode_png(a)
-    import cv2
+    import cv2  # lazy: OpenCV only for JPEG (start-up time)
 
     ok, buf = cv2.imencode(".jpg", cv2.cvtColor(a, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 95])
     if not ok:
@@ -560,25 +498,22 @@ def write_image_files(cfg: ExportConfig, out: Path, record, rgb: np.ndarray) -> 
 
 
 def _write_files(cfg: ExportConfig, out: Path, record, data: bytes) -> None:
-    from ..formats import meta
-    from ..formats.registry import get
-
     out = Path(out)
     paths = image_paths(cfg, out, record.index)
-    _check_parent()
+    check_parent()
     atomic_write_bytes(paths[0], data)
     for p in paths[1:]:
-        _check_parent()
+        check_parent()
         _link_or_copy(paths[0], p)
     for name in cfg.formats:
-        fmt = get(name)
+        fmt = get_format(name)
         rel = fmt.label_path(record.split, record.name)
         if rel is None:
             continue
         body = fmt.label_text(record)
-        _check_parent()
+        check_parent()
         atomic_write_text(out / rel, body)
-    _check_parent()
+    check_parent()
     meta.write(meta_path(out, record.index), record)
 
 
@@ -595,72 +530,3 @@ def record_counts(record) -> dict:
         if a.status == "difficult":
             c["difficult"] += 1
     return c
-
-
-# --------------------------------------------------------------- pool glue
-
-_POOL_WORKER: ImageWorker | None = None
-_STOPPING = False  # SIGTERM came: no further task starts
-_SIGTERM_EXIT = 128 + 15  # the shell's status of a process ended by SIGTERM (15 on every POSIX)
-
-
-def _exit_on_sigterm(signum, frame):
-    global _STOPPING
-    _STOPPING = True
-    raise SystemExit(128 + signum)
-
-
-def init_pool_worker(cfg: ExportConfig, out: str, nthreads: int, parent_pid: int,
-                     extra_formats=(), slots=None, pool_size: int = 0, scene=None, catalog=None) -> None:
-    """Pool initializer: watch the parent, share the cores, register run-time formats.
-
-    Cores: the ``pool_size`` workers of the pool take the slots 0, 1, ... of the shared
-    counter ``slots`` (a ``multiprocessing.Value``) in start order, and worker ``k`` pins
-    itself to its share of the cores (:func:`.affinity.pin_share`) before open3d or numba
-    start a thread; its numba/OpenMP threads follow the share. Without a counter (or where
-    pinning is refused) it only sets ``nthreads`` threads.
-
-    ``scene``/``catalog``: the parent's (already loaded and validated) objects, pickled
-    to the worker in a few milliseconds instead of loading the scene again (seconds).
-
-    Ctrl-C is the parent's to handle (it stops the pool): workers ignore SIGINT, so an
-    interrupted export prints no worker tracebacks. The pool then stops its workers with
-    SIGTERM, which a worker turns into a normal exit: its exit handlers release what it
-    registered with multiprocessing's resource tracker (numba's lock of its threading
-    layer), which would otherwise report leaked semaphores after "interrupted". A
-    ``ProcessPoolExecutor`` worker catches the SystemExit of its task and reads the next
-    one from its queue: :func:`run_group` then ends at once, so the few tasks queued
-    ahead do not run after Ctrl-C."""
-    import signal
-
-    from .affinity import limit_threads, pin_share
-
-    global _POOL_WORKER
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, _exit_on_sigterm)
-    _watch_parent(parent_pid)
-    share = None
-    if slots is not None and int(pool_size) > 1:
-        with slots.get_lock():
-            k = slots.value
-            slots.value += 1
-        share = pin_share(k % int(pool_size), int(pool_size))
-    if share is None:
-        limit_threads(nthreads)
-    else:
-        nthreads = len(share)
-    from ..formats.registry import names, register
-
-    for fmt in extra_formats:  # formats registered at run time in the parent
-        if fmt.name not in names():
-            register(fmt)
-    _POOL_WORKER = ImageWorker(cfg, Path(out), nthreads=nthreads, scene=scene, catalog=catalog)
-
-
-def run_group(indices: list[int]) -> list[tuple[int, dict]]:
-    """Pool task: the images of one run of a placement group, in order; returns once every
-    one of their files is on disk."""
-    assert _POOL_WORKER is not None
-    if _STOPPING:
-        raise SystemExit(_SIGTERM_EXIT)
-    return _POOL_WORKER.render_run(indices)

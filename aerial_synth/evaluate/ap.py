@@ -40,7 +40,6 @@ __all__ = [
     "quads",
     "quad_pair_iou",
     "pairwise_iou",
-    "pair_iou",
     "candidate_pairs",
     "voc07_ap",
     "all_point_ap",
@@ -77,19 +76,6 @@ def to_polygons(xy):
         if bad.any():
             polys[bad] = shapely.convex_hull(polys[bad])
     return polys
-
-
-def pair_iou(pa, pb, area_a=None, area_b=None) -> np.ndarray:
-    """IoU of simple polygon arrays ``pa[i]`` and ``pb[i]`` element-wise (shapely,
-    vectorised); 0 where the union is empty."""
-    import shapely
-
-    if len(pa) == 0:
-        return np.zeros(0)
-    aa = shapely.area(pa) if area_a is None else area_a
-    ab = shapely.area(pb) if area_b is None else area_b
-    inter = shapely.area(shapely.intersection(pa, pb))
-    return _ratio(inter, aa + ab - inter)
 
 
 def _ratio(inter: np.ndarray, union: np.ndarray) -> np.ndarray:

@@ -12,9 +12,11 @@ Public API::
     frame.visibility {id: VehicleVisibility}; frame.amodal_mask(id) -> (mask, (x0, y0))
     frame.factors dict; frame.to_meta() -> dict
 
-Submodules: ``raycast`` (buffers, visibility), ``shading`` (RGB, RenderConfig),
-``world`` (placement -> vehicle meshes in the RayScene), ``pyrender_backend`` (optional
-EGL rasteriser for RGB), ``io`` (writing a frame's files), ``cli`` (``aerial-synth render``).
+Submodules: ``buffers`` (the ray-cast frame buffers), ``visibility`` (visible and amodal
+pixels per vehicle), ``backends`` (who makes the RGB: ``raycast`` with ``shading``, the
+optional EGL rasteriser ``pyrender``), ``shading`` (RGB, RenderConfig), ``world`` (placement
+-> vehicle meshes in the RayScene), ``io`` (writing a frame's files), ``cli``
+(``aerial-synth render``).
 Names are imported lazily so ``aerial-synth --help`` stays fast.
 """
 
@@ -35,8 +37,8 @@ __all__ = [
 _LAZY = {
     "render_frame": "frame",
     "Frame": "frame",
-    "RenderConfig": "shading",
-    "VehicleVisibility": "raycast",
+    "RenderConfig": "config",
+    "VehicleVisibility": "visibility",
     "add_placement": "world",
     "write_frame": "io",
     "instance_colors": "io",

@@ -1,4 +1,4 @@
-"""Compiled helpers of the visibility pass (:func:`aerial_synth.render.raycast.compute_visibility`).
+"""Compiled helpers of the visibility pass (:func:`aerial_synth.render.visibility.compute_visibility`).
 
 Kept apart from the shading kernels (:mod:`._kernels`) so that the two can change
 independently. Results do not depend on the number of threads (no parallel loops here).

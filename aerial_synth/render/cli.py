@@ -17,48 +17,71 @@ import argparse
 import sys
 import time
 
-from ..camera_bounds import MAX_ALTITUDE_M, MAX_FOCAL_PX, MAX_GSD_M, MAX_IMAGE_PX
+from ..camera import (
+    DEFAULT_GSD_M,
+    MAX_ALTITUDE_M,
+    MAX_FOCAL_PX,
+    MAX_GSD_M,
+    MAX_IMAGE_PX,
+    MAX_TILT_LIMIT_DEG,
+    CameraConfig,
+    grid_poses,
+    sample_pose_targeted,
+)
+from ..validators import arg_choice, arg_float, arg_int
+from . import backends
+from .config import RANDOMISE, RENDER_PRESETS, Backend
 
 __all__ = ["register", "add_camera_args", "camera_config_from_args", "run"]
 
 PLACEMENT_KEY = 0x504C  # "PL"
 
 
-def add_camera_args(p: argparse.ArgumentParser) -> None:
-    """Camera options shared by commands that render."""
-    from ..validators import arg_float, arg_int
+def add_camera_args(p: argparse.ArgumentParser, *, size: bool = False, lens: bool = True) -> None:
+    """The one camera option group of every command that renders: defaults from
+    :class:`~aerial_synth.camera.CameraConfig`, bounds from :mod:`aerial_synth.camera`.
 
+    size : also ``--size`` (a square image; ``--width``/``--height`` then default to it)
+    lens : ``--focal`` and ``--fov`` besides ``--gsd``"""
+    d = CameraConfig()
     g = p.add_argument_group("camera")
     g.add_argument("--altitude", type=arg_float("--altitude", 0.0, MAX_ALTITUDE_M, lo_open=True),
-                   default=60.0, metavar="M",
-                   help="camera height above the target ground, metres (default 60)")
-    g.add_argument("--width", type=arg_int("--width", 1, MAX_IMAGE_PX), default=1024,
-                   metavar="PX", help="image width (1024)")
-    g.add_argument("--height", type=arg_int("--height", 1, MAX_IMAGE_PX), default=1024,
-                   metavar="PX", help="image height (1024)")
+                   default=d.altitude_m, metavar="M",
+                   help=f"camera height above the target ground, metres ({d.altitude_m:g})")
+    if size:
+        g.add_argument("--size", type=arg_int("--size", 1, MAX_IMAGE_PX), default=None, metavar="PX",
+                       help=f"square image size in pixels ({d.width_px})")
+    g.add_argument("--width", type=arg_int("--width", 1, MAX_IMAGE_PX), default=None if size else d.width_px,
+                   metavar="PX", help=f"image width ({d.width_px})")
+    g.add_argument("--height", type=arg_int("--height", 1, MAX_IMAGE_PX),
+                   default=None if size else d.height_px, metavar="PX", help=f"image height ({d.height_px})")
     g.add_argument("--gsd", type=arg_float("--gsd", 0.0, MAX_GSD_M, lo_open=True), default=None,
-                   metavar="M", help="ground sampling distance at nadir, m/px (default 0.12)")
-    g.add_argument("--focal", type=arg_float("--focal", 0.0, MAX_FOCAL_PX, lo_open=True), default=None,
-                   metavar="PX", help="focal length, px")
-    g.add_argument("--fov", type=arg_float("--fov", 0.0, 180.0, lo_open=True, hi_open=True),
-                   default=None, metavar="DEG", help="horizontal field of view, degrees")
-    g.add_argument("--max-tilt", type=arg_float("--max-tilt", 0.0, 89.0, hi_open=True),
-                   default=15.0, metavar="DEG",
-                   help="tilt off nadir ~ U[-max, max] (default 15; must be < 89)")
+                   metavar="M", help=f"ground sampling distance at nadir, m/px ({DEFAULT_GSD_M:g})")
+    if lens:
+        g.add_argument("--focal", type=arg_float("--focal", 0.0, MAX_FOCAL_PX, lo_open=True), default=None,
+                       metavar="PX", help="focal length, px")
+        g.add_argument("--fov", type=arg_float("--fov", 0.0, 180.0, lo_open=True, hi_open=True),
+                       default=None, metavar="DEG", help="horizontal field of view, degrees")
+    g.add_argument("--max-tilt", type=arg_float("--max-tilt", 0.0, MAX_TILT_LIMIT_DEG, hi_open=True),
+                   default=d.max_tilt_deg, metavar="DEG",
+                   help=f"tilt off nadir ~ U[-max, max] ({d.max_tilt_deg:g}; must be < {MAX_TILT_LIMIT_DEG:g})")
 
 
-def camera_config_from_args(args):
-    from ..camera import CameraConfig
-
+def camera_config_from_args(args) -> CameraConfig:
+    """The :class:`CameraConfig` of the options :func:`add_camera_args` added."""
+    size = getattr(args, "size", None)
+    d = CameraConfig()
+    width = args.width if args.width is not None else size if size is not None else d.width_px
+    height = args.height if args.height is not None else size if size is not None else d.height_px
     return CameraConfig(
-        altitude_m=args.altitude, width_px=args.width, height_px=args.height, gsd_m=args.gsd,
-        focal_px=args.focal, fov_deg=args.fov, max_tilt_deg=args.max_tilt,
+        altitude_m=args.altitude, width_px=width, height_px=height, gsd_m=args.gsd,
+        focal_px=getattr(args, "focal", None), fov_deg=getattr(args, "fov", None),
+        max_tilt_deg=args.max_tilt,
     )
 
 
 def register(sub) -> None:
     from ..scene.cli import add_scene_args
-    from ..validators import arg_choice, arg_float, arg_int
 
     p = sub.add_parser(
         "render",
@@ -89,12 +112,12 @@ def register(sub) -> None:
     p.add_argument("--depth-format", type=arg_choice("--depth-format", ("npy", "png")),
                    default="npy",
                    help="depth as float32 metres .npy or 16-bit centimetre PNG (npy)")
-    p.add_argument("--backend", type=arg_choice("--backend", ("raycast", "pyrender")),
+    p.add_argument("--backend", type=arg_choice("--backend", tuple(b.value for b in Backend)),
                    default="raycast", help="RGB backend (labels always come from ray casting)")
-    p.add_argument("--preset", type=arg_choice("--preset", ("full", "fast")), default="full",
+    p.add_argument("--preset", type=arg_choice("--preset", RENDER_PRESETS), default="full",
                    help="shading preset: full (every realism factor) or fast (no ambient "
                    "occlusion or sun-disk sampling, coarser shadow rays) (full)")
-    p.add_argument("--randomise", type=arg_choice("--randomise", ("none", "textures")),
+    p.add_argument("--randomise", type=arg_choice("--randomise", RANDOMISE),
                    default="none",
                    help="domain randomisation: textures = random material, sun and sky "
                    "colours (Tobin et al. 2017), a style to mix with realistic frames (none)")
@@ -120,15 +143,14 @@ def _check_args(args) -> None:
 def run(args) -> int:
     import numpy as np
 
-    from ..camera import grid_poses, sample_pose_targeted
     from ..io_utils import atomic_write_json, atomic_write_text, check_output_dir
     from ..placement import place
     from ..scene.cli import scene_from_args
     from ..scene.raycast import RayScene
     from .budget import check_frame_memory
+    from .config import RenderConfig
     from .frame import render_frame
     from .io import write_frame
-    from .shading import RenderConfig
     from .world import add_placement
 
     # validate everything cheap before loading or writing anything
@@ -141,10 +163,7 @@ def run(args) -> int:
     check_frame_memory(cam_cfg.width_px, cam_cfg.height_px)  # before a 30 GB frame is OOM-killed
     _check_args(args)
     out = check_output_dir(args.out, "--out")
-    if args.backend == "pyrender":
-        from .pyrender_backend import check_available
-
-        check_available()
+    backends.get(args.backend).check()  # e.g. pyrender without EGL: said before any work
     t0 = time.perf_counter()
     scene = scene_from_args(args)
     grid = None

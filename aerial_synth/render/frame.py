@@ -1,4 +1,7 @@
-"""``render_frame``: one camera view of a world -> buffers, visibility, factors and RGB."""
+"""``render_frame``: one camera view of a world -> buffers, visibility, factors and RGB.
+
+The buffers are always ray cast (:mod:`.buffers`); the backend named by
+``RenderConfig.backend`` (:mod:`.backends`) makes the RGB and the visibility from them."""
 
 from __future__ import annotations
 
@@ -7,8 +10,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .raycast import AmodalMasks, VehicleVisibility, cast_buffers, compute_visibility
-from .shading import RenderConfig, sample_factors, shade
+from . import backends
+from .buffers import cast_buffers
+from .config import RenderConfig, sample_factors
+from .visibility import AmodalMasks, VehicleVisibility
 
 __all__ = ["Frame", "render_frame"]
 
@@ -79,98 +84,25 @@ def render_frame(
     rng       : draws the influence factors and sensor noise (deterministic per seed).
     """
     cfg = config or RenderConfig()
+    backend = backends.get(cfg.backend)
     t0 = time.perf_counter()
     factors = sample_factors(cfg, rng)
     buf = cast_buffers(rayscene, camera)
     t1 = time.perf_counter()
     vehicles = placement.vehicles if placement is not None else []
-    shade_t: dict = {}
-    side = None
-    if cfg.backend == "pyrender":
-        from .pyrender_backend import render_rgb
-
-        vis, amodal = compute_visibility(rayscene, camera, buf.instance, vehicles,
-                                         depth=buf.depth)
-        t_vis = time.perf_counter() - t1
-        rgb = render_rgb(rayscene, camera, factors)
-    else:
-        # visibility (labels) and shading (RGB) read the same buffers and nothing of each
-        # other: visibility runs in a second thread beside the shader's stages after its
-        # ray casts (compose, tone, sensor), so its serial parts fill the cores those leave
-        # idle (the same results either way)
-        overlap = OVERLAP_VISIBILITY and _thread_safe_kernels()
-        sides: list = []
-
-        def start_visibility():
-            sides.append(_Side(compute_visibility, rayscene, camera, buf.instance, vehicles,
-                               depth=buf.depth))
-
-        if not overlap:
-            vis, amodal = compute_visibility(rayscene, camera, buf.instance, vehicles,
-                                             depth=buf.depth)
-            t_vis = time.perf_counter() - t1
-        rgb = shade(rayscene, camera, buf, factors, rng, timings=shade_t,
-                    before_compose=start_visibility if overlap else None)
-        if overlap:
-            if not sides:  # pragma: no cover - shade always calls it
-                start_visibility()
-            side = sides[0]
-            (vis, amodal), t_vis = side.result()
+    out = backend.render(rayscene, camera, buf, vehicles, factors, rng, cfg)
     t3 = time.perf_counter()
+    t_vis = out.visibility_s
     return Frame(
         instance=buf.instance,
         semantic=buf.semantic,
         depth=buf.depth,
-        rgb=rgb,
-        visibility=vis,
+        rgb=out.rgb,
+        visibility=out.visibility,
         factors=factors,
         camera=camera,
-        amodal=amodal,
+        amodal=out.amodal,
         timings_s={"buffers": t1 - t0, "visibility": t_vis, "rgb": t3 - t1 - (
-            0.0 if side is not None else t_vis), "total": t3 - t0,
-                   **{f"rgb_{k}": v for k, v in shade_t.items()}},
+            0.0 if out.overlapped else t_vis), "total": t3 - t0,
+                   **{f"rgb_{k}": v for k, v in out.stages_s.items()}},
     )
-
-
-#: run visibility in a second thread while shading (False: one after the other)
-OVERLAP_VISIBILITY = True
-
-
-def _thread_safe_kernels() -> bool:
-    """Whether numba's threading layer lets two threads run parallel kernels at once (the
-    OpenMP and TBB layers do; the fallback work queue does not)."""
-    try:
-        import numba
-
-        return numba.threading_layer() in ("omp", "tbb")
-    except (ImportError, ValueError):  # no parallel kernel has run yet
-        return False
-
-
-class _Side:
-    """``fn(*args, **kw)`` in a thread of its own, started at once; :meth:`result` joins it
-    and returns (its value, its seconds) or raises its exception. A thread per frame (not a
-    pool) so that forked export workers never inherit a pool without its thread."""
-
-    def __init__(self, fn, *args, **kw):
-        import threading
-
-        self._out: dict = {}
-
-        def run():
-            t = time.perf_counter()
-            try:
-                self._out["value"] = fn(*args, **kw)
-            except BaseException as e:  # noqa: BLE001 - re-raised in the caller's thread
-                self._out["error"] = e
-            self._out["seconds"] = time.perf_counter() - t
-
-        self._thread = threading.Thread(target=run, name="aerial-synth-visibility",
-                                        daemon=True)
-        self._thread.start()
-
-    def result(self):
-        self._thread.join()
-        if "error" in self._out:
-            raise self._out["error"]
-        return self._out["value"], self._out["seconds"]

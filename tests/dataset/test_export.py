@@ -94,10 +94,10 @@ def test_coco_masks_decode_to_instance_masks(exported, tiny_scene):
     c = COCO(str(out / "coco" / "annotations" / "instances_train.json"))
     assert sorted(c.getCatIds()) == [1, 2]
     # Re-render image 0 from its recorded parameters and compare masks.
-    from aerial_synth.dataset.export import _Worker
+    from aerial_synth.dataset.worker import ImageWorker
 
     cfg = _cfg(tiny_scene)
-    w = _Worker(cfg, out)
+    w = ImageWorker.for_config(cfg, out)
     w._ensure_group(0)
     from aerial_synth.camera import sample_pose_targeted
     from aerial_synth.render import RenderConfig, render_frame
@@ -209,11 +209,11 @@ def test_kill_and_resume_identical(exported, tiny_scene, tmp_path):
 
 _ORPHAN = r"""
 import os, sys
-from aerial_synth.dataset.worker import _watch_parent
+from aerial_synth.dataset.parent import watch_parent
 r, w = os.pipe()
 os.close(r)  # the reader (the exporter's result handler) is gone
 if sys.argv[1] == "watched":
-    _watch_parent(os.getppid())
+    watch_parent(os.getppid())
 os.write(w, b"result")  # what a pool worker does with a finished task's result
 print("still running", file=sys.stderr)
 """
@@ -581,12 +581,12 @@ def test_pool_workers_fork_from_a_preloading_server():
     import multiprocessing as mp
 
     from aerial_synth.dataset import _server_guard
-    from aerial_synth.dataset.export import _WORKER_MODULES, pool_context
+    from aerial_synth.dataset.pool import WORKER_MODULES, pool_context
 
     ctx = pool_context()
     if "forkserver" in mp.get_all_start_methods():
         assert ctx.get_start_method() == "forkserver"
-        assert _WORKER_MODULES[0] == "aerial_synth.dataset._server_guard"
+        assert WORKER_MODULES[0] == "aerial_synth.dataset._server_guard"
     else:
         assert ctx.get_start_method() == "spawn"
     assert _server_guard.GUARDED is False  # imported here, in no fork server: no prctl

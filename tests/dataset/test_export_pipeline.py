@@ -9,6 +9,7 @@ import time
 import pytest
 
 from aerial_synth.dataset import worker as W
+from aerial_synth.dataset.engines.pool import init_pool_worker
 from aerial_synth.dataset.export import ExportConfig
 from aerial_synth.dataset.layout import image_paths, is_done, meta_path
 
@@ -134,7 +135,7 @@ def test_pool_workers_get_disjoint_core_shares(tiny_scene, tmp_path):
     allowed = sorted(os.sched_getaffinity(0))
     ctx = mp.get_context("spawn")
     slots = ctx.Value("i", 0)
-    with ctx.Pool(2, initializer=W.init_pool_worker,
+    with ctx.Pool(2, initializer=init_pool_worker,
                   initargs=(_cfg(tiny_scene), str(tmp_path), 1, os.getpid(), (), slots, 2)) as pool:
         res = pool.map(_probe, range(2), chunksize=1)
     shares = sorted(r[0] for r in res)

@@ -12,7 +12,8 @@ import warnings
 
 import pytest
 
-from aerial_synth.dataset.export import MAX_POOL_RESTARTS, ExportConfig, export_dataset
+from aerial_synth.dataset.engines.pool import MAX_POOL_RESTARTS
+from aerial_synth.dataset.export import ExportConfig, export_dataset
 from aerial_synth.errors import ExportError
 
 from ..helpers import children

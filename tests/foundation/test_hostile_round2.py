@@ -627,8 +627,7 @@ def test_15_camera_values_beyond_the_bounds_are_refused(tmp_path, capsys, cmd, o
 
 
 def test_15_camera_config_holds_the_bounds():
-    from aerial_synth.camera import CameraConfig
-    from aerial_synth.camera_bounds import MAX_ALTITUDE_M, MAX_GSD_M
+    from aerial_synth.camera import MAX_ALTITUDE_M, MAX_GSD_M, CameraConfig
     from aerial_synth.dataset.config import ExportConfig
     from aerial_synth.errors import AerialSynthError
 

@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from aerial_synth.render.shading import RenderConfig, material_gains
+from aerial_synth.render.config import RenderConfig
+from aerial_synth.render.shading import material_gains
 from aerial_synth.scene.model import DEFAULT_COLOR_FOR_MATERIAL, MATERIAL_IDS
 
 LUMA = np.array([0.299, 0.587, 0.114])

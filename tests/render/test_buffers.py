@@ -6,7 +6,8 @@ import shapely
 
 from aerial_synth.camera import Camera, CameraConfig
 from aerial_synth.render import RenderConfig, render_frame
-from aerial_synth.render.raycast import cast_buffers, compute_visibility
+from aerial_synth.render.buffers import cast_buffers
+from aerial_synth.render.visibility import compute_visibility
 from aerial_synth.scene import build
 from aerial_synth.scene.model import LABEL_IDS, Scene
 from aerial_synth.scene.raycast import RayScene

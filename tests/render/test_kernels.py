@@ -6,8 +6,8 @@ import pytest
 from aerial_synth.camera import Camera, CameraConfig
 from aerial_synth.render import RenderConfig, render_frame
 from aerial_synth.render import _kernels as K
-from aerial_synth.render.raycast import _box_exit_t, _box_frames
 from aerial_synth.render.shading import _normal_quantiles
+from aerial_synth.render.visibility import _box_exit_t, _box_frames
 
 from .worlds import make_placement, make_world, with_threads
 
@@ -131,8 +131,9 @@ def test_frame_is_identical_for_any_thread_count():
 def test_block_shadow_sampling_matches_one_ray_per_pixel():
     # trees and a house cast shadows on road, grass and vehicles; one shadow ray per 2 x 2
     # block (plus object edges) must reproduce the per-pixel image almost everywhere
-    from aerial_synth.render.raycast import cast_buffers
-    from aerial_synth.render.shading import sample_factors, shade
+    from aerial_synth.render.buffers import cast_buffers
+    from aerial_synth.render.config import sample_factors
+    from aerial_synth.render.shading import shade
 
     spec = [(1, 22.0, 0.0, 0.3, 4.5, 1.8, 1.5), (2, 30.0, -2.0, 0.0, 9.0, 2.5, 3.5)]
     rs, pl = make_world(spec, crown_at=(26.0, 3.0))
@@ -214,7 +215,7 @@ def _nearest_reference(h, w, step, face, ndl, semantic, depth, lit_rays):
 @pytest.mark.parametrize("step", [2, 4])
 def test_nearest_shadow_edges_match_a_plain_reference(step):
     from aerial_synth.render import shading
-    from aerial_synth.render.raycast import cast_buffers
+    from aerial_synth.render.buffers import cast_buffers
 
     spec = [(1, 22.0, 0.0, 0.3, 4.5, 1.8, 1.5), (2, 30.0, -2.0, 0.0, 9.0, 2.5, 3.5)]
     rs, pl = make_world(spec, crown_at=(26.0, 3.0))
@@ -296,7 +297,7 @@ def test_tone_histogram_equals_numpy():
 def test_visibility_beside_shading_gives_the_same_frame(monkeypatch, preset):
     # render_frame runs visibility in a second thread while shading: the same frame as one
     # stage after the other, and an error in visibility reaches the caller
-    from aerial_synth.render import frame as F
+    from aerial_synth.render.backends import raycast as F
 
     spec = [(1, 0.0, 0.0, 0.3, 4.5, 1.8, 1.5), (2, 6.0, -2.0, 0.0, 9.0, 2.5, 3.5)]
     rs, pl = make_world(spec, crown_at=(3.0, 3.0))
@@ -329,7 +330,8 @@ def test_shadow_spread_inside_compose_equals_the_spread_pass(monkeypatch, step):
     # unblurred shadows (point sun, no overcast): compose reads the block samples itself;
     # the image must be the one of spread_shadow's pass over the image, byte for byte
     from aerial_synth.render import shading
-    from aerial_synth.render.raycast import cast_buffers
+    from aerial_synth.render.buffers import cast_buffers
+    from aerial_synth.render.config import sample_factors
 
     spec = [(1, 22.0, 0.0, 0.3, 4.5, 1.8, 1.5), (2, 30.0, -2.0, 0.0, 9.0, 2.5, 3.5)]
     rs, pl = make_world(spec, crown_at=(26.0, 3.0))
@@ -339,7 +341,7 @@ def test_shadow_spread_inside_compose_equals_the_spread_pass(monkeypatch, step):
         cfg = RenderConfig.preset(preset, soft_shadows=False, overcast_probability=0,
                                   jpeg_probability=0, shadow_step=step,
                                   shadow_edges=edges)
-        factors = shading.sample_factors(cfg, np.random.default_rng(3))
+        factors = sample_factors(cfg, np.random.default_rng(3))
         out = {}
         for fused in (True, False):
             monkeypatch.setattr(shading, "_SPREAD_IN_COMPOSE", fused)

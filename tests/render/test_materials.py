@@ -15,7 +15,7 @@ from aerial_synth.camera import Camera, CameraConfig
 from aerial_synth.placement.model import Placement
 from aerial_synth.render import RenderConfig, render_frame
 from aerial_synth.render import _materials as M
-from aerial_synth.render.raycast import cast_buffers
+from aerial_synth.render.buffers import cast_buffers
 from aerial_synth.render.shading import face_tangents
 from aerial_synth.scene import build
 from aerial_synth.scene.model import MATERIAL_IDS, MATERIALS, Scene, SceneObject

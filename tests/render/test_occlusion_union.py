@@ -20,7 +20,7 @@ import pytest
 import aerial_synth.scene.raycast as rc
 from aerial_synth.camera import Camera, CameraConfig
 from aerial_synth.render import render_frame
-from aerial_synth.render.shading import RenderConfig
+from aerial_synth.render.config import RenderConfig
 from aerial_synth.scene import build
 from aerial_synth.scene.model import LABEL_IDS, Scene, SceneObject
 from aerial_synth.scene.raycast import VEHICLES_ONLY, RayScene
@@ -176,7 +176,7 @@ def _spy_builds(monkeypatch, delay_s: float = 0.0):
 
 @pytest.mark.parametrize("primary", ["raster", "embree"])
 def test_rendering_builds_no_scene_with_vehicles_but_without_trees(monkeypatch, primary):
-    from aerial_synth.render import raycast as render_raycast
+    from aerial_synth.render import buffers as render_raycast
     from aerial_synth.render.world import add_placement
 
     monkeypatch.setattr(render_raycast, "PRIMARY", primary)

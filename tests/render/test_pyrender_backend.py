@@ -7,7 +7,7 @@ from aerial_synth.errors import RenderError
 
 
 def _available() -> str | None:
-    from aerial_synth.render.pyrender_backend import check_available
+    from aerial_synth.render.backends.pyrender import check_available
 
     try:
         check_available()
@@ -28,8 +28,8 @@ def test_unavailable_backend_says_so():
 @pytest.mark.skipif(REASON is not None, reason=f"{REASON}")
 def test_pyrender_silhouettes_match_raycast():
     from aerial_synth.camera import Camera, CameraConfig
-    from aerial_synth.render.pyrender_backend import render_instance_ids
-    from aerial_synth.render.raycast import cast_buffers
+    from aerial_synth.render.backends.pyrender import render_instance_ids
+    from aerial_synth.render.buffers import cast_buffers
 
     from .worlds import make_world
 
@@ -50,7 +50,7 @@ def test_pyrender_silhouettes_match_raycast_on_a_bundled_scene_frame():
     from aerial_synth.camera import CameraConfig, sample_pose_targeted
     from aerial_synth.placement import place
     from aerial_synth.render import RenderConfig, add_placement, render_frame
-    from aerial_synth.render.pyrender_backend import render_instance_ids
+    from aerial_synth.render.backends.pyrender import render_instance_ids
     from aerial_synth.scene import load_scene
     from aerial_synth.scene.raycast import RayScene
 

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from aerial_synth.camera import Camera, CameraConfig
-from aerial_synth.render.raycast import cast_buffers
+from aerial_synth.render.buffers import cast_buffers
 from aerial_synth.scene.model import LABEL_IDS, Scene, SceneObject
 from aerial_synth.scene.raycast import RayScene
 

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from aerial_synth.camera import Camera, CameraConfig
-from aerial_synth.render.raycast import VEHICLES_ONLY, cast_buffers, compute_visibility
+from aerial_synth.render.buffers import cast_buffers
+from aerial_synth.render.visibility import VEHICLES_ONLY, compute_visibility
 
 from .worlds import MIXED_SPECS, make_world
 
@@ -133,7 +134,7 @@ def test_fast_preset_leaves_out_the_costly_factors():
 
 
 def test_vehicles_crossing_the_camera_plane_are_bounded_and_give_the_same_result():
-    from aerial_synth.render.raycast import _corners
+    from aerial_synth.render.visibility import _corners
 
     # 75 degrees off nadir: the camera stands ~223 m south of its target; cars ~16 m
     # further south straddle its image plane (their bounds are clipped, not dropped)

@@ -9,7 +9,7 @@ import sys
 import pytest
 
 from aerial_synth.dataset.affinity import partition_cores
-from aerial_synth.dataset.engine_dask import host_slots, worker_slot
+from aerial_synth.dataset.engines.dask import host_slots, worker_slot
 
 from ..helpers import REPO
 

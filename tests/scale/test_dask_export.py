@@ -106,7 +106,7 @@ def test_lost_scattered_scene_tasks_resubmitted(cluster, cross_scene, reference,
     """The scene the client scatters dies with the only worker holding it (Dask's memory
     manager keeps one replica once no waiting task needs more): the scheduler cancels every
     task that reads it, and the engine submits them again, each worker loading the scene."""
-    from aerial_synth.dataset import engine_dask
+    from aerial_synth.dataset.engines import dask as engine_dask
 
     lost = []
 
@@ -123,7 +123,7 @@ def test_lost_scattered_scene_tasks_resubmitted(cluster, cross_scene, reference,
         lost.append(holder)
         return tuple(data)
 
-    monkeypatch.setattr(engine_dask.DaskEngine, "_scatter", scatter_then_lose)
+    monkeypatch.setattr(engine_dask.DaskCluster, "_scatter", scatter_then_lose)
     out = tmp_path / "lost"
     res = export_dataset(_cfg(cross_scene), out, dask=cluster.scheduler_address, progress=False)
     assert lost and res.rendered == 8
@@ -160,14 +160,14 @@ def test_resume_across_engines(cluster, cross_scene, reference, tmp_path):
 def test_unreachable_scheduler_one_line_within_10s(cross_scene, tmp_path):
     import distributed  # noqa: F401 - import time is not the scheduler's
 
-    from aerial_synth.dataset.engine_dask import DaskEngine
+    from aerial_synth.dataset.engines.dask import DaskCluster
 
     t0 = time.monotonic()
     with pytest.raises(ExportError) as e:
-        DaskEngine.connect("tcp://127.0.0.1:9")
+        DaskCluster.connect("tcp://127.0.0.1:9")
     assert time.monotonic() - t0 < 10.0
     assert "--dask tcp://127.0.0.1:9" in str(e.value) and "\n" not in str(e.value)
-    from aerial_synth.dataset.engine_dask import probe_scheduler
+    from aerial_synth.dataset.engines.dask import probe_scheduler
 
     t0 = time.monotonic()
     with pytest.raises(ExportError, match="cannot reach a Dask scheduler"):
@@ -236,9 +236,9 @@ def test_bad_engine_arguments(cross_scene, tmp_path, extra, field):
 @pytest.mark.slow
 def test_threads_and_progress_on_the_client(cluster, cross_scene, tmp_path):
     """Each worker process gets cores // processes threads; the client's bar sees every image."""
-    from aerial_synth.dataset.engine_dask import DaskEngine
+    from aerial_synth.dataset.engines.dask import DaskCluster
 
-    eng = DaskEngine(distributed.Client(cluster.scheduler_address))
+    eng = DaskCluster(distributed.Client(cluster.scheduler_address))
     try:
         threads = eng.worker_threads()
         assert len(threads) == 2
@@ -314,11 +314,11 @@ def test_local_cluster_starts_while_the_scene_loads(cross_scene, reference, tmp_
 def test_a_failed_scene_load_stops_the_starting_cluster(cross_scene, tmp_path, monkeypatch):
     """The scene fails to load while the LocalCluster starts: the export raises the scene's
     error, every worker process of that cluster has exited, and nothing is written."""
-    from aerial_synth.dataset import engine_dask
     from aerial_synth.dataset import export as ex
+    from aerial_synth.dataset.engines import dask as engine_dask
 
     started = []
-    real_start = ex._start_dask
+    real_start = engine_dask.LocalStart
 
     def start(dask):
         s = real_start(dask)
@@ -331,11 +331,11 @@ def test_a_failed_scene_load_stops_the_starting_cluster(cross_scene, tmp_path, m
         for t in _starting_threads():
             t.join(240)
         (s,) = started
-        assert isinstance(s, engine_dask.LocalStart)
+        assert isinstance(s, real_start)
         pids.extend(s._engine.client.run(os.getpid).values())
         raise ExportError("scene: broken on purpose")
 
-    monkeypatch.setattr(ex, "_start_dask", start)
+    monkeypatch.setattr(engine_dask, "LocalStart", start)
     monkeypatch.setattr(ex, "validate_inputs", validate)
     out = tmp_path / "never"
     with pytest.raises(ExportError, match="broken on purpose"):
@@ -359,7 +359,7 @@ def test_a_failed_scene_load_stops_the_starting_cluster(cross_scene, tmp_path, m
 
 def test_local_start_only_for_local_clusters():
     """Nothing starts in the background for no --dask or a tcp:// scheduler."""
-    from aerial_synth.dataset.engine_dask import LocalStart
+    from aerial_synth.dataset.engines.dask import LocalStart
 
     for spec in (None, "tcp://127.0.0.1:9"):
         with LocalStart(spec) as s:
@@ -371,7 +371,7 @@ _PROBE = """
 import gc, json, os
 from multiprocessing import forkserver
 
-from aerial_synth.dataset.engine_dask import DaskEngine
+from aerial_synth.dataset.engines.dask import DaskCluster
 from aerial_synth.dataset.export import start_pool_server
 
 
@@ -382,7 +382,7 @@ def probe(dask_worker):
 
 if __name__ == "__main__":
     start_pool_server(dask=True)
-    eng = DaskEngine.connect("local:2")
+    eng = DaskCluster.connect("local:2")
     try:
         workers = list(eng.client.run(probe).values())
     finally:
@@ -432,21 +432,21 @@ class _FakeClient:
 def test_a_worker_that_cannot_see_the_output_is_one_line(tmp_path):
     """A worker on a machine without the shared filesystem would write its images onto its own
     disk, where the export never finds them: refused before any task, naming the worker."""
-    from aerial_synth.dataset.engine_dask import DaskEngine
+    from aerial_synth.dataset.engines.dask import DaskCluster
 
     build = tmp_path / ".ds.aerial-synth-partial"
     build.mkdir()
-    DaskEngine(_FakeClient(blind=False), None, "tcp://sched:8786").check_output(build)
+    DaskCluster(_FakeClient(blind=False), None, "tcp://sched:8786").check_output(build)
     with pytest.raises(ExportError, match=r"^--dask tcp://sched:8786: worker\(s\) tcp://10\.0\.0\.2:4001 "
                                           r"\(cannot read\): every worker must read and write the export's "
                                           r"files under .*shared filesystem"):
-        DaskEngine(_FakeClient(blind=True, elsewhere=tmp_path / "nowhere"), None,
+        DaskCluster(_FakeClient(blind=True, elsewhere=tmp_path / "nowhere"), None,
                    "tcp://sched:8786").check_output(build)
     assert list(build.iterdir()) == []  # the probe is gone either way
 
 
 def test_a_worker_that_cannot_write_the_output_is_one_line(tmp_path):
-    from aerial_synth.dataset.engine_dask import _sees
+    from aerial_synth.dataset.engines.dask import _sees
 
     probe = tmp_path / "probe.tmp"
     probe.write_text("tok")
@@ -463,7 +463,7 @@ def test_a_scheduler_without_workers_is_one_line(cross_scene, tmp_path):
     export used to wait for ever)."""
     import logging
 
-    from aerial_synth.dataset import engine_dask
+    from aerial_synth.dataset.engines import dask as engine_dask
 
     with distributed.LocalCluster(n_workers=0, processes=True, host="127.0.0.1", dashboard_address=None,
                                   silence_logs=logging.ERROR) as c:

@@ -2,7 +2,7 @@
 
 import pytest
 
-from aerial_synth.dataset.engine_dask import (
+from aerial_synth.dataset.engines.dask import (
     limit_threads,
     parse_dask_address,
     plan_tasks,
@@ -68,8 +68,8 @@ def test_killed_worker_is_one_line(monkeypatch, tmp_path):
     for them): the export stops with one ExportError naming the images and --resume, and
     cancels the other tasks, instead of Dask's traceback."""
     distributed = pytest.importorskip("distributed")
-    from aerial_synth.dataset import engine_dask
     from aerial_synth.dataset.config import ExportConfig
+    from aerial_synth.dataset.engines import dask as engine_dask
 
     cancelled = []
 
@@ -98,8 +98,8 @@ def test_killed_worker_is_one_line(monkeypatch, tmp_path):
     for name, value in (("wait_for_workers", lambda self: None), ("check_output", lambda self, b: None),
                         ("n_workers", lambda self: 2), ("worker_threads", lambda self: {}),
                         ("_scatter", lambda self, s, c: (None, None))):
-        monkeypatch.setattr(engine_dask.DaskEngine, name, value)
-    eng = engine_dask.DaskEngine(Client())
+        monkeypatch.setattr(engine_dask.DaskCluster, name, value)
+    eng = engine_dask.DaskCluster(Client())
     cfg = ExportConfig(scene="city_park", images=20, images_per_placement=10, width_px=8192, height_px=8192)
     with pytest.raises(ExportError) as e:
         eng.run(cfg, tmp_path, range(20))

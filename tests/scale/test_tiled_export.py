@@ -12,7 +12,7 @@ import yaml
 
 from aerial_synth.dataset.export import ExportConfig, export_dataset
 from aerial_synth.dataset.tiled import (
-    _GroupPlacer,
+    GroupPlacer,
     camera_reach_m,
     dependency_m,
     group_placement,
@@ -120,7 +120,7 @@ def test_group_vehicles_are_the_whole_worlds(tmp_path):
                        n_vehicles=700, seed=3, **SMALL_CAM)
     world = TiledWorld.load(scene)
     grid = world.grid(150.0, 30.0)
-    placer = _GroupPlacer(world, grid, cfg, ImageWorker(cfg, tmp_path).catalog)
+    placer = GroupPlacer(world, grid, cfg, ImageWorker.for_config(cfg, tmp_path).catalog)
     g = 3
     tile, within, area, pl, _ = group_placement(world, grid, cfg, g, placer=placer, catalog=placer.catalog)
     assert pl.parameters["tile"]["tiles_placed"] < len(grid)
@@ -149,11 +149,11 @@ def test_labelled_vehicles_are_the_whole_worlds(tmp_path):
     world = TiledWorld.load(scene)
     grid = world.grid(150.0, 30.0)
     assert len(grid) == 16
-    w = ImageWorker(cfg, tmp_path / "unused")
+    w = ImageWorker.for_config(cfg, tmp_path / "unused")
     out = tmp_path / "ds"
     export_dataset(cfg, out, progress=False)
     checked = partial = merged_away = 0
-    placer = _GroupPlacer(world, grid, cfg, w.catalog)
+    placer = GroupPlacer(world, grid, cfg, w.catalog)
     for g in range(4):
         tile, within, area, pl, _ = group_placement(world, grid, cfg, g, w.catalog, placer)
         with warnings.catch_warnings():
@@ -203,7 +203,7 @@ def test_huge_world_builds_only_nearby_windows(tmp_path):
     the group's tile and its neighbours and one render window, nothing else."""
     scene = _city_yaml(tmp_path, 20.0, name="city_20km")
     cfg = ExportConfig(scene=scene, tile_m=150.0, margin_m=20.0, images=1, n_vehicles=200_000, **SMALL_CAM)
-    w = ImageWorker(cfg, tmp_path / "ds")
+    w = ImageWorker.for_config(cfg, tmp_path / "ds")
     rec, rgb = w.record(0)
     assert len(w.grid) == 134 * 134
     tile = rec.placement["parameters"]["tile"]
@@ -225,7 +225,7 @@ def test_large_world_builds_only_the_touched_tiles(tmp_path):
     scene = _city_yaml(tmp_path, 20.0, name="city_20km")
     cfg = ExportConfig(scene=scene, tile_m=500.0, images=2, images_per_placement=2, n_vehicles=40_000,
                        **SMALL_CAM)
-    w = ImageWorker(cfg, tmp_path / "ds")
+    w = ImageWorker.for_config(cfg, tmp_path / "ds")
     recs = [w.record(i)[0] for i in range(2)]
     world = w.scene
     assert len(w.grid) == 1600

@@ -14,10 +14,10 @@ from aerial_synth.dataset.export import ExportConfig
 from aerial_synth.dataset.tiled import (
     MAX_PAD_M,
     VEHICLE_PAD_M,
-    _GroupPlacer,
-    _grow,
+    GroupPlacer,
     export_pads,
     group_placement,
+    grow_rect,
     max_view_deg,
     nadir_in_view,
 )
@@ -141,7 +141,7 @@ def test_cut_pad_is_a_placement_warning(tmp_path):
         ExportConfig.render_config = lambda self: sunset
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            placer = _GroupPlacer(world, grid, cfg, cat)
+            placer = GroupPlacer(world, grid, cfg, cat)
         _, _, _, _, warned = group_placement(world, grid, cfg, 0, cat, placer)
     finally:
         ExportConfig.render_config = orig
@@ -172,14 +172,14 @@ def test_render_window_holds_every_building_whose_shadow_reaches_the_views():
                   float(o.vertices[:, 2].max()) - z0)
                  for o in whole.objects if o.name.startswith("building_")]
     assert len(buildings) > 50
-    placer = _GroupPlacer(world, grid, cfg, cat)
+    placer = GroupPlacer(world, grid, cfg, cat)
     assert placer.pads.render_m > 62.8 / tan > OLD_RENDER_PAD_M
     missed_before = checked = 0
     for g in range(4):
         _, within, _, _, _ = group_placement(world, grid, cfg, g, cat, placer)
         seen = box(*within)
-        rect = box(*_grow(within, placer.pads.render_m, grid.bounds))
-        old = box(*_grow(within, OLD_RENDER_PAD_M, grid.bounds))
+        rect = box(*grow_rect(within, placer.pads.render_m, grid.bounds))
+        old = box(*grow_rect(within, OLD_RENDER_PAD_M, grid.bounds))
         for foot, h in buildings:
             if foot.distance(seen) <= h / tan:  # its shadow can fall into the camera area
                 assert foot.intersects(rect)

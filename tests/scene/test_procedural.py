@@ -194,7 +194,7 @@ def test_no_camera_ray_slips_through(name, tilt):
     Before ground lay under the roads, ~100-500 rays per 1024 x 1024 frame slipped between
     road and ground (perspective rays pass a road's 5 cm edge at an angle)."""
     from aerial_synth.camera import Camera, CameraConfig
-    from aerial_synth.render.raycast import cast_buffers
+    from aerial_synth.render.buffers import cast_buffers
 
     sc, rs = _scene(name), _rayscene(name)
     w, h = sc.meta["size_m"]

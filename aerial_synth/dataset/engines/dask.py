@@ -34,19 +34,26 @@ threads (:func:`threads_per_worker`).
 
 from __future__ import annotations
 
-import math
 import os
 import re
 import time
+from collections.abc import Iterator
 from concurrent.futures import CancelledError
 from pathlib import Path
 
-from ..errors import ExportError
-from .affinity import limit_threads, pin_share
+from ...errors import ExportError
+from ...formats.registry import BUILTIN, get, names, register
+from ...io_utils import atomic_write_text
+from ...render.budget import frame_gb
+from ..affinity import limit_threads, pin_share
+from ..output import remove_stray_temps
+from ..pool import FORK_SERVER_PRELOAD, start_pool_server
+from ..worker import ImageWorker
+from . import Engine, plan_tasks
 
-__all__ = ["DaskEngine", "plan_tasks", "threads_per_worker", "limit_threads", "parse_dask_address",
-           "probe_scheduler", "host_slots", "worker_slot", "LocalStart", "LOCAL_CLUSTER_CONFIG",
-           "FORK_SERVER_PRELOAD"]
+__all__ = ["ENGINE", "DaskEngine", "DaskCluster", "plan_tasks", "threads_per_worker", "limit_threads",
+           "parse_dask_address", "probe_scheduler", "host_slots", "worker_slot", "LocalStart",
+           "LOCAL_CLUSTER_CONFIG", "FORK_SERVER_PRELOAD"]
 
 #: An unreachable scheduler is reported within this many seconds (the CLI promises 10).
 CONNECT_TIMEOUT_S = 6.0
@@ -69,12 +76,6 @@ LOCAL_CLUSTER_CONFIG = {
     "distributed.admin.system-monitor.interval": "5s",
     "distributed.worker.memory.monitor-interval": "500ms",
 }
-#: What the export's fork server imports after the workers' modules when a ``--dask local:K``
-#: cluster's workers fork from it (:func:`.pool.pool_context`): Dask distributed, then
-#: :mod:`._server_freeze` (last: it freezes the server's objects so that a forked worker's
-#: garbage collections do not copy the server's heap: 0.1 s of CPU per worker on its first
-#: scene alone).
-FORK_SERVER_PRELOAD = ("distributed", "aerial_synth.dataset._server_freeze")
 _LOCAL = re.compile(r"^local:(\d+)$")
 _TCP = re.compile(r"^(tcp|tls)://[^\s/:]+(:\d+)?$")
 
@@ -86,28 +87,6 @@ def threads_per_worker(workers_on_host: int, ncpu: int | None = None) -> int:
     """Threads per worker process so that ``workers_on_host`` processes share the cores."""
     ncpu = ncpu or os.cpu_count() or 1
     return max(1, int(ncpu) // max(1, int(workers_on_host)))
-
-
-def plan_tasks(indices, images_per_placement: int, workers: int) -> list[list[int]]:
-    """Split the images to render into tasks: contiguous runs of one placement group each.
-
-    Whole groups when there are at least ``2 * workers`` of them (each placement is then
-    computed once); otherwise each group is cut into equal runs so that there are about
-    ``2 * workers`` tasks and every worker has work. Deterministic; image order kept."""
-    groups: dict[int, list[int]] = {}
-    for i in sorted(int(i) for i in indices):
-        groups.setdefault(i // int(images_per_placement), []).append(i)
-    if not groups:
-        return []
-    target = 2 * max(1, int(workers))
-    pieces = 1 if len(groups) >= target else math.ceil(target / len(groups))
-    tasks = []
-    for g in sorted(groups):
-        imgs = groups[g]
-        k = min(pieces, len(imgs))
-        size = math.ceil(len(imgs) / k)
-        tasks += [imgs[s:s + size] for s in range(0, len(imgs), size)]
-    return tasks
 
 
 def parse_dask_address(text: str) -> tuple[str, object]:
@@ -164,9 +143,6 @@ def _render_run(cfg, out: str, indices: list[int], nthreads_by_worker: dict, ext
     their files are on disk (so a finished task never loses an image to a dead worker)."""
     from distributed import get_worker
 
-    from ..formats.registry import names, register
-    from .worker import ImageWorker
-
     for fmt in extra_formats:  # formats registered at run time in the client
         if fmt.name not in names():
             register(fmt)
@@ -183,7 +159,7 @@ def _render_run(cfg, out: str, indices: list[int], nthreads_by_worker: dict, ext
         for old in _STATE.values():
             old.close()
         _STATE.clear()
-        w = _STATE[key] = ImageWorker(cfg, Path(out), nthreads=n, scene=scene, catalog=catalog)
+        w = _STATE[key] = ImageWorker.for_config(cfg, Path(out), nthreads=n, scene=scene, catalog=catalog)
     return w.render_run(indices)
 
 
@@ -228,7 +204,7 @@ def _cpu_count() -> int:
 
 
 def _sees(path: str, token: str) -> str:
-    """Worker side of :meth:`DaskEngine.check_output`: "ok" when this process reads ``token``
+    """Worker side of :meth:`DaskCluster.check_output`: "ok" when this process reads ``token``
     in the file ``path`` (the client's probe in the output folder) and can write a file
     beside it, else "cannot read" or "cannot write"."""
     try:
@@ -248,7 +224,7 @@ def _sees(path: str, token: str) -> str:
 # ------------------------------------------------------------------ client side
 
 
-class DaskEngine:
+class DaskCluster:
     """A connection to a Dask cluster (or a LocalCluster it owns). Use as a context manager
     or call :meth:`close`."""
 
@@ -258,7 +234,7 @@ class DaskEngine:
         self.address = address
 
     @classmethod
-    def connect(cls, spec: str, timeout_s: float = CONNECT_TIMEOUT_S) -> "DaskEngine":
+    def connect(cls, spec: str, timeout_s: float = CONNECT_TIMEOUT_S) -> "DaskCluster":
         """``spec``: ``tcp://HOST:PORT`` or ``local:K``. An unreachable scheduler raises a
         one-line ExportError within ``timeout_s`` (plus the import of distributed)."""
         kind, arg = parse_dask_address(spec)
@@ -378,8 +354,6 @@ class DaskEngine:
         own disk, where the export never finds them. The client writes a probe file there
         and each worker reads it back and writes a file beside it; one-line ExportError naming
         the workers that cannot."""
-        from ..io_utils import atomic_write_text
-
         token = f"{os.getpid()}-{time.time_ns()}"
         probe = Path(build) / f".aerial-synth-probe-{token}.tmp"  # a stray temp if killed here
         atomic_write_text(probe, token)
@@ -399,22 +373,34 @@ class DaskEngine:
 
     def run(self, cfg, build, indices, bar=None, scene=None, catalog=None) -> int:
         """Render ``indices`` of the export ``cfg`` into ``build``; returns images finished.
+        Progress: ``bar.update(n)`` per finished task (a tqdm bar or anything alike)."""
+        done = 0
+        for n in self.iter_run(cfg, build, self.plan(cfg, build, indices), scene, catalog):
+            done += n
+            if bar is not None:
+                bar.update(n)
+        return done
 
-        Progress: ``bar.update(n)`` per finished task (a tqdm bar or anything alike).
-        ``scene``/``catalog``: the client's loaded objects, scattered once to every worker
-        (instead of every worker loading the scene again); None = each worker loads them."""
-        from distributed import KilledWorker, as_completed
-
-        from ..formats.registry import BUILTIN, get
-        from .output import remove_stray_temps
-
+    def plan(self, cfg, build, indices) -> list[list[int]]:
+        """Wait for a worker, check that they all see ``build``, then cut ``indices`` into
+        about two tasks per worker (:func:`plan_tasks`)."""
         indices = list(indices)
         if not indices:
-            return 0
+            return []
         self.wait_for_workers()
         self.check_output(Path(build))
-        nworkers = max(1, self.n_workers())
-        tasks = plan_tasks(indices, cfg.images_per_placement, nworkers)
+        return plan_tasks(indices, cfg.images_per_placement, max(1, self.n_workers()))
+
+    def iter_run(self, cfg, build, tasks, scene=None, catalog=None) -> Iterator[int]:
+        """Render ``tasks`` of the export ``cfg`` into ``build``; yields images finished per
+        task. ``scene``/``catalog``: the client's loaded objects, scattered once to every
+        worker (instead of every worker loading the scene again); None = each worker loads
+        them."""
+        from distributed import KilledWorker, as_completed
+
+        if not tasks:
+            return
+        indices = [i for t in tasks for i in t]
         threads = self.worker_threads()
         slots = host_slots(self.client.scheduler_info(n_workers=-1).get("workers", {}))
         extra = [get(n) for n in cfg.formats if n not in BUILTIN]
@@ -429,7 +415,6 @@ class DaskEngine:
 
         futures = [submit(t, 0, shared) for t in tasks]
         task_of = {f.key: (t, 0) for f, t in zip(futures, tasks)}
-        done = 0
         try:
             pending = as_completed(futures)
             for fut in pending:
@@ -451,14 +436,10 @@ class DaskEngine:
                     futures.append(new)
                     pending.add(new)
                     continue
-                done += len(res)
-                if bar is not None:
-                    bar.update(len(res))
+                yield len(res)
         except KilledWorker as exc:  # the scheduler gave up on a task after its workers died
             for f in futures:
                 f.cancel()
-            from ..render.budget import frame_gb
-
             t = task_of.get(getattr(exc, "task", None), (indices, 0))[0]
             raise ExportError(
                 f"--dask: every worker that ran images {t[0]}..{t[-1]} died (out of memory? one "
@@ -470,7 +451,6 @@ class DaskEngine:
                 f.cancel()
             raise
         remove_stray_temps(Path(build))  # temporaries of a worker that died mid-image
-        return done
 
 
 class LocalStart:
@@ -479,7 +459,7 @@ class LocalStart:
     server) runs while the exporter loads and checks the scene instead of after it. For
     any other ``spec`` (None, ``tcp://...``) nothing starts and :meth:`engine` is None.
 
-    :meth:`engine` waits for it and hands over the :class:`DaskEngine` (or raises the
+    :meth:`engine` waits for it and hands over the :class:`DaskCluster` (or raises the
     start's one-line ExportError); :meth:`close` waits for it and closes a cluster not
     handed over (the export calls it on every way out, so no cluster outlives a failed
     export). Usable as a context manager that closes it."""
@@ -488,7 +468,7 @@ class LocalStart:
         import threading
 
         self.spec = spec
-        self._engine: DaskEngine | None = None
+        self._engine: DaskCluster | None = None
         self._error: BaseException | None = None
         self._closed = False
         self._thread = None
@@ -498,11 +478,11 @@ class LocalStart:
 
     def _start(self) -> None:
         try:
-            self._engine = DaskEngine.connect(self.spec)
+            self._engine = DaskCluster.connect(self.spec)
         except BaseException as exc:  # raised in the exporting thread by engine()
             self._error = exc
 
-    def engine(self) -> DaskEngine | None:
+    def engine(self) -> DaskCluster | None:
         """Wait for the start; the engine is then the caller's to close."""
         if self._thread is None:
             return None
@@ -529,3 +509,57 @@ class LocalStart:
 
     def __exit__(self, *exc):
         self.close()
+
+
+class DaskEngine(Engine):
+    """``--dask tcp://HOST:PORT`` (a running cluster) or ``--dask local:K`` (a LocalCluster
+    started in the background while the scene loads, its workers forked from the export's
+    fork server)."""
+
+    name = "dask"
+
+    def __init__(self, workers: int | None = None, address: str | None = None):
+        super().__init__(workers, address)
+        self._kind = parse_dask_address(address)[0] if address is not None else None
+        self._starting: LocalStart | None = None
+        self._cluster: DaskCluster | None = None
+
+    def check(self) -> None:
+        probe_scheduler(self.address)  # a bad or unreachable --dask, before the slow checks
+
+    @property
+    def local_processes(self) -> int | None:
+        kind, arg = parse_dask_address(self.address)
+        return int(arg) if kind == "local" else None  # a tcp:// cluster's workers run elsewhere
+
+    def warm_up(self) -> bool:
+        if self._kind != "local":
+            return False
+        start_pool_server(dask=True)  # the LocalCluster's workers fork from it too
+        return True
+
+    def start(self) -> None:
+        self._starting = LocalStart(self.address)  # --dask local:K: starts while the scene loads
+
+    def connect(self) -> None:
+        cluster = self._starting.engine() if self._starting is not None else None
+        self._cluster = cluster if cluster is not None else DaskCluster.connect(self.address)
+
+    def plan(self, indices) -> list[list[int]]:
+        return self._cluster.plan(self.cfg, self.build, indices)
+
+    def run(self, tasks) -> Iterator[int]:
+        yield from self._cluster.iter_run(self.cfg, self.build, tasks, self.scene, self.catalog)
+
+    def close(self) -> None:
+        cluster, self._cluster = self._cluster, None
+        starting, self._starting = self._starting, None
+        try:
+            if cluster is not None:
+                cluster.close()
+        finally:
+            if starting is not None:
+                starting.close()
+
+
+ENGINE = DaskEngine

@@ -1,24 +1,14 @@
-"""Frame buffers and visibility from the RayScene (the one source of geometric truth).
+"""Visibility of every vehicle in a frame, from the RayScene (the one source of geometric truth).
 
-The first surface on the ray through each pixel centre (see
-:meth:`aerial_synth.camera.Camera.pixel_rays`; found by the z-buffer of :mod:`.raster`, or
-by one Embree ray per pixel with ``cast_buffers(method="embree")``) gives
-
-- ``instance`` (H, W) uint32: vehicle id of the first hit (placement ids; 0 = background),
-- ``semantic`` (H, W) uint8: semantic id (:data:`aerial_synth.scene.model.LABEL_IDS`; 0 =
-  nothing hit),
-- ``depth`` (H, W) float32: z-depth along the optical axis in metres (0 = nothing hit),
-
-plus per-pixel hit data the shader needs (face index, normal, world position).
-
-Visibility compares each vehicle's visible pixels with its *amodal* silhouette, the pixels
-it would cover if no static geometry and no other vehicle were in the way. Amodal masks are
-ray cast too, with the same pixel-centre rays, but only against the vehicles (a
-vehicles-only ignore-set) and only for pixels inside each vehicle's projected 3-D box.
-Where boxes of several vehicles overlap, rays are continued behind the first vehicle hit
-("peeled") so a vehicle behind another still gets its full silhouette. The boxes may extend
-past the image border: pixels outside the image are cast too, so the truncated part of a
-silhouette is measured in the same pixel units (``truncated_fraction``).
+Visibility compares each vehicle's visible pixels (the ``instance`` buffer of
+:mod:`.buffers`) with its *amodal* silhouette, the pixels it would cover if no static
+geometry and no other vehicle were in the way. Amodal masks are ray cast too, with the same
+pixel-centre rays, but only against the vehicles (a vehicles-only ignore-set) and only for
+pixels inside each vehicle's projected 3-D box. Where boxes of several vehicles overlap,
+rays are continued behind the first vehicle hit ("peeled") so a vehicle behind another
+still gets its full silhouette. The boxes may extend past the image border: pixels outside
+the image are cast too, so the truncated part of a silhouette is measured in the same pixel
+units (``truncated_fraction``).
 """
 
 from __future__ import annotations
@@ -28,12 +18,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..scene.raycast import VEHICLES_ONLY
+from ._kernels import box_union_pixels, instance_boxes
+from ._vis_kernels import amodal_cast_mask, amodal_groups
 
 __all__ = [
     "VehicleVisibility",
-    "Buffers",
     "AmodalMasks",
-    "cast_buffers",
     "vehicle_boxes_corners",
     "compute_visibility",
     "VEHICLES_ONLY",
@@ -99,26 +89,6 @@ class VehicleVisibility:
 
 
 @dataclass
-class Buffers:
-    """Per-pixel first surfaces (row-major flat arrays of n = H * W).
-
-    face   : (n,) int64 global face index (-1 = miss)
-    t      : (n,) float32 z-depth, metres (inf = miss)
-    normal : (n, 3) float32 geometric normal facing the camera (world)
-    """
-
-    height_px: int
-    width_px: int
-    instance: np.ndarray  # (H, W) uint32
-    semantic: np.ndarray  # (H, W) uint8
-    depth: np.ndarray  # (H, W) float32
-    face: np.ndarray
-    t: np.ndarray
-    normal: np.ndarray
-    rays: np.ndarray  # (n, 6) float32
-
-
-@dataclass
 class AmodalMasks:
     """Amodal silhouettes of all vehicles in view, stored as sorted (vehicle, pixel) pairs.
 
@@ -149,59 +119,6 @@ class AmodalMasks:
         m = np.zeros((int(r.max()) - y0 + 1, int(c.max()) - x0 + 1), bool)
         m[r - y0, c - x0] = True
         return m, (x0, y0)
-
-
-#: how :func:`cast_buffers` finds each pixel's first surface: "raster" (the z-buffer of
-#: :mod:`.raster`, exact ray-triangle tests organised by triangle, ~5x faster) or "embree"
-#: (one Embree ray per pixel centre)
-PRIMARY = "raster"
-
-
-def cast_buffers(rayscene, camera, method: str | None = None) -> Buffers:
-    """The first surface at every pixel centre: instance / semantic / depth and hit data.
-
-    method : "raster" or "embree" (default :data:`PRIMARY`). Both answer the same question
-    (which triangle a ray from the camera centre through the pixel centre meets first) and
-    agree but for pixels where a ray grazes an edge (tests/render/test_raster.py); the
-    raster's answer is watertight.
-
-    With "embree", Embree's answer is read without copies and turned into faces, labels, depth and
-    camera-facing normals, with the smooth shading normals of crown clumps
-    (:mod:`.smooth`), in one compiled pass (:func:`.smooth.finish_smooth_buffers`); the
-    result is the same as mapping :meth:`RayScene.cast_rays` hits and then
-    :func:`.smooth.smooth_shading_normals` (tests/render/test_smooth_normals.py)."""
-    h, w = camera.height_px, camera.width_px
-    method = PRIMARY if method is None else method
-    if method == "raster":
-        from .raster import raster_primary
-
-        o = raster_primary(rayscene, camera)
-        return Buffers(h, w, o["instance"].reshape(h, w), o["semantic"].reshape(h, w),
-                       o["depth"].reshape(h, w), o["face"], o["t"], o["normal"], o["rays"])
-    if method != "embree":
-        raise ValueError(f"cast_buffers: method must be 'raster' or 'embree', not {method!r}")
-    from .smooth import corner_normals, finish_smooth_buffers
-
-    n = h * w
-    rays = camera._all_rays()
-    ans = rayscene._cast_raw(rays)
-    lut, offs = ans["lut"]
-    t = ans["t_hit"]
-    normal = ans["primitive_normals"]
-    if not (normal.flags.writeable and normal.flags.c_contiguous):
-        normal = np.array(normal, np.float32)
-    face = np.empty(n, np.int64)
-    depth = np.empty(n, np.float32)
-    semantic = np.empty(n, np.uint8)
-    instance = np.empty(n, np.uint32)
-    # shading only: crown clumps get interpolated vertex normals (faces, labels untouched)
-    row, corners = corner_normals(rayscene)
-    finish_smooth_buffers(rays, t, ans["geometry_ids"], ans["primitive_ids"],
-                          np.ascontiguousarray(ans["primitive_uvs"], dtype=np.float32), lut,
-                          offs, rayscene.face_label, rayscene.face_instance, row, corners,
-                          normal, face, depth, semantic, instance)
-    return Buffers(h, w, instance.reshape(h, w), semantic.reshape(h, w), depth.reshape(h, w),
-                   face, t, normal, rays)
 
 
 def vehicle_boxes_corners(vehicles) -> np.ndarray:
@@ -384,16 +301,12 @@ def compute_visibility(
         return {}, empty
     # every pixel of the union of the in-view boxes (boxes may stick out of the image);
     # multi: covered by more than one box
-    from ._kernels import box_union_pixels
-
     rows, cols, multi = box_union_pixels(
         x0[sel].astype(np.int64), y0[sel].astype(np.int64),
         x1[sel].astype(np.int64), y1[sel].astype(np.int64),
     )
     pair_pix, pair_id = [], []
     if depth is not None:  # pixels the primary hit settles: their pairs without a ray
-        from ._vis_kernels import amodal_cast_mask
-
         cand, cid = _candidate_boxes(rayscene, camera, vehicles)
         kk = np.asarray(camera.K, np.float64)
         cast = amodal_cast_mask(rows, cols, multi, instance, depth,
@@ -443,9 +356,6 @@ def compute_visibility(
     ids = key >> 32
     pix = key & 0xFFFFFFFF
     prow, pcol = rows[pix], cols[pix]
-    from ._kernels import instance_boxes
-    from ._vis_kernels import amodal_groups
-
     inside, uid, count, n_ins, box_all, box_in = amodal_groups(ids, prow, pcol, h, w)
     masks = AmodalMasks(ids[inside], prow[inside], pcol[inside])
     by_id = {int(v.id): (k, v) for k, v in enumerate(vehicles)}

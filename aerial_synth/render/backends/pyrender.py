@@ -1,4 +1,4 @@
-"""Optional RGB backend: pyrender through EGL (a rasteriser; labels still come from rays).
+"""Optional render backend ``pyrender``: RGB through EGL (a rasteriser; labels still come from rays).
 
 pyrender is an optional dependency (``pip install 'aerial-synth[pyrender]'``) and needs an
 EGL driver (Mesa works without a GPU). It is imported lazily; when it or EGL is missing,
@@ -13,12 +13,16 @@ colours; its vehicle silhouettes are compared with the ray-cast instance masks i
 from __future__ import annotations
 
 import os
+import time
 
 import numpy as np
 
-from ..errors import RenderError
+from ...errors import RenderError
+from ..shading import sun_direction
+from ..visibility import compute_visibility
+from . import RenderBackend, Shaded
 
-__all__ = ["check_available", "render_rgb", "render_instance_ids"]
+__all__ = ["BACKEND", "PyrenderBackend", "check_available", "render_rgb", "render_instance_ids"]
 
 _OPENCV_TO_OPENGL = np.diag([1.0, -1.0, -1.0, 1.0])
 
@@ -104,8 +108,6 @@ def render_instance_ids(rayscene, camera) -> np.ndarray:
 def render_rgb(rayscene, camera, factors: dict) -> np.ndarray:
     """(H, W, 3) uint8 RGB: per-face albedo under a directional sun and sky ambient
     (no shadows, texture or sensor model: a quick preview backend)."""
-    from .shading import sun_direction
-
     pr = _import_pyrender()
     rayscene.refresh()
     col = np.zeros((len(rayscene.face_albedo), 4), np.uint8)
@@ -126,3 +128,21 @@ def render_rgb(rayscene, camera, factors: dict) -> np.ndarray:
     finally:
         r.delete()
     return np.ascontiguousarray(rgb[..., :3])
+
+
+class PyrenderBackend(RenderBackend):
+    name = "pyrender"
+    description = "EGL rasteriser preview: per-face albedo under the sun (optional dependency)"
+
+    def check(self) -> None:
+        check_available()
+
+    def render(self, rayscene, camera, buffers, vehicles, factors, rng, config) -> Shaded:
+        t1 = time.perf_counter()
+        vis, amodal = compute_visibility(rayscene, camera, buffers.instance, vehicles,
+                                         depth=buffers.depth)
+        t_vis = time.perf_counter() - t1
+        return Shaded(render_rgb(rayscene, camera, factors), vis, amodal, t_vis)
+
+
+BACKEND = PyrenderBackend()

@@ -1,0 +1,114 @@
+"""Render backends: who turns a frame's buffers into RGB (``RenderConfig.backend``).
+
+In the spirit of trimesh's ``ray`` package: one small interface, several implementations,
+chosen by name. Every backend starts from the same :class:`~aerial_synth.render.buffers.Buffers`
+(the ray-cast instance / semantic / depth buffers) and returns the same :class:`Shaded`
+result, so labels and visibility never depend on the backend; only the RGB differs.
+
+- ``raycast`` (default): :func:`aerial_synth.render.shading.shade` (shadows, AO, sky,
+  reflections, sensor), visibility computed beside it in a second thread;
+- ``pyrender``: an EGL rasteriser for a quick RGB preview (optional dependency).
+
+Adding a backend is one module that defines ``BACKEND = MyBackend()`` plus one line in
+:data:`BUILTIN` (or :func:`register` at run time, as the tests do). This module imports
+nothing heavy: a backend's module is imported the first time it is used.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+from ...errors import RenderError
+
+if TYPE_CHECKING:  # numpy is not imported here: --help start-up time
+    import numpy as np
+
+__all__ = ["BUILTIN", "RenderBackend", "Shaded", "get", "names", "register", "unregister"]
+
+#: Built-in backends: name -> module defining BACKEND.
+BUILTIN: dict[str, str] = {
+    "raycast": "aerial_synth.render.backends.raycast",
+    "pyrender": "aerial_synth.render.backends.pyrender",
+}
+
+
+@dataclass
+class Shaded:
+    """What a backend makes of one frame's buffers.
+
+    rgb          : (H, W, 3) uint8, RGB order
+    visibility   : {id: VehicleVisibility}, from :func:`~aerial_synth.render.visibility.compute_visibility`
+    amodal       : :class:`~aerial_synth.render.visibility.AmodalMasks`
+    visibility_s : seconds of the visibility pass
+    overlapped   : True when visibility ran beside the shading (its time is then not
+                   subtracted from the RGB time)
+    stages_s     : seconds per shading stage (``rgb_<stage>`` in the frame's timings)
+    """
+
+    rgb: np.ndarray
+    visibility: dict
+    amodal: object
+    visibility_s: float
+    overlapped: bool = False
+    stages_s: dict = field(default_factory=dict)
+
+
+class RenderBackend:
+    """Base class of a render backend; instances are stateless (worker processes share them)."""
+
+    #: ``RenderConfig.backend`` / ``--backend`` value
+    name: str = ""
+    #: one line for ``--help`` and docs
+    description: str = ""
+
+    def check(self) -> None:
+        """Raise :class:`~aerial_synth.errors.RenderError` when the backend cannot run here."""
+
+    def render(self, rayscene, camera, buffers, vehicles, factors: dict, rng, config) -> Shaded:
+        """RGB and visibility of one frame whose ``buffers`` were cast from ``rayscene``."""
+        raise NotImplementedError
+
+    def __repr__(self) -> str:
+        return f"<render backend {self.name!r}>"
+
+
+_LOADED: dict[str, RenderBackend] = {}
+_EXTRA: dict[str, RenderBackend] = {}  # registered at run time (plugins, tests)
+
+
+def names() -> tuple[str, ...]:
+    """Every backend name: built-ins first, then those registered at run time."""
+    return tuple(BUILTIN) + tuple(n for n in _EXTRA if n not in BUILTIN)
+
+
+def get(name: str) -> RenderBackend:
+    """The backend called ``name``; an unknown name raises RenderError listing the valid ones."""
+    if name in _EXTRA:
+        return _EXTRA[name]
+    if name in _LOADED:
+        return _LOADED[name]
+    if name not in BUILTIN:
+        raise RenderError(f"--backend: unknown backend {name!r}; expected one of {', '.join(names())}")
+    backend = getattr(importlib.import_module(BUILTIN[name]), "BACKEND", None)
+    if not isinstance(backend, RenderBackend) or backend.name != name:
+        raise RenderError(f"backend module {BUILTIN[name]}: expected BACKEND = a RenderBackend named "
+                          f"{name!r}, got {backend!r}")
+    _LOADED[name] = backend
+    return backend
+
+
+def register(backend: RenderBackend, *, replace: bool = False) -> RenderBackend:
+    """Add a backend at run time (a plugin, a test)."""
+    if not isinstance(backend, RenderBackend) or not backend.name:
+        raise RenderError(f"register: expected a RenderBackend with a name, got {backend!r}")
+    if backend.name in names() and not replace:
+        raise RenderError(f"register: backend {backend.name!r} is already registered")
+    _EXTRA[backend.name] = backend
+    return backend
+
+
+def unregister(name: str) -> None:
+    """Remove a backend registered at run time (built-ins stay)."""
+    _EXTRA.pop(name, None)
