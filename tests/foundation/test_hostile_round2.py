@@ -847,3 +847,32 @@ def test_19_show_reads_devkit_dota(tmp_path, capsys):
     syn = make_dota(tmp_path / "S", 1, "s")
     assert run(capsys, "mix", "--real", real, "--synthetic", syn, "--real-fraction", "1",
                "--val-fraction", "0", "--out", tmp_path / "mx")[0] == 0
+
+
+# -- found by tools/hostile_run.py (cases of our own, not in the list) ---------------------
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("cmd", ["show", "stats", "eval"])
+def test_own_a_fifo_as_a_label_file_is_refused_not_waited_on(tmp_path, capsys, cmd):
+    real = make_dota(tmp_path / "R", 2, "r")
+    (real / "labelTxt" / "r000.txt").unlink()
+    os.mkfifo(real / "labelTxt" / "r000.txt")  # show blocked on it forever
+    argv = {"show": ["show", real, "--out", tmp_path / "o"],
+            "stats": ["stats", real, "--out", tmp_path / "o"],
+            "eval": ["eval", "--gt", real, "--pred", real / "labelTxt"]}[cmd]
+    code, err = run(capsys, *argv)
+    if cmd == "show":
+        one_line(code, err)
+        assert "FIFO" in err
+    else:  # the folder readers list regular files only: the FIFO is no label file to them
+        assert code in (0, 2) and "Traceback" not in err
+    assert not (tmp_path / "o").exists() or code == 0
+
+
+def test_own_show_out_root_is_refused(tmp_path, capsys):
+    real = make_dota(tmp_path / "R", 1, "r")
+    before = sorted(os.listdir("/"))
+    err = one_line(*run(capsys, "show", real, "--out", "/"))  # wrote previews into /
+    assert "root" in err
+    assert sorted(os.listdir("/")) == before
