@@ -549,8 +549,14 @@ def judge(case: dict, res: dict, out_existed: bool) -> str | None:
     return None
 
 
+#: What ``show --out /`` writes into / when a checkout accepts it (removed after the run
+#: when the run made them).
+_ROOT_LEFTOVERS = ("/r000.jpg", "/r001.jpg", "/contact_sheet.jpg")
+
+
 def run_all(pythonpath: Path, timeout: float, verbose: bool, limit: int | None) -> dict:
     base = Path(tempfile.mkdtemp(prefix="hostile-run-"))
+    there = {p for p in _ROOT_LEFTOVERS if os.path.lexists(p)}
     try:
         F = build_fixtures(base / "fx")
         scratch = base / "scratch"
@@ -572,6 +578,9 @@ def run_all(pythonpath: Path, timeout: float, verbose: bool, limit: int | None) 
         return results
     finally:
         shutil.rmtree(base, ignore_errors=True)
+        for p in _ROOT_LEFTOVERS:
+            if p not in there and os.path.isfile(p):
+                os.unlink(p)
 
 
 def main(argv=None) -> int:

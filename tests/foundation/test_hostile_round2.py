@@ -62,11 +62,13 @@ def _hold_lock(out: Path):
 # -- 1. concurrent runs into one --out share export's lock -----------------------------------
 
 
-@pytest.mark.parametrize("cmd", ["mix", "show", "stats", "eval"])
+@pytest.mark.parametrize("cmd", ["mix", "show", "stats", "eval", "from-osm"])
 def test_1_a_second_writer_of_one_out_is_refused(tmp_path, capsys, real_syn, cmd):
     real, syn = real_syn
-    out = tmp_path / "D"
+    out = tmp_path / ("D.glb" if cmd == "from-osm" else "D")
+    (tmp_path / "town.osm").write_text("<osm version='0.6'></osm>\n")
     argv = {
+        "from-osm": ["scene", "from-osm", tmp_path / "town.osm", "--out", out],
         "mix": ["mix", "--real", real, "--synthetic", syn, "--real-images", "1", "--tile", "100",
                 "--overlap", "0", "--out", out],
         "show": ["show", real, "--out", out],
