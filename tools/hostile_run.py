@@ -327,6 +327,58 @@ def build_fixtures(root: Path) -> dict:
     d.mkdir()
     (d / "Task1_.txt").write_text("r000 0.9 10 10 30 10 30 20 10 20\n")
     F["preds"]["empty_class"] = d
+    def osm(nodes, ways="", rels=""):
+        body = "".join(f"<node id='{i}' lat='{la}' lon='{lo}'/>" for i, la, lo in nodes)
+        return f"<?xml version='1.0'?><osm version='0.6'>{body}{ways}{rels}</osm>\n"
+
+    road = "<way id='{i}'>{nds}<tag k='highway' v='residential'/>{tags}</way>"
+
+    def way(i, refs, tags=""):
+        return road.format(i=i, nds="".join(f"<nd ref='{r}'/>" for r in refs), tags=tags)
+
+    two = [(1, 0, 0), (2, 0, 0.001)]
+    osm_cases = {
+        "lat_1e300": osm([(1, "1e300", 0), (2, 0, 0.001)], way(3, [1, 2])),
+        "lat_nan": osm([(1, "nan", 0), (2, 0, 0.001)], way(3, [1, 2])),
+        "lat_91": osm([(1, 91, 0), (2, 0, 0.001)], way(3, [1, 2])),
+        "missing_node": osm([(2, 0, 0.001)], way(3, [1, 2])),
+        "near_pole": osm([(1, 89.9999, 0), (2, 89.9999, 179)], way(3, [1, 2])),
+        "around_the_globe": osm([(1, 0, -179), (2, 0, 179)], way(3, [1, 2])),
+        "width_1e300": osm(two, way(3, [1, 2], "<tag k='width' v='1e300'/>")),
+        "width_negative": osm(two, way(3, [1, 2], "<tag k='width' v='-5'/>")),
+        "lanes_huge": osm(two, way(3, [1, 2], "<tag k='lanes' v='99999999'/>")),
+        "lanes_word": osm(two, way(3, [1, 2], "<tag k='lanes' v='many'/>")),
+        "oneway_odd": osm(two, way(3, [1, 2], "<tag k='oneway' v='-1'/><tag k='oneway' v='yes'/>")),
+        "one_node_way": osm(two, way(3, [1])),
+        "self_loop": osm(two, way(3, [1, 1, 1])),
+        "negative_ids": osm([(-1, 0, 0), (-2, 0, 0.001)], way(-3, [-1, -2])),
+        "relation_cycle": osm(two, way(3, [1, 2]),
+                              "<relation id='5'><member type='relation' ref='5' role=''/>"
+                              "<tag k='type' v='multipolygon'/></relation>"),
+        "building_height_1e308": osm(two + [(4, 0.0005, 0), (5, 0.0005, 0.0005), (6, 0.0004, 0.0005)],
+                                     way(3, [1, 2]) + "<way id='7'><nd ref='4'/><nd ref='5'/>"
+                                     "<nd ref='6'/><nd ref='4'/><tag k='building' v='yes'/>"
+                                     "<tag k='height' v='1e308'/></way>"),
+        "empty_file": "",
+        "not_xml": "hello\n",
+        "no_version": "<osm><node id='1' lat='0' lon='0'/></osm>\n",
+        "entity_bomb": "<?xml version='1.0'?><!DOCTYPE osm [<!ENTITY a 'aaaaaaaaaa'>"
+                       "<!ENTITY b '&a;&a;&a;&a;&a;&a;&a;&a;&a;&a;'>]><osm version='0.6'>"
+                       "<node id='1' lat='0' lon='0'><tag k='name' v='&b;'/></node></osm>\n",
+    }
+    F["osm"] = {}
+    for k, text in osm_cases.items():
+        p = root / "osm" / f"{k}.osm"
+        p.parent.mkdir(exist_ok=True)
+        p.write_text(text)
+        F["osm"][k] = p
+    for k, data in {"bz2_garbage": (".osm.bz2", b"BZh91AY&SY garbage"),
+                    "pbf_garbage": (".osm.pbf", b"\x00\x00\x00\x0dgarbage"),
+                    "pbf_empty": (".osm.pbf", b"")}.items():
+        p = root / "osm" / f"{k}{data[0]}"
+        p.write_bytes(data[1])
+        F["osm"][k] = p
+
     F["file"] = root / "afile.txt"
     F["file"].write_text("x\n")
     F["fifo"] = root / "afifo"
@@ -417,6 +469,13 @@ def cases(F: dict, scratch: Path) -> list[dict]:
             out_path=False)
     for k, p in F["specs"].items():
         add(f"scene show spec {k}", ["scene", "show", p, "--out", scratch / f"spec_{k}.png"],
+            out_path=False)
+    # OpenStreetMap extracts
+    for k, p in F["osm"].items():
+        add(f"scene from-osm {k}", ["scene", "from-osm", p, "--no-cache", "--out",
+                                    scratch / f"osm_{k}.glb"], out_path=False)
+        add(f"scene from-osm {k} --bbox", ["scene", "from-osm", p, "--no-cache", "--bbox",
+                                           "0,0,0.001,0.001", "--out", scratch / f"osmb_{k}.glb"],
             out_path=False)
     # prediction folders
     for k, d in F["preds"].items():

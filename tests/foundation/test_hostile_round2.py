@@ -878,3 +878,13 @@ def test_own_show_out_root_is_refused(tmp_path, capsys):
     err = one_line(*run(capsys, "show", real, "--out", "/"))  # wrote previews into /
     assert "root" in err
     assert sorted(os.listdir("/")) == before
+
+
+def test_own_an_osm_extract_around_the_globe_is_refused(tmp_path, capsys):
+    osm = tmp_path / "wide.osm"
+    osm.write_text("<?xml version='1.0'?><osm version='0.6'><node id='1' lat='0' lon='-179'/>"
+                   "<node id='2' lat='0' lon='179'/><way id='3'><nd ref='1'/><nd ref='2'/>"
+                   "<tag k='highway' v='residential'/></way></osm>\n")
+    err = one_line(*run(capsys, "scene", "from-osm", osm, "--no-cache", "--out", tmp_path / "w.glb"))
+    assert "--bbox" in err and "EPSG:" in err  # was GEOSException ... NaN/Inf numbers
+    assert not (tmp_path / "w.glb").exists()
