@@ -55,10 +55,16 @@ def out_lock(out, command: str, option: str = "--out") -> Iterator[None]:
     if os.fspath(out) == "":
         raise OutputError(f"{option}: expected a path, got ''")
     lock = lock_path(out)
+    missing = []  # folders made for the lock: removed again when the run leaves them empty
+    p = lock.parent
+    while not os.path.lexists(p) and p.parent != p:
+        missing.append(p)
+        p = p.parent
     try:
         lock.parent.mkdir(parents=True, exist_ok=True)
         fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
     except OSError as exc:
+        _remove_empty(missing)
         raise OutputError(f"{option} {shown(out)}: cannot lock it ({exc.strerror})") from None
     try:
         try:
@@ -76,6 +82,16 @@ def out_lock(out, command: str, option: str = "--out") -> Iterator[None]:
                 pass
     finally:
         os.close(fd)
+        _remove_empty(missing)
+
+
+def _remove_empty(folders: list[Path]) -> None:
+    """rmdir each of ``folders`` (innermost first) while they are empty."""
+    for d in folders:
+        try:
+            d.rmdir()
+        except OSError:
+            break
 
 
 def remove_dead_temps(out, suffixes: tuple[str, ...] = (".tmp", ".old")) -> list[Path]:

@@ -888,3 +888,16 @@ def test_own_an_osm_extract_around_the_globe_is_refused(tmp_path, capsys):
     err = one_line(*run(capsys, "scene", "from-osm", osm, "--no-cache", "--out", tmp_path / "w.glb"))
     assert "--bbox" in err and "EPSG:" in err  # was GEOSException ... NaN/Inf numbers
     assert not (tmp_path / "w.glb").exists()
+
+
+@pytest.mark.parametrize("cmd", ["stats", "show", "mix", "eval"])
+def test_own_a_refused_run_leaves_no_folder_made_for_its_lock(tmp_path, capsys, cmd):
+    real = make_dota(tmp_path / "R", 2, "r")
+    (real / "labelTxt" / "r001.txt").write_text("not a label line\n")
+    out = tmp_path / "new" / "deeper" / "out"
+    argv = {"stats": ["stats", real, "--out", out], "show": ["show", real, "--out", out],
+            "mix": ["mix", "--real", real, "--synthetic", make_dota(tmp_path / "S", 1, "s"),
+                    "--real-images", "1", "--out", out],
+            "eval": ["eval", "--gt", real, "--pred", real / "labelTxt", "--out", out]}[cmd]
+    one_line(*run(capsys, *argv))
+    assert not (tmp_path / "new").exists()
