@@ -331,7 +331,7 @@ class Camera:
         if cached is None:
             # as pixel_rays(rows, cols) for every pixel, with the same float32 operations in
             # the same order, but separable: x depends on the column only, y on the row
-            from .camera_rays import grid_rays
+            from .camera_rays import grid_rays  # lazy: numba; camera is read at --help
 
             h, w = self.height_px, self.width_px
             x = ((np.arange(w, dtype=np.float32) + np.float32(0.5)) - np.float32(self.K[0, 2])

@@ -17,6 +17,7 @@ import sys
 from contextlib import contextmanager
 
 from . import __version__
+from ._open3d import stub_viewer
 from .errors import AerialSynthError
 from .out_guard import INPUT_OPTIONS, refuse_out_is_input
 from .safe_input import input_roots
@@ -102,8 +103,6 @@ def console_main(argv: list[str] | None = None) -> int:
     """The ``aerial-synth`` command: :func:`main` in a process of its own, which imports
     open3d without its plotly viewer (:mod:`aerial_synth._open3d`: ~0.4 s less start-up
     for every command that casts rays)."""
-    from ._open3d import stub_viewer
-
     stub_viewer()
     os.environ.setdefault("OPENCV_LOG_LEVEL", "SILENT")  # our one line, not OpenCV's log too
     for stream in (sys.stdout, sys.stderr):  # a file name with bytes that are not UTF-8,

@@ -16,10 +16,10 @@ from __future__ import annotations
 
 import gc
 
-from ._server_guard import _in_fork_server
+from ._server_guard import in_fork_server
 
 FROZEN = False
-if _in_fork_server():
+if in_fork_server():
     gc.collect()
     gc.freeze()
     FROZEN = True

@@ -17,13 +17,15 @@ from __future__ import annotations
 import os
 import sys
 
+from ..errors import EntryPointError
 
-def _in_fork_server() -> bool:
+
+def in_fork_server() -> bool:
     return sys.argv[:1] == ["-c"] and "multiprocessing.forkserver" in sys.modules
 
 
 def _guard() -> bool:
-    if not (_in_fork_server() and hasattr(os, "sched_getaffinity")):
+    if not (in_fork_server() and hasattr(os, "sched_getaffinity")):
         return False
     try:
         import ctypes
@@ -52,11 +54,9 @@ def _quiet_main_fixup() -> bool:
     again there and :func:`.pool.check_entry_point` stops it: the worker then exits with
     :data:`ENTRY_POINT_EXIT` instead of printing a traceback, and its parent reports the
     missing guard in one line."""
-    if not _in_fork_server():
+    if not in_fork_server():
         return False
     import multiprocessing.spawn as spawn
-
-    from ..errors import EntryPointError
 
     def quiet(fixup):
         def run(*args, **kwargs):

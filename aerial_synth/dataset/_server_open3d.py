@@ -15,14 +15,14 @@ from __future__ import annotations
 
 import sys
 
-from .._open3d import _absent, stub_viewer  # noqa: F401  (_absent: tests)
-from ._server_guard import _in_fork_server
+from .._open3d import stub_viewer
+from ._server_guard import in_fork_server
 
 
 def _import() -> bool:
     """In the fork server: import open3d, without its viewer where the stub fits; returns
     whether the stub is in place."""
-    if not _in_fork_server() or "open3d" in sys.modules:
+    if not in_fork_server() or "open3d" in sys.modules:
         return False
     stubbed = stub_viewer()
     import open3d  # noqa: F401

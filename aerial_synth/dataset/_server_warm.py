@@ -10,13 +10,14 @@ process forked from one that has is terminated by libgomp.
 
 from __future__ import annotations
 
-from ._server_guard import _in_fork_server
+from ._server_guard import in_fork_server
 
 
 def _warm() -> bool:
-    if not _in_fork_server():
+    if not in_fork_server():
         return False
-    from .. import numba_setup  # noqa: F401  (threading layer chosen before anything else)
+    # lazy: numba, in the fork server only (threading layer chosen before anything else)
+    from .. import numba_setup  # noqa: F401
 
     try:
         from numba.core.registry import cpu_target

@@ -23,10 +23,14 @@ from pathlib import Path
 
 from .. import __version__
 from ..errors import AerialSynthError, ExportError
+from ..formats import CATEGORIES, meta
+from ..formats.registry import DatasetInfo, get
 from ..io_utils import atomic_write_chunks, atomic_write_json, atomic_write_text
+from .affinity import allowed_cores
 from .config import ExportConfig
 from .layout import meta_path, split_of
 from .parent import watch_parent
+from .pool import check_entry_point, pool_context
 from .worker import record_counts
 
 __all__ = ["MetaRecords", "POOL_MIN_RECORDS", "aggregate_pool", "dataset_info", "write_aggregates", "summarise"]
@@ -47,15 +51,10 @@ WINDOW_PER_WORKER = 2
 
 def aggregate_pool(cfg: ExportConfig) -> bool:
     """Whether :func:`write_aggregates` (default workers) reads ``cfg``'s records on a pool."""
-    from .affinity import allowed_cores
-
     return cfg.images >= POOL_MIN_RECORDS and len(allowed_cores()) > 1
 
 
 def dataset_info(cfg: ExportConfig):
-    from ..formats import CATEGORIES
-    from ..formats.registry import DatasetInfo
-
     return DatasetInfo(scene=cfg.scene, scenario=cfg.scenario, seed=cfg.seed,
                        tool_version=__version__, splits=cfg.splits, categories=CATEGORIES)
 
@@ -75,8 +74,6 @@ class _Tally:
     it first appears)."""
 
     def __init__(self):
-        from ..formats import CATEGORIES
-
         self.classes = {c: 0 for c in CATEGORIES}
         self.first: dict = {}  # class outside CATEGORIES -> (index, position) of its first record
         self.reasons: dict = {}
@@ -159,8 +156,6 @@ class MetaRecords:
         return self.cfg.images
 
     def __getitem__(self, i: int):
-        from ..formats import meta
-
         i = range(len(self))[i]  # negative indices; IndexError past the end
         return meta.read(meta_path(self.out, i))
 
@@ -199,8 +194,6 @@ class MetaRecords:
             return 1
         if self.workers is not None:
             return min(self.workers, n)
-        from .affinity import allowed_cores
-
         return min(len(allowed_cores()), n)
 
     def map(self, fn, split: str | None = None):
@@ -249,8 +242,6 @@ class MetaRecords:
     def _map_pool(self, fn, chunks, split, workers):
         from concurrent.futures import ProcessPoolExecutor
         from concurrent.futures.process import BrokenProcessPool
-
-        from .pool import check_entry_point, pool_context
 
         check_entry_point()
         pool = ProcessPoolExecutor(workers, mp_context=pool_context(), initializer=_init_worker,
@@ -342,9 +333,6 @@ def write_aggregates(cfg: ExportConfig, out: Path, georeference: dict | None = N
     processes for a large export (default: every allowed core; see :meth:`MetaRecords.map`),
     and a format's file given as chunks is written chunk by chunk, so memory does not grow
     with the export. The bytes do not depend on ``workers``."""
-    from ..formats.registry import get
-    from .pool import check_entry_point
-
     check_entry_point()
     out = Path(out)
     records = MetaRecords(cfg, out, workers=workers)

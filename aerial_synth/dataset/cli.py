@@ -1,18 +1,29 @@
-"""``aerial-synth export`` and ``aerial-synth show``. Imports nothing heavy at import time."""
+"""``aerial-synth export`` and ``aerial-synth show``. Imports nothing heavy at import time (the
+exporter itself is imported when ``export`` runs)."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 
+from ..annotate.boxes import BOX_FITS, BOX_MODES, BoxConfig
+from ..errors import AerialSynthError
+from ..formats.registry import names as format_names
+from ..formats.registry import parse_names
+from ..out_guard import out_lock, refuse_here
+from ..placement.config import SCENARIOS
+from ..render.cli import add_camera_args, camera_config_from_args
+from ..render.config import RANDOMISE, RENDER_PRESETS
+from ..scene.cli import add_scene_args
+from ..validators import arg_choice, arg_float, arg_int
+from .config import IMAGE_EXTS, MAX_IMAGES, ExportConfig
+from .show import show_dataset
+
 __all__ = ["register"]
 
 
 def _format_list(text: str):
     """argparse ``type=`` for ``--format``: a comma list of registered formats."""
-    from ..errors import AerialSynthError
-    from ..formats.registry import parse_names
-
     try:
         return ",".join(parse_names(text))
     except AerialSynthError as exc:
@@ -20,15 +31,7 @@ def _format_list(text: str):
 
 
 def register(sub) -> None:
-    from ..annotate.boxes import BOX_FITS, BOX_MODES, BoxConfig
-    from ..formats.registry import names as format_names
-    from ..placement.config import SCENARIOS
-    from ..render.cli import add_camera_args
-    from ..render.config import RANDOMISE, RENDER_PRESETS
-    from ..scene.cli import add_scene_args
-    from ..validators import arg_choice, arg_float, arg_int
-    from .config import IMAGE_EXTS, MAX_IMAGES
-
+    """``aerial-synth export`` and ``aerial-synth show``."""
     box = BoxConfig()  # the one home of the box thresholds' defaults
 
     fmts = ", ".join(format_names())
@@ -105,7 +108,10 @@ def register(sub) -> None:
                    help="box-shaped vehicles instead of catalog meshes (quick tests)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_export)
+    _register_show(sub)
 
+
+def _register_show(sub) -> None:
     s = sub.add_parser(
         "show",
         help="draw a dataset's labels over its images, plus a contact sheet",
@@ -123,10 +129,6 @@ def register(sub) -> None:
 
 
 def config_from_args(args):
-    from ..annotate.boxes import BoxConfig
-    from ..render.cli import camera_config_from_args
-    from .config import ExportConfig
-
     cam = camera_config_from_args(args)
     box = BoxConfig(
         box=args.box,
@@ -166,7 +168,7 @@ def config_from_args(args):
 
 
 def _cmd_export(args) -> int:
-    from .export import export_dataset
+    from .export import export_dataset  # lazy: the renderer (open3d, numba) loads only to export
 
     cfg = config_from_args(args)
     res = export_dataset(cfg, args.out, workers=args.workers, resume=args.resume,
@@ -176,9 +178,6 @@ def _cmd_export(args) -> int:
 
 
 def _cmd_show(args) -> int:
-    from ..out_guard import out_lock, refuse_here
-    from .show import show_dataset
-
     if args.out == "":  # Path('') would silently mean the current folder
         refuse_here(args.out)
     with out_lock(args.out, "show"):

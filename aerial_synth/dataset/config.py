@@ -19,7 +19,6 @@ from ..formats.registry import parse_names
 from ..render.config import RANDOMISE, RenderConfig
 from ..render.config import RENDER_PRESETS as _RENDER_PRESETS
 from .seeds import PLACEMENT_STREAM
-from .tiled import check_tiled_config
 
 __all__ = ["IMAGE_EXTS", "PLACEMENT_STREAM", "SPLITS", "ExportConfig", "ExportResult"]
 
@@ -129,6 +128,9 @@ class ExportConfig:
             s(self, "distractors", v.in_range("--distractors", self.distractors, 0.0, 1000.0,
                                               error=E))
         if self.tile_m is not None:
+            # lazy: tiled imports placement and the scene's tiles (shapely); configs are read at --help
+            from .tiled import check_tiled_config
+
             s(self, "tile_m", float(v.in_range("--tile-m", self.tile_m, 0.0, 1e9, lo_open=True, error=E)))
             s(self, "margin_m", check_tiled_config(self))
         elif self.margin_m is not None:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..formats.registry import get, names
 from ..safe_input import image_file_complete
 from .config import ExportConfig
 
@@ -36,8 +37,6 @@ def split_of(cfg: ExportConfig, index: int) -> str:
 
 
 def _formats(cfg: ExportConfig):
-    from ..formats.registry import get
-
     return [get(name) for name in cfg.formats]
 
 
@@ -67,8 +66,6 @@ def meta_path(out: Path, index: int) -> Path:
 def owned_names() -> tuple[str, ...]:
     """Top-level entries an aerial-synth dataset may hold: its own files and every registered
     format's folder. Anything else in a dataset folder is the user's and is kept."""
-    from ..formats.registry import get, names
-
     return DATASET_FILES + tuple(dict.fromkeys(get(n).folder for n in names()))
 
 

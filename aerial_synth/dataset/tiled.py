@@ -62,7 +62,15 @@ import warnings
 
 import numpy as np
 
+from ..camera import Camera
 from ..errors import ExportError, PlacementError
+from ..placement.config import load_scenario
+from ..placement.model import Placement
+from ..placement.tiled import BorderMerge, place_tiled
+from ..placement.traffic import lane_rule
+from ..render.cull import lowest_sun_deg, secondary_reach_m
+from ..scene.tiles import TiledWorld
+from ..vehicles import load_catalog
 from .seeds import PLACEMENT_STREAM
 
 __all__ = [
@@ -107,8 +115,6 @@ def camera_reach_m(cam_cfg, jitter_frac: float = 0.25) -> float:
     it aims at: the farthest footprint corner over yaw, tilt up to ``max_tilt_deg`` and tilt
     axis, plus the aim jitter (``sample_pose_targeted``: up to ``jitter_frac`` of the
     footprint's half width on each axis)."""
-    from ..camera import Camera
-
     half = 0.5 * min(cam_cfg.width_px, cam_cfg.height_px) * cam_cfg.nadir_gsd_m
     jitter = math.hypot(jitter_frac * half, jitter_frac * half)
     tilts = [0.0] if not cam_cfg.max_tilt_deg else [cam_cfg.max_tilt_deg, -cam_cfg.max_tilt_deg]
@@ -167,8 +173,6 @@ def export_pads(world, render_config, cam_cfg, catalog) -> Pads:
     area: the same reach of the tallest vehicle standing on the highest drivable surface,
     plus the largest footprint radius (half the diagonal), and at least the longest vehicle +
     :data:`VEHICLE_PAD_M` (its fixed value before). Both at most :data:`MAX_PAD_M`."""
-    from ..render.cull import lowest_sun_deg, secondary_reach_m
-
     models = _catalog_models(catalog)
     view = max_view_deg(cam_cfg)
     slope = world.surface_slope_deg()
@@ -204,8 +208,6 @@ def hop_m(scenario_cfg, catalog) -> float:
     """The longest centre distance of two colliding vehicles: a link of a drop chain
     (footprints within the gap, centres within the minimum distance, or two vehicles of one
     lane within the lane rule's spacing)."""
-    from ..placement.traffic import lane_rule
-
     diag = max(math.hypot(m.length_m, m.width_m) for m in _catalog_models(catalog))
     rule = lane_rule(scenario_cfg)
     return max(diag + max(scenario_cfg.gap_m, 0.0), float(scenario_cfg.min_center_distance_m or 0.0),
@@ -308,8 +310,6 @@ def check_tiled_config(cfg) -> float:
 def load_world(cfg):
     """The export's :class:`~aerial_synth.scene.tiles.TiledWorld` (a city spec costs only its
     street positions here; other scenes are loaded once)."""
-    from ..scene.tiles import TiledWorld
-
     return TiledWorld.load(cfg.scene, seed=cfg.scene_seed, bbox=cfg.bbox, crs=cfg.crs)
 
 
@@ -329,8 +329,6 @@ class GroupPlacer:
     grid's seeds), and merges them in raster order with ``place_tiled``'s border rule."""
 
     def __init__(self, world, grid, cfg, catalog):
-        from ..placement.config import load_scenario
-
         self.world, self.grid, self.cfg, self.catalog = world, grid, cfg, catalog
         self.scenario = load_scenario(cfg.scenario)
         self.longest = max(m.length_m for m in _catalog_models(catalog))
@@ -351,8 +349,6 @@ class GroupPlacer:
         key = (group, tile.key)
         if key in self._cache:
             return self._cache[key]
-        from ..placement.tiled import place_tiled
-
         ss = np.random.SeedSequence([self.cfg.seed, group, PLACEMENT_STREAM])
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -382,9 +378,6 @@ class GroupPlacer:
 
     def placement(self, group: int, tile, area):
         """The whole world's vehicles (group ``group``) whose centre lies in ``area``."""
-        from ..placement.model import Placement
-        from ..placement.tiled import BorderMerge
-
         sc = self.scenario
         merge = BorderMerge(sc, self.longest, len(self.grid))
         needed = tiles_needed(self.grid, area, self.dep)
@@ -425,8 +418,6 @@ def group_placement(world, grid, cfg, group: int, catalog=None, placer=None):
     """Group ``group``'s tile, camera area, vehicles and warnings: (tile, within, vehicle
     area, Placement, warnings). ``within``: where the cameras' footprints must lie."""
     if catalog is None:
-        from ..vehicles import load_catalog
-
         catalog = load_catalog()
     placer = placer or GroupPlacer(world, grid, cfg, catalog)
     bounds = grid.bounds

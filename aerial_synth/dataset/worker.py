@@ -34,7 +34,6 @@ from ..formats import coco, meta
 from ..formats.registry import get as get_format
 from ..io_utils import atomic_write_bytes, atomic_write_text
 from ..placement import place
-from ..png import encode_png
 from ..render import add_placement, render_frame
 from ..render.cull import vehicles_for_views
 from ..render.distractors import DISTRACTOR_KEY, add_distractors
@@ -466,6 +465,8 @@ def encode_image(rgb: np.ndarray, ext: str) -> bytes:
     (OpenCV, quality 95) bytes."""
     a = np.ascontiguousarray(rgb, dtype=np.uint8)
     if ext == "png":
+        from ..png import encode_png  # lazy: numba kernels cached on disk (checked --out first)
+
         return encode_png(a)
     import cv2  # lazy: OpenCV only for JPEG (start-up time)
 

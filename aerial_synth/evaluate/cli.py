@@ -122,14 +122,12 @@ def _classes(text):
         return None
     out = [c.strip() for c in text.split(",") if c.strip()]
     if not out:
-        from ..errors import EvaluationError
-
         raise EvaluationError(f"--classes: expected a comma list of class names, got {text!r}")
     return out
 
 
 def _cmd_eval(args) -> int:
-    from .evaluation import check_report_dir
+    from .evaluation import check_report_dir  # lazy: shapely
 
     out = None
     if args.out is not None:
@@ -139,7 +137,7 @@ def _cmd_eval(args) -> int:
 
 
 def _eval(args, out) -> int:
-    from .evaluation import run_eval, summary_table, write_eval_report
+    from .evaluation import run_eval, summary_table, write_eval_report  # lazy: shapely
 
     res = run_eval(args.gt, args.pred, iou=args.iou, metric=args.metric, pred_format=args.pred_format,
                    names=args.names, images=args.images, split=args.split,
@@ -153,7 +151,7 @@ def _eval(args, out) -> int:
 
 
 def _cmd_mix(args) -> int:
-    from .mix import MixConfig, make_mix
+    from .mix import MixConfig, make_mix  # lazy: shapely, OpenCV; the parser is built at --help
 
     refuse_here(args.out)  # the mix is built beside --out and renamed into place
     if args.overlap is not None and args.tile is None:
@@ -184,18 +182,19 @@ def _cmd_mix(args) -> int:
 
 
 def _cmd_stats(args) -> int:
-    from .evaluation import check_report_dir
-    from .stats import run_stats
+    # lazy: shapely and OpenCV load only when stats runs (the parser is built at --help)
+    from . import evaluation, stats
 
     if args.compare_gsd is not None and args.compare is None:
         raise EvaluationError(f"--compare-gsd {args.compare_gsd:g}: is the GSD of --compare DIR2; "
                               "give --compare too, or drop --compare-gsd")
     inputs = [("DIR", Path(args.dir))] + ([("--compare", Path(args.compare))] if args.compare else [])
-    out = check_report_dir(args.out, inputs)
+    out = evaluation.check_report_dir(args.out, inputs)
     with out_lock(args.out, "stats"):
-        text = run_stats(Path(args.dir), out, compare=Path(args.compare) if args.compare else None,
-                         gsd=args.gsd, compare_gsd=args.compare_gsd, max_images=args.max_images,
-                         seed=args.seed,
-                         classes=None if args.classes == "all" else _classes(args.classes))
+        text = stats.run_stats(Path(args.dir), out,
+                               compare=Path(args.compare) if args.compare else None,
+                               gsd=args.gsd, compare_gsd=args.compare_gsd,
+                               max_images=args.max_images, seed=args.seed,
+                               classes=None if args.classes == "all" else _classes(args.classes))
     print(text)
     return 0

@@ -211,7 +211,7 @@ def summary_table(res: EvalResult) -> str:
 
 def write_eval_report(res: EvalResult, out: Path, inputs: dict) -> list[Path]:
     """eval.json, summary.txt and pr_<class>.png (one curve per threshold for coco)."""
-    from .plots import line_chart, png_bytes
+    from .plots import line_chart, png_bytes  # lazy: matplotlib, only for the report's plots
 
     written = []
     data = res.to_dict()

@@ -43,6 +43,7 @@ from ..formats import dota, yolo_obb
 from ..formats.labels import ImageLabels
 from ..io_utils import check_output_dir, dumps_json, is_inside
 from ..safe_input import image_file_complete, quote, read_image, shown
+from .ap import to_polygons
 from .labels import (
     IMAGE_EXTS,
     find_data_yaml,
@@ -177,8 +178,6 @@ def clip_to_tile(polygons_xy_px, difficult, tile_xywh, keep_threshold: float = 0
     diff = np.asarray(difficult, bool)
     if len(P) == 0:
         return np.zeros(0, int), np.zeros((0, 4, 2)), np.zeros(0, bool), np.zeros(0, bool)
-    from .ap import to_polygons
-
     polys = to_polygons(P)
     box = shapely.box(x0, y0, x0 + w, y0 + h)
     area = shapely.area(polys)
@@ -444,8 +443,8 @@ def _shuffle(items: list, rng: np.random.Generator) -> list:
     return [items[i] for i in order]
 
 
-def make_mix(cfg: MixConfig) -> dict:
-    """Build the mix (see the module docstring); returns the manifest."""
+def _check_out(cfg: MixConfig) -> Path:
+    """``--out``: not inside an input nor holding one, and new, empty or a mix (with --force)."""
     out = Path(cfg.out)
     for opt, p in (("--real", cfg.real), ("--synthetic", cfg.synthetic)):
         if not Path(p).exists():
@@ -460,6 +459,29 @@ def make_mix(cfg: MixConfig) -> dict:
             raise EvaluationError(f"--out {out}: exists, is not empty and is not a mix; choose a new folder")
         if not cfg.force:
             raise EvaluationError(f"--out {out}: holds a mix already (use --force to replace it)")
+    return out
+
+
+def _counts(entries: list[dict]) -> dict:
+    """The manifest's counts of the written images."""
+    tr = [e for e in entries if e["split"] == "train"]
+    va = [e for e in entries if e["split"] == "val"]
+    n_r = sum(e["origin"] == "real" for e in tr)
+    counts = {
+        "train_real": n_r, "train_synthetic": len(tr) - n_r,
+        "real_share": (n_r / len(tr)) if tr else 0.0,
+        "val_real": sum(e["origin"] == "real" for e in va),
+        "val_synthetic": sum(e["origin"] == "synthetic" for e in va),
+        "objects": sum(e["objects"] for e in entries),
+        "clipped": sum(e["clipped"] for e in entries),
+        "copied": sum(e["file"] == "copy" for e in entries),
+    }
+    return counts
+
+
+def make_mix(cfg: MixConfig) -> dict:
+    """Build the mix (see the module docstring); returns the manifest."""
+    out = _check_out(cfg)
 
     real_splits = _dota_splits(Path(cfg.real), "--real")
     syn_splits = _dota_splits(Path(cfg.synthetic), "--synthetic")
@@ -525,18 +547,7 @@ def make_mix(cfg: MixConfig) -> dict:
             (tmp / "yolo-obb" / "data.yaml").write_text(yaml.safe_dump(
                 {"train": "images/train", "val": val_dir, "nc": len(classes),
                  "names": dict(enumerate(classes))}, sort_keys=False), encoding="utf-8")
-        tr = [e for e in entries if e["split"] == "train"]
-        va = [e for e in entries if e["split"] == "val"]
-        n_r = sum(e["origin"] == "real" for e in tr)
-        counts = {
-            "train_real": n_r, "train_synthetic": len(tr) - n_r,
-            "real_share": (n_r / len(tr)) if tr else 0.0,
-            "val_real": sum(e["origin"] == "real" for e in va),
-            "val_synthetic": sum(e["origin"] == "synthetic" for e in va),
-            "objects": sum(e["objects"] for e in entries),
-            "clipped": sum(e["clipped"] for e in entries),
-            "copied": sum(e["file"] == "copy" for e in entries),
-        }
+        counts = _counts(entries)
         used = {}
         for e in entries:
             used.setdefault(e["source_image"], []).append(e["image"])

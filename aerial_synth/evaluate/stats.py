@@ -192,6 +192,47 @@ def _hist(pixels_bgr: np.ndarray) -> np.ndarray:
 VEHICLE_CLASSES = ("small-vehicle", "large-vehicle")
 
 
+def _pixel_stats(items, max_images: int, seed: int, dist: dict):
+    """Pixel statistics on at most ``max_images`` images drawn by ``seed`` (appended to
+    ``dist``): (the images drawn, those unreadable, colour histograms)."""
+    import cv2  # lazy: OpenCV only for pixel statistics (start-up time)
+
+    with_img = [it for it in items if it.image_path is not None]
+    rng = np.random.default_rng(seed)
+    if len(with_img) > max_images:
+        pick = np.sort(rng.choice(len(with_img), max_images, replace=False))
+        with_img = [with_img[i] for i in pick]
+    hists = {r: np.zeros((3, HIST_BINS)) for r in ("overall", "inside", "ring")}
+    unreadable: list[str] = []
+    for it in with_img:
+        img = _load_bgr(it.image_path)
+        if img is None:
+            unreadable.append(str(it.image_path))
+            continue
+        gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+        sd = float(gray.std())
+        dist["image_gray_mean"].append([float(gray.mean())])
+        dist["image_gray_sd"].append([sd])
+        means = img.reshape(-1, 3).mean(0)
+        dist["image_blue_mean"].append([means[0]])
+        dist["image_green_mean"].append([means[1]])
+        dist["image_red_mean"].append([means[2]])
+        dist["image_saturation_mean"].append([float(cv2.cvtColor(img, cv2.COLOR_BGR2HSV)[:, :, 1].mean())])
+        step = max(1, int(np.sqrt(gray.size / 250_000)))  # histogram of at most ~250k pixels
+        hists["overall"] += _hist(img[::step, ::step].reshape(-1, 3))
+        if len(it):
+            m_in, m_ring, inside, ring = vehicle_pixels(gray, it.extra["all_polygons"])
+            m_in, m_ring = m_in[it.extra["keep"]], m_ring[it.extra["keep"]]
+            dist["box_gray_mean"].append(m_in[np.isfinite(m_in)])
+            dist["ring_gray_mean"].append(m_ring[np.isfinite(m_ring)])
+            ok = np.isfinite(m_in) & np.isfinite(m_ring)
+            if sd > 0:
+                dist["vehicle_contrast"].append((m_in[ok] - m_ring[ok]) / sd)
+            hists["inside"] += _hist(img[inside])
+            hists["ring"] += _hist(img[ring])
+    return with_img, unreadable, hists
+
+
 def dataset_stats(path, *, gsd: float | None = None, max_images: int = 500, seed: int = 0,
                   classes=VEHICLE_CLASSES, option: str = "DIR"
                   ) -> tuple[dict, dict[str, np.ndarray], dict[str, np.ndarray]]:
@@ -199,7 +240,6 @@ def dataset_stats(path, *, gsd: float | None = None, max_images: int = 500, seed
 
     Box statistics cover the objects of ``classes`` (None: every class); every labelled
     object, whatever its class, is left out of the rings around vehicles."""
-    import cv2
 
     layout, items = read_dataset(path, option)
     labelled = [it for it in items if not it.extra.get("unlabelled")]
@@ -252,40 +292,7 @@ def dataset_stats(path, *, gsd: float | None = None, max_images: int = 500, seed
             n_trunc += int(t.sum())
             n_trunc_known += n
 
-    # pixel statistics on a sample of images
-    with_img = [it for it in items if it.image_path is not None]
-    rng = np.random.default_rng(seed)
-    if len(with_img) > max_images:
-        pick = np.sort(rng.choice(len(with_img), max_images, replace=False))
-        with_img = [with_img[i] for i in pick]
-    hists = {r: np.zeros((3, HIST_BINS)) for r in ("overall", "inside", "ring")}
-    unreadable: list[str] = []
-    for it in with_img:
-        img = _load_bgr(it.image_path)
-        if img is None:
-            unreadable.append(str(it.image_path))
-            continue
-        gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
-        sd = float(gray.std())
-        dist["image_gray_mean"].append([float(gray.mean())])
-        dist["image_gray_sd"].append([sd])
-        means = img.reshape(-1, 3).mean(0)
-        dist["image_blue_mean"].append([means[0]])
-        dist["image_green_mean"].append([means[1]])
-        dist["image_red_mean"].append([means[2]])
-        dist["image_saturation_mean"].append([float(cv2.cvtColor(img, cv2.COLOR_BGR2HSV)[:, :, 1].mean())])
-        step = max(1, int(np.sqrt(gray.size / 250_000)))  # histogram of at most ~250k pixels
-        hists["overall"] += _hist(img[::step, ::step].reshape(-1, 3))
-        if len(it):
-            m_in, m_ring, inside, ring = vehicle_pixels(gray, it.extra["all_polygons"])
-            m_in, m_ring = m_in[it.extra["keep"]], m_ring[it.extra["keep"]]
-            dist["box_gray_mean"].append(m_in[np.isfinite(m_in)])
-            dist["ring_gray_mean"].append(m_ring[np.isfinite(m_ring)])
-            ok = np.isfinite(m_in) & np.isfinite(m_ring)
-            if sd > 0:
-                dist["vehicle_contrast"].append((m_in[ok] - m_ring[ok]) / sd)
-            hists["inside"] += _hist(img[inside])
-            hists["ring"] += _hist(img[ring])
+    with_img, unreadable, hists = _pixel_stats(items, max_images, seed, dist)
     arrays = {k: (np.concatenate([np.atleast_1d(np.asarray(v, float)) for v in vals]) if vals else np.zeros(0))
               for k, vals in dist.items()}
     if not labelled:
@@ -399,7 +406,7 @@ def run_stats(path: Path, out: Path, *, compare: Path | None = None, gsd: float 
               compare_gsd: float | None = None, max_images: int = 500, seed: int = 0,
               classes=VEHICLE_CLASSES) -> str:
     """Compute, write ``stats.json`` and PNG plots into ``out``; return the summary text."""
-    from .plots import grid, histogram_chart, line_chart, png_bytes
+    from .plots import grid, histogram_chart, line_chart, png_bytes  # lazy: matplotlib, for plots
 
     sa, da, ha = dataset_stats(path, gsd=gsd, max_images=max_images, seed=seed, classes=classes,
                                option="DIR")

@@ -1,5 +1,11 @@
 """Per-pixel kernels of the ray-cast renderer, compiled with numba.
 
+Over 600 lines, kept as one module on purpose: :func:`compose` inlines the helpers of
+:mod:`._materials` and the texture helpers here, and numba's disk cache keys a kernel only
+by the content of the file that defines it, so every module of inlining kernels needs the
+:data:`MATERIALS_SHA` guard below; one module keeps that guard in one place. (The
+visibility kernels, which inline nothing, are in :mod:`._vis_kernels`.)
+
 The shading model is described in :mod:`aerial_synth.render.shading`; these functions are
 its inner loops, one fused pass over the pixels per stage instead of dozens of
 whole-image numpy temporaries. Every pixel is computed independently (``prange`` over
@@ -18,7 +24,7 @@ from . import _materials
 #: sha256 (first 16 hex digits) of ``_materials.py``. :func:`compose` inlines its helpers,
 #: but numba's disk cache checks only this file's content, so this line must change
 #: whenever ``_materials.py`` does (tests/render/test_materials.py checks it).
-MATERIALS_SHA = "985acd3111da2903"
+MATERIALS_SHA = "0745efa60eb40c2e"
 
 
 _bilinear = _materials._bil  # wrapped bilinear lookup in a 256 x 256 noise tile (one copy)
@@ -216,6 +222,9 @@ def scatter_values(idx, vals, out):  # pragma: no cover - compiled
         out[idx[j]] = vals[j]
 
 
+# compose is over 100 lines on purpose: it is the one fused per-pixel pass of the shader
+# (albedo, texture, light, specular, atmosphere); cut into several kernels it would write
+# and read back whole-image temporaries between them, which the fusion exists to avoid.
 @njit(parallel=True, **_OPTS)
 def compose(
     h, w, rays, t, face, normal, depth, ndl, lit, has_lit, own, src, lit_step, nearest, ao,
@@ -680,79 +689,3 @@ def add_noise(img, seed, scale, shot, quantiles):  # pragma: no cover - compiled
             for ch in range(3):
                 v = np.int32(img[r, c, ch]) + d
                 img[r, c, ch] = 0 if v < 0 else (255 if v > 255 else v)
-
-
-@njit(**_OPTS)
-def instance_boxes(instance, ids):  # pragma: no cover - compiled
-    """One pass over an (h, w) id image: pixel count and pixel-edge box of each id of
-    ``ids`` (k,) (sorted, unique). Returns counts (k,) int64 and boxes (k, 4) int64
-    [x0, y0, x1, y1] (x1, y1 exclusive; [w, h, 0, 0] for an id with no pixels), in the
-    order of ``ids``; other ids are skipped. Memory follows k, not the largest id (a tiled
-    world's ids reach billions)."""
-    h, w = instance.shape
-    k = ids.shape[0]
-    counts = np.zeros(k, np.int64)
-    boxes = np.empty((k, 4), np.int64)
-    boxes[:, 0] = w
-    boxes[:, 1] = h
-    boxes[:, 2] = 0
-    boxes[:, 3] = 0
-    last_v = 0
-    j = -1
-    for r in range(h):
-        for c in range(w):
-            v = instance[r, c]
-            if v == 0:
-                continue
-            if v != last_v:  # runs of one id along a row: search once per run
-                last_v = v
-                j = np.searchsorted(ids, v)
-                if j >= k or ids[j] != v:
-                    j = -1
-            if j < 0:
-                continue
-            counts[j] += 1
-            if c < boxes[j, 0]:
-                boxes[j, 0] = c
-            if r < boxes[j, 1]:
-                boxes[j, 1] = r
-            if c + 1 > boxes[j, 2]:
-                boxes[j, 2] = c + 1
-            if r + 1 > boxes[j, 3]:
-                boxes[j, 3] = r + 1
-    return counts, boxes
-
-
-@njit(**_OPTS)
-def box_union_pixels(x0, y0, x1, y1):  # pragma: no cover - compiled
-    """Pixels of the union of k boxes [x0, x1) x [y0, y1) (may reach outside the image),
-    row-major: rows (m,) int32, cols (m,) int32, multi (m,) bool (in more than one box)."""
-    k = x0.shape[0]
-    if k == 0:
-        return np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0, np.bool_)
-    ex0, ey0 = x0.min(), y0.min()
-    cw, ch = x1.max() - ex0, y1.max() - ey0
-    cover = np.zeros((ch, cw), np.uint8)
-    for b in range(k):
-        for r in range(y0[b] - ey0, y1[b] - ey0):
-            for c in range(x0[b] - ex0, x1[b] - ex0):
-                if cover[r, c] < 255:
-                    cover[r, c] += 1
-    m = 0
-    for r in range(ch):
-        for c in range(cw):
-            if cover[r, c]:
-                m += 1
-    rows = np.empty(m, np.int32)
-    cols = np.empty(m, np.int32)
-    multi = np.empty(m, np.bool_)
-    j = 0
-    for r in range(ch):
-        for c in range(cw):
-            v = cover[r, c]
-            if v:
-                rows[j] = r + ey0
-                cols[j] = c + ex0
-                multi[j] = v > 1
-                j += 1
-    return rows, cols, multi

@@ -104,6 +104,9 @@ def _sm(x):  # pragma: no cover - compiled
     return x * x * (np.float32(3.0) - np.float32(2.0) * x)
 
 
+# detail is over 100 lines on purpose: a numba helper inlined into compose's per-pixel
+# loop, one branch per material kind; split into helpers it would pass a dozen per-pixel
+# values in and out of each (inlined all the same), with nothing gained in reading.
 @njit(inline="always")
 def detail(kind, u, v, qx, qy, nz, fp, seed, nf, t0, t1, t2, wear, ar, ag, ab, sk, f0):
     # pragma: no cover - compiled

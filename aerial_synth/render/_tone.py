@@ -1,4 +1,4 @@
-"""Compiled auto-exposure solver: the bisections of :func:`.shading.solve_tone` on the
+"""Compiled auto-exposure solver: the bisections of :func:`.tone.solve_tone` on the
 256-bin log-luma histogram (about 300 evaluations of the display mean and sd per frame,
 which cost 8-14 ms as small numpy calls and well under 1 ms compiled)."""
 

@@ -11,7 +11,7 @@ from numba import njit
 
 from ..numba_setup import KERNEL_OPTIONS as _OPTS
 
-__all__ = ["amodal_cast_mask", "amodal_groups"]
+__all__ = ["amodal_cast_mask", "amodal_groups", "box_union_pixels", "instance_boxes"]
 
 
 @njit(**_OPTS)
@@ -19,7 +19,7 @@ def amodal_cast_mask(rows, cols, multi, instance, depth, centre, rot, fx, fy, cx
                      cid, tol):  # pragma: no cover - compiled
     """Which pixels of the amodal union still need a vehicles-only ray (True = cast).
 
-    rows, cols, multi : (m,) the union's pixels (:func:`._kernels.box_union_pixels`)
+    rows, cols, multi : (m,) the union's pixels (:func:`box_union_pixels`)
     instance, depth   : (h, w) primary buffers (uint32 ids, z-depth with 0 = nothing hit)
     centre (3,), rot (3, 3) camera-to-world, fx, fy, cx, cy : the pinhole camera (float64)
     cand (k, 12) float64 per candidate vehicle ``cid[k]``: pixel range x0, y0, x1, y1
@@ -133,3 +133,79 @@ def amodal_groups(ids, prow, pcol, h, w):  # pragma: no cover - compiled
             _grow(box_in, k, c, r, n_in[k] == 0)
             n_in[k] += 1
     return inside, uid, count, n_in, box_all, box_in
+
+
+@njit(**_OPTS)
+def instance_boxes(instance, ids):  # pragma: no cover - compiled
+    """One pass over an (h, w) id image: pixel count and pixel-edge box of each id of
+    ``ids`` (k,) (sorted, unique). Returns counts (k,) int64 and boxes (k, 4) int64
+    [x0, y0, x1, y1] (x1, y1 exclusive; [w, h, 0, 0] for an id with no pixels), in the
+    order of ``ids``; other ids are skipped. Memory follows k, not the largest id (a tiled
+    world's ids reach billions)."""
+    h, w = instance.shape
+    k = ids.shape[0]
+    counts = np.zeros(k, np.int64)
+    boxes = np.empty((k, 4), np.int64)
+    boxes[:, 0] = w
+    boxes[:, 1] = h
+    boxes[:, 2] = 0
+    boxes[:, 3] = 0
+    last_v = 0
+    j = -1
+    for r in range(h):
+        for c in range(w):
+            v = instance[r, c]
+            if v == 0:
+                continue
+            if v != last_v:  # runs of one id along a row: search once per run
+                last_v = v
+                j = np.searchsorted(ids, v)
+                if j >= k or ids[j] != v:
+                    j = -1
+            if j < 0:
+                continue
+            counts[j] += 1
+            if c < boxes[j, 0]:
+                boxes[j, 0] = c
+            if r < boxes[j, 1]:
+                boxes[j, 1] = r
+            if c + 1 > boxes[j, 2]:
+                boxes[j, 2] = c + 1
+            if r + 1 > boxes[j, 3]:
+                boxes[j, 3] = r + 1
+    return counts, boxes
+
+
+@njit(**_OPTS)
+def box_union_pixels(x0, y0, x1, y1):  # pragma: no cover - compiled
+    """Pixels of the union of k boxes [x0, x1) x [y0, y1) (may reach outside the image),
+    row-major: rows (m,) int32, cols (m,) int32, multi (m,) bool (in more than one box)."""
+    k = x0.shape[0]
+    if k == 0:
+        return np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0, np.bool_)
+    ex0, ey0 = x0.min(), y0.min()
+    cw, ch = x1.max() - ex0, y1.max() - ey0
+    cover = np.zeros((ch, cw), np.uint8)
+    for b in range(k):
+        for r in range(y0[b] - ey0, y1[b] - ey0):
+            for c in range(x0[b] - ex0, x1[b] - ex0):
+                if cover[r, c] < 255:
+                    cover[r, c] += 1
+    m = 0
+    for r in range(ch):
+        for c in range(cw):
+            if cover[r, c]:
+                m += 1
+    rows = np.empty(m, np.int32)
+    cols = np.empty(m, np.int32)
+    multi = np.empty(m, np.bool_)
+    j = 0
+    for r in range(ch):
+        for c in range(cw):
+            v = cover[r, c]
+            if v:
+                rows[j] = r + ey0
+                cols[j] = c + ex0
+                multi[j] = v > 1
+                j += 1
+    return rows, cols, multi

@@ -12,6 +12,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from ..errors import RenderError
+
 __all__ = ["FRAME_BYTES_PER_PX", "frame_bytes", "frame_gb", "available_memory_bytes", "check_frame_memory"]
 
 #: Peak resident memory a frame adds per pixel: 112 B measured for ``aerial-synth render``
@@ -123,8 +125,6 @@ def check_frame_memory(width_px: int, height_px: int, processes: int = 1, error=
     when ``processes`` frames of this size cannot fit in the memory available now (the
     scene and the process itself come on top: a frame that passes may still be too large,
     one that fails cannot fit). ``available`` overrides the reading (tests)."""
-    from ..errors import RenderError
-
     if available is None:
         room = address_space_room()
         if room is not None and frame_bytes(width_px, height_px) > room:

@@ -19,9 +19,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .raster import raster_primary
-from .smooth import corner_normals, finish_smooth_buffers
-
 __all__ = ["Buffers", "PRIMARY", "cast_buffers"]
 
 
@@ -64,10 +61,14 @@ def cast_buffers(rayscene, camera, method: str | None = None) -> Buffers:
     (:mod:`.smooth`), in one compiled pass (:func:`.smooth.finish_smooth_buffers`); the
     result is the same as mapping :meth:`RayScene.cast_rays` hits and then
     :func:`.smooth.smooth_shading_normals` (tests/render/test_smooth_normals.py)."""
+    # numba kernels cached on disk: importing them needs a writable cache, and the commands
+    # check their output folder before they render
+    from . import raster, smooth  # lazy: numba kernels (see above)
+
     h, w = camera.height_px, camera.width_px
     method = PRIMARY if method is None else method
     if method == "raster":
-        o = raster_primary(rayscene, camera)
+        o = raster.raster_primary(rayscene, camera)
         return Buffers(h, w, o["instance"].reshape(h, w), o["semantic"].reshape(h, w),
                        o["depth"].reshape(h, w), o["face"], o["t"], o["normal"], o["rays"])
     if method != "embree":
@@ -85,8 +86,8 @@ def cast_buffers(rayscene, camera, method: str | None = None) -> Buffers:
     semantic = np.empty(n, np.uint8)
     instance = np.empty(n, np.uint32)
     # shading only: crown clumps get interpolated vertex normals (faces, labels untouched)
-    row, corners = corner_normals(rayscene)
-    finish_smooth_buffers(rays, t, ans["geometry_ids"], ans["primitive_ids"],
+    row, corners = smooth.corner_normals(rayscene)
+    smooth.finish_smooth_buffers(rays, t, ans["geometry_ids"], ans["primitive_ids"],
                           np.ascontiguousarray(ans["primitive_uvs"], dtype=np.float32), lut,
                           offs, rayscene.face_label, rayscene.face_instance, row, corners,
                           normal, face, depth, semantic, instance)

@@ -28,9 +28,13 @@ from ..camera import (
     grid_poses,
     sample_pose_targeted,
 )
+from ..io_utils import atomic_write_json, atomic_write_text, check_output_dir
+from ..scene.cli import add_scene_args, scene_from_args
+from ..scene.raycast import RayScene
 from ..validators import arg_choice, arg_float, arg_int
 from . import backends
-from .config import RANDOMISE, RENDER_PRESETS, Backend
+from .budget import check_frame_memory
+from .config import RANDOMISE, RENDER_PRESETS, Backend, RenderConfig
 
 __all__ = ["register", "add_camera_args", "camera_config_from_args", "run"]
 
@@ -81,8 +85,6 @@ def camera_config_from_args(args) -> CameraConfig:
 
 
 def register(sub) -> None:
-    from ..scene.cli import add_scene_args
-
     p = sub.add_parser(
         "render",
         help="render frames (RGB, instance, semantic, depth, meta) of a placed scene",
@@ -134,7 +136,7 @@ def register(sub) -> None:
 
 
 def _check_args(args) -> None:
-    from ..placement import load_scenario
+    from ..placement import load_scenario  # lazy: shapely, only when render runs
 
     # the one list of bundled scenarios (placement.SCENARIOS) or a .yaml file, every field checked
     load_scenario(args.scenario)
@@ -143,15 +145,8 @@ def _check_args(args) -> None:
 def run(args) -> int:
     import numpy as np
 
-    from ..io_utils import atomic_write_json, atomic_write_text, check_output_dir
-    from ..placement import place
-    from ..scene.cli import scene_from_args
-    from ..scene.raycast import RayScene
-    from .budget import check_frame_memory
-    from .config import RenderConfig
-    from .frame import render_frame
-    from .io import write_frame
-    from .world import add_placement
+    from ..placement import place  # lazy: shapely, only when render runs
+    from . import distractors, frame, io, world  # lazy: the renderer (numba, OpenCV)
 
     # validate everything cheap before loading or writing anything
     cam_cfg = camera_config_from_args(args)
@@ -172,12 +167,10 @@ def run(args) -> int:
         lows = [o.vertices[:, 2].min() for o in scene.objects if len(o.vertices)]
         gz = float(np.median(lows)) if lows else 0.0
         grid = grid_poses(cam_cfg, b[:, :2], overlap=args.overlap, ground_z=gz)
-    distractors = []
+    extras = []
     if args.distractors > 0:
-        from .distractors import DISTRACTOR_KEY, add_distractors
-
-        scene, distractors = add_distractors(
-            scene, np.random.default_rng(np.random.SeedSequence([args.seed, DISTRACTOR_KEY])),
+        scene, extras = distractors.add_distractors(
+            scene, np.random.default_rng(np.random.SeedSequence([args.seed, distractors.DISTRACTOR_KEY])),
             per_hectare=args.distractors)
     rs = RayScene(scene)
 
@@ -186,7 +179,7 @@ def run(args) -> int:
         pl = place(rs, args.scenario, rng, n_vehicles=args.vehicles, seed=args.seed,
                    scene_name=scene.name)
         rs.clear_vehicles()
-        add_placement(rs, pl)
+        world.add_placement(rs, pl)
         return pl
 
     placement = None
@@ -194,7 +187,7 @@ def run(args) -> int:
         placement = make_placement([args.seed, PLACEMENT_KEY])
         atomic_write_text(out / "placement.json", placement.to_json())
     atomic_write_json(out / "distractors.json", {"per_hectare": args.distractors,
-                                                 "distractors": distractors})
+                                                 "distractors": extras})
     n_veh = 0
     for i in range(args.images):
         if args.placement_per_image:
@@ -206,14 +199,14 @@ def run(args) -> int:
         else:
             cam = sample_pose_targeted(cam_cfg, placement, rng, within_xy=scene.bounds()[:, :2],
                                        clear=lambda c: rs.open_above(c.center))
-        frame = render_frame(rs, cam, placement, rng, rcfg)
-        write_frame(frame, out / f"{i:06d}", depth_format=args.depth_format, extra_meta={
+        fr = frame.render_frame(rs, cam, placement, rng, rcfg)
+        io.write_frame(fr, out / f"{i:06d}", depth_format=args.depth_format, extra_meta={
             "seed": args.seed, "image_index": i, "scene": scene.name,
             "scenario": placement.scenario, "sampler": args.sampler,
             "render_config": rcfg.to_dict(),
-            "distractors": {"per_hectare": args.distractors, "count": len(distractors)},
+            "distractors": {"per_hectare": args.distractors, "count": len(extras)},
         })
-        n_veh += len(frame.visibility)
+        n_veh += len(fr.visibility)
     dt = time.perf_counter() - t0
     print(f"rendered {args.images} frame(s) of {scene.name} ({placement.scenario}), "
           f"{n_veh} vehicles in view in total, {dt:.1f} s -> {out}", file=sys.stdout)

@@ -30,7 +30,10 @@ import math
 
 import numpy as np
 
-from ..scene.model import LABEL_IDS
+from ..scene import build
+from ..scene.model import LABEL_IDS, SceneObject
+from ..scene.raycast import RayScene
+from ..validators import in_range, integer
 
 __all__ = ["DISTRACTOR_KEY", "DISTRACTOR_KINDS", "add_distractors"]
 
@@ -53,8 +56,6 @@ _KERB = ("ground", "sidewalk", "parking")
 def _box(cx, cy, z0, length, width, height, yaw):
     import shapely
     from shapely import affinity
-
-    from ..scene import build
 
     poly = affinity.rotate(shapely.box(-length / 2, -width / 2, length / 2, width / 2),
                            yaw, use_radians=True, origin=(0, 0))
@@ -83,11 +84,6 @@ def add_distractors(scene, rng: np.random.Generator, per_hectare: float = 6.0,
                     max_count: int = 2000):
     """(new Scene, [drawn distractor dicts]). ``per_hectare``: distractors per 10,000 m^2
     of the scene's bounding box (before the sites that fail their test are dropped)."""
-    from ..scene import build
-    from ..scene.model import SceneObject
-    from ..scene.raycast import RayScene
-    from ..validators import in_range, integer
-
     per_hectare = in_range("distractors per_hectare", per_hectare, 0.0, 1000.0)
     max_count = integer("distractors max_count", max_count, 0)
     b = scene.bounds()

@@ -42,7 +42,7 @@ from numba import njit, prange
 
 from ..numba_setup import KERNEL_OPTIONS
 from ..scene.zgrid import bin_rows, edge_weights, row_columns, store_box
-from .smooth import smooth_at
+from .smooth import corner_normals, smooth_at
 
 __all__ = ["raster_primary", "BAND_ROWS", "NEAR_M"]
 
@@ -303,8 +303,6 @@ def raster_primary(rayscene, camera) -> dict:
     float32 (0 on a miss), normal (n, 3) float32 unit, camera-facing (smooth normals on
     crown clumps), semantic (n,) uint8, instance (n,) uint32 and rays (n, 6) float32 (the
     camera's pixel rays)."""
-    from .smooth import corner_normals
-
     n = camera.height_px * camera.width_px
     face = np.empty(n, np.int64)
     xs, ys = image_coords(camera)

@@ -28,14 +28,19 @@ in ``Frame.factors`` (with ``pixel_seed``, the seed of every per-pixel hash).
 from __future__ import annotations
 
 import math
+import time
 import weakref
 from functools import lru_cache
 
+import cv2
 import numpy as np
 
 from ..scene.model import DEFAULT_COLOR_FOR_MATERIAL, MATERIAL_IDS, MATERIALS
+from . import _kernels as K
+from . import _materials as M
+from .tone import solve_tone, tone_lut
 
-__all__ = ["shade", "material_gains", "sun_direction", "solve_tone", "tone_lut", "face_tangents"]
+__all__ = ["shade", "material_gains", "sun_direction", "face_tangents"]
 
 
 _ASPHALT = [MATERIAL_IDS["asphalt"], MATERIAL_IDS["track"]]  # tracks age with the road
@@ -85,44 +90,6 @@ def sun_direction(azimuth_deg: float, elevation_deg: float) -> np.ndarray:
 
 # --------------------------------------------------------------------------- tone
 _LUMA = np.array([0.299, 0.587, 0.114])
-_LUT_SIZE = 4 * 4096  # exposed linear values 0 .. 4 (K.LUT_SCALE entries per unit)
-
-
-def _curve(v: np.ndarray, shoulder: float, power: float) -> np.ndarray:
-    """Tone curve on exposed linear values: clip at 1, soft shoulder, power (gamma)."""
-    v = np.clip(v, 0.0, 1.0)
-    return (v * (1.0 + shoulder) / (1.0 + shoulder * v)) ** power
-
-
-def tone_lut(shoulder: float, power: float) -> np.ndarray:
-    """(16384,) uint8 display value for exposed linear value k / 4096."""
-    x = np.arange(_LUT_SIZE, dtype=np.float64) / 4096.0
-    return np.clip(_curve(x, shoulder, power) * 255.0 + 0.5, 0, 255).astype(np.uint8)
-
-
-def solve_tone(luma: np.ndarray, key_gray: float, target_sd: float, shoulder: float,
-               power_range: tuple[float, float] = (0.3, 1.6)) -> tuple[float, float]:
-    """Auto exposure and contrast: (gain, power) such that the display gray
-    255 * curve(gain * luma, shoulder, power) has mean ``key_gray`` and standard deviation
-    as close to ``target_sd`` as ``power_range`` allows. ``luma``: linear luminances of a
-    subsample of the frame (after white balance). Bisection on a 256-bin log histogram."""
-    y = luma[np.isfinite(luma) & (luma > 1e-6)]
-    if len(y) == 0:
-        return 1.0, 1.0 / 2.2
-    ly = np.log(y)
-    lo, hi = float(ly.min()), float(ly.max()) + 1e-6
-    from ._tone import histogram_uniform, solve_on_histogram  # compiled, same results
-
-    edges = np.linspace(lo, hi, 257)  # np.histogram(ly, bins=256, range=(lo, hi))
-    cnt = histogram_uniform(np.ascontiguousarray(ly, np.float64), edges)
-    yc = np.exp(0.5 * (edges[1:] + edges[:-1]))
-    wts = cnt / cnt.sum()
-
-    plo, phi = power_range
-    lg, p = solve_on_histogram(lo, np.ascontiguousarray(yc, np.float64),
-                               np.ascontiguousarray(wts, np.float64), float(key_gray),
-                               float(target_sd), float(shoulder), float(plo), float(phi))
-    return math.exp(lg), float(p)
 
 
 # ----------------------------------------------------------------------- materials
@@ -165,8 +132,6 @@ _WETK = _table(0.0, asphalt=1.0, marking=0.7, concrete=0.9, paving=0.9, soil=0.6
 
 def _kinds() -> np.ndarray:
     """(n_materials,) int64 pattern kind of each material (:mod:`._materials`)."""
-    from . import _materials as M
-
     t = np.zeros(len(MATERIALS), np.int64)
     for name, kind in (("roof_gravel", M.KIND_GRAVEL), ("roof_tiles", M.KIND_TILES),
                        ("roof_metal", M.KIND_METAL), ("track", M.KIND_TRACK),
@@ -376,6 +341,144 @@ def _haze_colour(tint: float, e_sky: float) -> np.ndarray:
     return (c * (0.8 + 0.4 * e_sky)).astype(np.float32)
 
 
+def _light(factors, oc):
+    """The frame's light: sun and sky colours, their irradiances and the haze veil's colour."""
+    elev = math.radians(factors["sun_elevation_deg"])
+    warm = max(0.0, 1.0 - elev / math.radians(45.0))
+    sun_col = np.array([1.0, 0.96 - 0.05 * warm, 0.90 - 0.12 * warm], np.float32)
+    sky_col = np.array([0.60, 0.68, 0.85], np.float32)  # blue sky light: shadows turn blue
+    if factors.get("sun_rgb") is not None:  # domain randomisation
+        sun_col = np.asarray(factors["sun_rgb"], np.float32)
+        sky_col = np.asarray(factors["sky_rgb"], np.float32)
+    sky_col = sky_col + np.float32(oc) * (np.array([0.85, 0.86, 0.88], np.float32) - sky_col)
+    e_sun = np.float32(1.15 * (1.0 - 0.85 * oc))
+    # sky light (diffuse share of the irradiance: turbidity, bounce light from the
+    # surroundings); a clear-sky shadow keeps ~25 % (x1) to ~45 % (x2) of the sunlit level
+    e_sky = np.float32((0.30 + 0.45 * oc) * float(factors.get("sky_light", 1.0)))
+    veil = _haze_colour(float(factors.get("haze_tint", 0.0)), float(e_sky))
+    return sun_col, sky_col, e_sun, e_sky, veil
+
+
+def _shadow_pass(rayscene, buffers, factors, has_lit, own, ndl, src, L, tiles, textured, nearest,
+                 step, oc, pseed, mark):
+    """Sun visibility ``lit`` per pixel (shadow rays at sun-disk samples, dappled light through
+    crowns, spread over each block and blurred into a penumbra) and its ``lit_step`` (0:
+    every pixel's value; k: only the block samples', read by :func:`._kernels.compose`)."""
+    h, w = buffers.height_px, buffers.width_px
+    n = h * w
+    lit = np.ones(n if has_lit else 1, np.float32)
+    lit_step = 0  # 0: lit holds every pixel's value; k: only the own pixels' (K.compose)
+    if has_lit:
+        disk = _disk_vectors(L.astype(np.float64), float(factors.get("sun_radius_deg", 0.0)))
+        idx, srays = K.gather_shadow_rays(own, buffers.rays, buffers.t, buffers.normal, L,
+                                          np.float32(_PEEL), disk, np.uint64(pseed ^ 0x5D15C))
+        occ = rayscene.test_occlusions(srays) if len(idx) else np.zeros(0, bool)
+        vis = np.where(occ, np.float32(0.0), np.float32(1.0)).astype(np.float32)
+        if textured and occ.any():  # dappled light through crowns: blocked by trees only?
+            blocked = np.flatnonzero(occ)
+            solid = rayscene.test_occlusions(srays[blocked], ignore=("tree",))
+            leafy = blocked[~solid]
+            if len(leafy):
+                vis[leafy] = _crown_gaps(srays[leafy], tiles)
+        mark("shadow_rays")
+        sig = (0.5 + 6.0 * oc) if oc > 0.02 else (0.6 if disk.any() else 0.0)
+        if sig <= 0 and _SPREAD_IN_COMPOSE:  # nothing blurs lit: compose reads the samples
+            K.scatter_values(idx, vis, lit)
+            lit_step = step
+        elif nearest:
+            K.spread_shadow_nearest(h, w, step, own, ndl, src, idx, vis, lit)
+        else:
+            K.spread_shadow(h, w, step, own, ndl, idx, vis, lit)
+        if sig > 0:  # sun-disk samples: a smooth penumbra; overcast: a wide, soft edge
+            lit = cv2.GaussianBlur(lit.reshape(h, w), (0, 0), sig).reshape(-1)
+        mark("shadow_spread")
+    return lit, lit_step
+
+
+def _ao_pass(rayscene, camera, buffers, ao_cfg, pseed, mark):
+    """Ambient occlusion per pixel (rays cast per block where something rises nearby,
+    spread over each surface); a (1,) array of ones without ``ao_cfg``."""
+    has_ao = bool(ao_cfg)
+    h, w = buffers.height_px, buffers.width_px
+    n = h * w
+    ao = np.ones(n if has_ao else 1, np.float32)
+    if has_ao:
+        ao_step, n_dirs = int(ao_cfg["step_px"]), int(ao_cfg["rays"])
+        radius = float(ao_cfg["radius_m"])
+        bh, bw = -(-h // ao_step), -(-w // ao_step)
+        # only blocks with something rising > 0.15 m above their sample within the radius
+        # (seen in the image) can be occluded: the others get 1 without casting
+        zmax, zs, hit = K.ao_blocks(h, w, ao_step, buffers.rays, buffers.t, buffers.face)
+        d = buffers.depth[::16, ::16]
+        d = d[d > 0]
+        px_m = float(np.median(d)) / float(camera.K[0][0]) if len(d) else 0.1
+        kr = int(min(math.ceil(radius / max(px_m * ao_step, 1e-3)), 32))
+        zn = cv2.dilate(zmax.reshape(bh, bw), np.ones((2 * kr + 1, 2 * kr + 1), np.uint8))
+        need = hit & (zn.reshape(-1) - zs > np.float32(0.15))
+        blocks, arays = K.gather_ao_rays(h, w, ao_step, buffers.rays, buffers.t,
+                                         buffers.normal, buffers.face, need, n_dirs,
+                                         np.float32(_PEEL), np.uint64(pseed ^ 0xA0))
+        aocc = (rayscene.test_occlusions(arays, tfar=radius)
+                if len(blocks) else np.zeros(0, bool))
+        low = np.where(hit, np.float32(1.0), np.float32(-1.0)).astype(np.float32)
+        if len(blocks):
+            low[blocks] = 1.0 - aocc.reshape(-1, n_dirs).mean(axis=1)
+        K.spread_ao(h, w, ao_step, low, buffers.semantic.reshape(-1),
+                    buffers.depth.reshape(-1), ao)
+        mark("ambient_occlusion")
+    return ao
+
+
+def _camera_pass(lin, factors, h, w):
+    """The camera: white balance and tint, auto (metered) or fixed exposure, saturation, the
+    tone curve, a panchromatic frame; (H, W, 3) uint8. Adds ``exposure_gain`` and
+    ``tone_power`` to ``factors``."""
+    wb = float(factors["white_balance"])  # log(R gain / B gain)
+    tint = float(factors.get("tint", 0.0))  # log G gain
+    gains = np.array([math.exp(wb / 2), math.exp(tint), math.exp(-wb / 2)])
+    gains /= float(_LUMA @ gains)
+    shoulder = float(factors.get("tone_shoulder", 0.25))
+    if factors.get("exposure_mode", "fixed") == "auto":
+        # meter what the sensor records: the luma softened by the frame's optical blur
+        # (metering sharp pixels overestimated the final gray sd by ~2.5 on average)
+        y = cv2.transform(lin, (_LUMA * gains).reshape(1, 3).astype(np.float32))
+        if factors["blur_sigma_px"] > 0.05:
+            y = cv2.GaussianBlur(y, (0, 0), float(factors["blur_sigma_px"]))
+        sub = y[::4, ::4].reshape(-1).astype(np.float64)
+        gain, power = solve_tone(sub, float(factors["key_gray"]),
+                                 float(factors["target_gray_sd"]), shoulder)
+    else:
+        gain, power = float(factors["exposure"]), 1.0 / 2.2
+    factors["exposure_gain"] = float(gain)
+    factors["tone_power"] = float(power)
+    rgb = np.empty((h, w, 3), np.uint8)
+    K.tone(lin, (gains * gain).astype(np.float32),
+           np.float32(factors.get("saturation", 1.0)), tone_lut(shoulder, power), rgb)
+    if factors.get("grayscale"):  # a panchromatic product (like several DOTA images)
+        g = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
+        rgb = np.ascontiguousarray(np.repeat(g[..., None], 3, axis=2))
+    return rgb
+
+
+def _sensor_pass(rgb, factors, pseed):
+    """The sensor: chromatic blur and noise growing with brightness."""
+    sig = factors["blur_sigma_px"]
+    ca = float(factors.get("chromatic_blur", 0.0))
+    if sig > 0.05:
+        if ca > 0.01:  # lateral colour: red and blue a little softer than green
+            chans = [cv2.GaussianBlur(ch, (0, 0), sig * f)
+                     for ch, f in zip(cv2.split(rgb), (1.0 + ca, 1.0, 1.0 + 1.5 * ca))]
+            rgb = cv2.merge(chans)  # split / merge: the same bytes as numpy slices and stack
+        else:
+            rgb = cv2.GaussianBlur(rgb, (0, 0), sig)
+    ns = factors["noise_sigma"]
+    shot = float(factors.get("shot_noise", 0.0))
+    if ns > 0 or shot > 0:
+        K.add_noise(rgb, np.uint64(pseed ^ 0x4E015E), np.float32(ns * 255.0),
+                    np.float32(shot * 255.0), _normal_quantiles())
+    return rgb
+
+
 def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | None = None,
           timings: dict | None = None, shadow_step: int | None = None,
           before_compose=None) -> np.ndarray:
@@ -397,12 +500,6 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
                   (before compose); :func:`.frame.render_frame` starts visibility there,
                   so it runs beside the less parallel stages that follow.
     """
-    import time
-
-    import cv2
-
-    from . import _kernels as K
-
     tick = [time.perf_counter()]
 
     def mark(name):
@@ -437,74 +534,14 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
     mark("surface")
 
     has_lit = bool(factors.get("shadows", True))
-    lit = np.ones(n if has_lit else 1, np.float32)
-    lit_step = 0  # 0: lit holds every pixel's value; k: only the own pixels' (K.compose)
-    if has_lit:
-        disk = _disk_vectors(L.astype(np.float64), float(factors.get("sun_radius_deg", 0.0)))
-        idx, srays = K.gather_shadow_rays(own, buffers.rays, buffers.t, buffers.normal, L,
-                                          np.float32(_PEEL), disk, np.uint64(pseed ^ 0x5D15C))
-        occ = rayscene.test_occlusions(srays) if len(idx) else np.zeros(0, bool)
-        vis = np.where(occ, np.float32(0.0), np.float32(1.0)).astype(np.float32)
-        if textured and occ.any():  # dappled light through crowns: blocked by trees only?
-            blocked = np.flatnonzero(occ)
-            solid = rayscene.test_occlusions(srays[blocked], ignore=("tree",))
-            leafy = blocked[~solid]
-            if len(leafy):
-                vis[leafy] = _crown_gaps(srays[leafy], tiles)
-        mark("shadow_rays")
-        sig = (0.5 + 6.0 * oc) if oc > 0.02 else (0.6 if disk.any() else 0.0)
-        if sig <= 0 and _SPREAD_IN_COMPOSE:  # nothing blurs lit: compose reads the samples
-            K.scatter_values(idx, vis, lit)
-            lit_step = step
-        elif nearest:
-            K.spread_shadow_nearest(h, w, step, own, ndl, src, idx, vis, lit)
-        else:
-            K.spread_shadow(h, w, step, own, ndl, idx, vis, lit)
-        if sig > 0:  # sun-disk samples: a smooth penumbra; overcast: a wide, soft edge
-            lit = cv2.GaussianBlur(lit.reshape(h, w), (0, 0), sig).reshape(-1)
-        mark("shadow_spread")
+    lit, lit_step = _shadow_pass(rayscene, buffers, factors, has_lit, own, ndl, src, L, tiles,
+                                 textured, nearest, step, oc, pseed, mark)
 
     ao_cfg = factors.get("ambient_occlusion")
     has_ao = bool(ao_cfg)
-    ao = np.ones(n if has_ao else 1, np.float32)
-    if has_ao:
-        ao_step, n_dirs = int(ao_cfg["step_px"]), int(ao_cfg["rays"])
-        radius = float(ao_cfg["radius_m"])
-        bh, bw = -(-h // ao_step), -(-w // ao_step)
-        # only blocks with something rising > 0.15 m above their sample within the radius
-        # (seen in the image) can be occluded: the others get 1 without casting
-        zmax, zs, hit = K.ao_blocks(h, w, ao_step, buffers.rays, buffers.t, buffers.face)
-        d = buffers.depth[::16, ::16]
-        d = d[d > 0]
-        px_m = float(np.median(d)) / float(camera.K[0][0]) if len(d) else 0.1
-        kr = int(min(math.ceil(radius / max(px_m * ao_step, 1e-3)), 32))
-        zn = cv2.dilate(zmax.reshape(bh, bw), np.ones((2 * kr + 1, 2 * kr + 1), np.uint8))
-        need = hit & (zn.reshape(-1) - zs > np.float32(0.15))
-        blocks, arays = K.gather_ao_rays(h, w, ao_step, buffers.rays, buffers.t,
-                                         buffers.normal, buffers.face, need, n_dirs,
-                                         np.float32(_PEEL), np.uint64(pseed ^ 0xA0))
-        aocc = (rayscene.test_occlusions(arays, tfar=radius)
-                if len(blocks) else np.zeros(0, bool))
-        low = np.where(hit, np.float32(1.0), np.float32(-1.0)).astype(np.float32)
-        if len(blocks):
-            low[blocks] = 1.0 - aocc.reshape(-1, n_dirs).mean(axis=1)
-        K.spread_ao(h, w, ao_step, low, buffers.semantic.reshape(-1),
-                    buffers.depth.reshape(-1), ao)
-        mark("ambient_occlusion")
+    ao = _ao_pass(rayscene, camera, buffers, ao_cfg, pseed, mark)
 
-    elev = math.radians(factors["sun_elevation_deg"])
-    warm = max(0.0, 1.0 - elev / math.radians(45.0))
-    sun_col = np.array([1.0, 0.96 - 0.05 * warm, 0.90 - 0.12 * warm], np.float32)
-    sky_col = np.array([0.60, 0.68, 0.85], np.float32)  # blue sky light: shadows turn blue
-    if factors.get("sun_rgb") is not None:  # domain randomisation
-        sun_col = np.asarray(factors["sun_rgb"], np.float32)
-        sky_col = np.asarray(factors["sky_rgb"], np.float32)
-    sky_col = sky_col + np.float32(oc) * (np.array([0.85, 0.86, 0.88], np.float32) - sky_col)
-    e_sun = np.float32(1.15 * (1.0 - 0.85 * oc))
-    # sky light (diffuse share of the irradiance: turbidity, bounce light from the
-    # surroundings); a clear-sky shadow keeps ~25 % (x1) to ~45 % (x2) of the sunlit level
-    e_sky = np.float32((0.30 + 0.45 * oc) * float(factors.get("sky_light", 1.0)))
-    veil = _haze_colour(float(factors.get("haze_tint", 0.0)), float(e_sky))
+    sun_col, sky_col, e_sun, e_sky, veil = _light(factors, oc)
     alt = max(float(camera.altitude_m), 1.0)
     gains_m = material_gains(factors)
     has_refl = bool(factors.get("wet_reflections", False)) and float(wet) > 0
@@ -529,48 +566,10 @@ def shade(rayscene, camera, buffers, factors: dict, rng: np.random.Generator | N
               np.float32(0.72 * (1.0 - oc)), lin)
     mark("compose")
 
-    # ---------------------------------------------------------------- camera
-    wb = float(factors["white_balance"])  # log(R gain / B gain)
-    tint = float(factors.get("tint", 0.0))  # log G gain
-    gains = np.array([math.exp(wb / 2), math.exp(tint), math.exp(-wb / 2)])
-    gains /= float(_LUMA @ gains)
-    shoulder = float(factors.get("tone_shoulder", 0.25))
-    if factors.get("exposure_mode", "fixed") == "auto":
-        # meter what the sensor records: the luma softened by the frame's optical blur
-        # (metering sharp pixels overestimated the final gray sd by ~2.5 on average)
-        y = cv2.transform(lin, (_LUMA * gains).reshape(1, 3).astype(np.float32))
-        if factors["blur_sigma_px"] > 0.05:
-            y = cv2.GaussianBlur(y, (0, 0), float(factors["blur_sigma_px"]))
-        sub = y[::4, ::4].reshape(-1).astype(np.float64)
-        gain, power = solve_tone(sub, float(factors["key_gray"]),
-                                 float(factors["target_gray_sd"]), shoulder)
-    else:
-        gain, power = float(factors["exposure"]), 1.0 / 2.2
-    factors["exposure_gain"] = float(gain)
-    factors["tone_power"] = float(power)
-    rgb = np.empty((h, w, 3), np.uint8)
-    K.tone(lin, (gains * gain).astype(np.float32),
-           np.float32(factors.get("saturation", 1.0)), tone_lut(shoulder, power), rgb)
-    if factors.get("grayscale"):  # a panchromatic product (like several DOTA images)
-        g = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
-        rgb = np.ascontiguousarray(np.repeat(g[..., None], 3, axis=2))
+    rgb = _camera_pass(lin, factors, h, w)
     mark("tone")
 
-    # ---------------------------------------------------------------- sensor
-    sig = factors["blur_sigma_px"]
-    ca = float(factors.get("chromatic_blur", 0.0))
-    if sig > 0.05:
-        if ca > 0.01:  # lateral colour: red and blue a little softer than green
-            chans = [cv2.GaussianBlur(ch, (0, 0), sig * f)
-                     for ch, f in zip(cv2.split(rgb), (1.0 + ca, 1.0, 1.0 + 1.5 * ca))]
-            rgb = cv2.merge(chans)  # split / merge: the same bytes as numpy slices and stack
-        else:
-            rgb = cv2.GaussianBlur(rgb, (0, 0), sig)
-    ns = factors["noise_sigma"]
-    shot = float(factors.get("shot_noise", 0.0))
-    if ns > 0 or shot > 0:
-        K.add_noise(rgb, np.uint64(pseed ^ 0x4E015E), np.float32(ns * 255.0),
-                    np.float32(shot * 255.0), _normal_quantiles())
+    rgb = _sensor_pass(rgb, factors, pseed)
     mark("sensor")
     q = factors.get("jpeg_quality")
     if q:

@@ -18,8 +18,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..scene.raycast import VEHICLES_ONLY
-from ._kernels import box_union_pixels, instance_boxes
-from ._vis_kernels import amodal_cast_mask, amodal_groups
 
 __all__ = [
     "VehicleVisibility",
@@ -281,6 +279,9 @@ def compute_visibility(
     Returns ({id: VehicleVisibility}, AmodalMasks) for vehicles with at least one amodal
     pixel inside the image.
     """
+    # lazy: numba kernels cached on disk (a writable cache); the commands check --out first
+    from ._vis_kernels import amodal_cast_mask, amodal_groups, box_union_pixels
+
     h, w = camera.height_px, camera.width_px
     present = set(rayscene.vehicle_ids)
     vehicles = [v for v in vehicles if int(v.id) in present] if vehicles else []
@@ -358,6 +359,14 @@ def compute_visibility(
     prow, pcol = rows[pix], cols[pix]
     inside, uid, count, n_ins, box_all, box_in = amodal_groups(ids, prow, pcol, h, w)
     masks = AmodalMasks(ids[inside], prow[inside], pcol[inside])
+    return _records(camera, instance, vehicles, uid, count, n_ins, box_all, box_in), masks
+
+
+def _records(camera, instance, vehicles, uid, count, n_ins, box_all, box_in) -> dict[int, VehicleVisibility]:
+    """{id: VehicleVisibility} from the amodal groups (:func:`._vis_kernels.amodal_groups`)
+    and the visible pixels of ``instance``, in id order."""
+    from ._vis_kernels import instance_boxes  # lazy: as in compute_visibility
+
     by_id = {int(v.id): (k, v) for k, v in enumerate(vehicles)}
     # visible pixel counts and boxes: one pass over the instance image
     vids = np.array(sorted(by_id), np.int64)
@@ -391,4 +400,4 @@ def compute_visibility(
             centre_px=(float(centre_uv[k, 0]), float(centre_uv[k, 1])),
             cls=str(getattr(v, "cls", "")),
         )
-    return dict(sorted(out.items())), masks
+    return dict(sorted(out.items()))

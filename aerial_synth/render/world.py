@@ -62,6 +62,7 @@ def add_placement(rayscene, placement, catalog=None, simple_boxes: bool = False)
     build = None
     if not simple_boxes:
         try:
+            # lazy: the catalog meshes need trimesh; simple boxes do without
             from ..vehicles import build_mesh, load_catalog  # noqa: F401
 
             build = build_mesh

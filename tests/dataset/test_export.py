@@ -647,5 +647,7 @@ def test_fork_server_workers_are_ready_and_light():
 
     viewer = sys.modules.get("open3d.visualization.draw_plotly")
     assert viewer is None or "stub" not in (viewer.__doc__ or "")
+    from aerial_synth._open3d import _absent
+
     with pytest.raises(RuntimeError, match="not loaded"):
-        _server_open3d._absent()
+        _absent()

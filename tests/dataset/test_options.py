@@ -13,7 +13,14 @@ from aerial_synth.dataset.config import ExportConfig
 from aerial_synth.errors import CameraError
 from aerial_synth.render import backends
 from aerial_synth.render import cli as render_cli
-from aerial_synth.render.config import RANDOMISE, RENDER_PRESETS, Backend, Preset, Randomise, RenderConfig
+from aerial_synth.render.config import (
+    RANDOMISE,
+    RENDER_PRESETS,
+    Backend,
+    Preset,
+    Randomise,
+    RenderConfig,
+)
 
 
 def _parser():

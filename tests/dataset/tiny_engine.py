@@ -2,7 +2,7 @@
 reverse order, a fresh ImageWorker per task, in this process. Adding an engine is this one
 class plus one registry line (``engines.register`` here, :data:`BUILTIN` for a built-in)."""
 
-from aerial_synth.dataset.engines import Engine
+from aerial_synth.dataset.engines.base import Engine
 from aerial_synth.dataset.worker import ImageWorker
 
 

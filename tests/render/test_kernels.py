@@ -6,6 +6,7 @@ import pytest
 from aerial_synth.camera import Camera, CameraConfig
 from aerial_synth.render import RenderConfig, render_frame
 from aerial_synth.render import _kernels as K
+from aerial_synth.render import _vis_kernels as V
 from aerial_synth.render.shading import _normal_quantiles
 from aerial_synth.render.visibility import _box_exit_t, _box_frames
 
@@ -54,7 +55,7 @@ def test_instance_boxes_match_numpy():
     inst[5, 5] = 1000  # an id not asked for is skipped
     inst[60:63, 2:9] = 3_000_000_000  # a tiled world's id: memory follows the ids asked for
     ids = np.array(list(range(1, 40)) + [3_000_000_000, 4_000_000_000], np.uint32)
-    counts, boxes = K.instance_boxes(inst, ids)
+    counts, boxes = V.instance_boxes(inst, ids)
     assert counts.shape == (len(ids),) and boxes.shape == (len(ids), 4)
     for j, vid in enumerate(ids):
         rows, cols = np.nonzero(inst == vid)
@@ -72,7 +73,7 @@ def test_box_union_pixels_match_a_canvas():
     y0 = rng.integers(-20, 100, 12)
     x1 = x0 + rng.integers(1, 40, 12)
     y1 = y0 + rng.integers(1, 40, 12)
-    rows, cols, multi = K.box_union_pixels(x0, y0, x1, y1)
+    rows, cols, multi = V.box_union_pixels(x0, y0, x1, y1)
     cover = np.zeros((200, 200), int)
     for a, b, c, d in zip(x0, y0, x1, y1):
         cover[b + 50 : d + 50, a + 50 : c + 50] += 1

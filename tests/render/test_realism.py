@@ -12,13 +12,9 @@ from aerial_synth.camera import Camera, CameraConfig
 from aerial_synth.errors import ConfigError
 from aerial_synth.render import RenderConfig, render_frame
 from aerial_synth.render import _kernels as K
-from aerial_synth.render.shading import (
-    PRESETS,
-    _normal_quantiles,
-    sample_factors,
-    solve_tone,
-    tone_lut,
-)
+from aerial_synth.render.config import PRESETS, sample_factors
+from aerial_synth.render.shading import _normal_quantiles
+from aerial_synth.render.tone import solve_tone, tone_lut
 
 from .worlds import make_world, with_threads
 

@@ -4,7 +4,7 @@ semantic class, no shading. Adding a backend is this one class plus one registry
 
 import numpy as np
 
-from aerial_synth.render.backends import RenderBackend, Shaded
+from aerial_synth.render.backends.base import RenderBackend, Shaded
 from aerial_synth.render.visibility import compute_visibility
 
 #: semantic id -> RGB (a colour per id, any id)

@@ -49,7 +49,7 @@ from ..affinity import limit_threads, pin_share
 from ..output import remove_stray_temps
 from ..pool import FORK_SERVER_PRELOAD, start_pool_server
 from ..worker import ImageWorker
-from . import Engine, plan_tasks
+from .base import Engine, plan_tasks
 
 __all__ = ["ENGINE", "DaskEngine", "DaskCluster", "plan_tasks", "threads_per_worker", "limit_threads",
            "parse_dask_address", "probe_scheduler", "host_slots", "worker_slot", "LocalStart",

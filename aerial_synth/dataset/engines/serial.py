@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 from ..worker import ImageWorker
-from . import Engine
+from .base import Engine
 
 __all__ = ["ENGINE", "SerialEngine"]
 

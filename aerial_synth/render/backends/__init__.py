@@ -17,13 +17,9 @@ nothing heavy: a backend's module is imported the first time it is used.
 from __future__ import annotations
 
 import importlib
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 from ...errors import RenderError
-
-if TYPE_CHECKING:  # numpy is not imported here: --help start-up time
-    import numpy as np
+from .base import RenderBackend, Shaded
 
 __all__ = ["BUILTIN", "RenderBackend", "Shaded", "get", "names", "register", "unregister"]
 
@@ -32,46 +28,6 @@ BUILTIN: dict[str, str] = {
     "raycast": "aerial_synth.render.backends.raycast",
     "pyrender": "aerial_synth.render.backends.pyrender",
 }
-
-
-@dataclass
-class Shaded:
-    """What a backend makes of one frame's buffers.
-
-    rgb          : (H, W, 3) uint8, RGB order
-    visibility   : {id: VehicleVisibility}, from :func:`~aerial_synth.render.visibility.compute_visibility`
-    amodal       : :class:`~aerial_synth.render.visibility.AmodalMasks`
-    visibility_s : seconds of the visibility pass
-    overlapped   : True when visibility ran beside the shading (its time is then not
-                   subtracted from the RGB time)
-    stages_s     : seconds per shading stage (``rgb_<stage>`` in the frame's timings)
-    """
-
-    rgb: np.ndarray
-    visibility: dict
-    amodal: object
-    visibility_s: float
-    overlapped: bool = False
-    stages_s: dict = field(default_factory=dict)
-
-
-class RenderBackend:
-    """Base class of a render backend; instances are stateless (worker processes share them)."""
-
-    #: ``RenderConfig.backend`` / ``--backend`` value
-    name: str = ""
-    #: one line for ``--help`` and docs
-    description: str = ""
-
-    def check(self) -> None:
-        """Raise :class:`~aerial_synth.errors.RenderError` when the backend cannot run here."""
-
-    def render(self, rayscene, camera, buffers, vehicles, factors: dict, rng, config) -> Shaded:
-        """RGB and visibility of one frame whose ``buffers`` were cast from ``rayscene``."""
-        raise NotImplementedError
-
-    def __repr__(self) -> str:
-        return f"<render backend {self.name!r}>"
 
 
 _LOADED: dict[str, RenderBackend] = {}

@@ -20,7 +20,7 @@ import numpy as np
 from ...errors import RenderError
 from ..shading import sun_direction
 from ..visibility import compute_visibility
-from . import RenderBackend, Shaded
+from .base import RenderBackend, Shaded
 
 __all__ = ["BACKEND", "PyrenderBackend", "check_available", "render_rgb", "render_instance_ids"]
 

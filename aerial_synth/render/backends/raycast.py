@@ -13,7 +13,7 @@ import time
 
 from ..shading import shade
 from ..visibility import compute_visibility
-from . import RenderBackend, Shaded
+from .base import RenderBackend, Shaded
 
 __all__ = ["BACKEND", "RaycastBackend", "OVERLAP_VISIBILITY"]
 
