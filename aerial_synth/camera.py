@@ -44,6 +44,9 @@ __all__ = [
     "rotation_nadir",
     "DEFAULT_GSD_M",
     "MAX_IMAGE_PX",
+    "MAX_ALTITUDE_M",
+    "MAX_GSD_M",
+    "MAX_FOCAL_PX",
 ]
 
 DEFAULT_GSD_M = 0.12
@@ -445,6 +448,11 @@ def sample_pose_targeted(
     return cam
 
 
+#: Most frames one grid may have (a render writes each): an overlap of 0.999 asked for
+#: millions and ran for hours.
+MAX_GRID_FRAMES = 10_000
+
+
 def grid_poses(
     cfg: CameraConfig,
     bounds_xy,
@@ -476,6 +484,11 @@ def grid_poses(
     sx, sy = fw * (1 - ov), fh * (1 - ov)
     nx = max(1, math.ceil(((x1 - x0) - fw) / sx) + 1) if (x1 - x0) > fw else 1
     ny = max(1, math.ceil(((y1 - y0) - fh) / sy) + 1) if (y1 - y0) > fh else 1
+    if nx * ny > MAX_GRID_FRAMES:  # before a list of millions of poses (and their renders)
+        raise CameraError(
+            f"--overlap {ov:g}: the grid would need {nx:,} x {ny:,} = {nx * ny:,} frames to cover "
+            f"{x1 - x0:.0f} m x {y1 - y0:.0f} m, more than {MAX_GRID_FRAMES:,}; lower --overlap or "
+            "render larger frames")
     # centre the tile pattern on the bounds
     xs = (x0 + x1) / 2 + (np.arange(nx) - (nx - 1) / 2) * sx
     ys = (y0 + y1) / 2 - (np.arange(ny) - (ny - 1) / 2) * sy

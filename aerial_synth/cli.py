@@ -11,12 +11,16 @@ from __future__ import annotations
 import argparse
 import errno
 import importlib
+import os
 import re
 import sys
+from contextlib import contextmanager
 
 from . import __version__
 from ._open3d import stub_viewer
 from .errors import AerialSynthError
+from .out_guard import INPUT_OPTIONS, refuse_out_is_input
+from .safe_input import input_roots
 
 # (module, ...) each exposing register(subparsers) that adds its commands and sets `func`.
 _COMMAND_MODULES = (
@@ -101,7 +105,56 @@ def console_main(argv: list[str] | None = None) -> int:
     open3d without its plotly viewer (:mod:`aerial_synth._open3d`: ~0.4 s less start-up
     for every command that casts rays)."""
     stub_viewer()
+    os.environ.setdefault("OPENCV_LOG_LEVEL", "SILENT")  # our one line, not OpenCV's log too
+    for stream in (sys.stdout, sys.stderr):  # a file name with bytes that are not UTF-8,
+        try:                                 # printed under a UTF-8 locale: escaped, no crash
+            stream.reconfigure(errors="backslashreplace")
+        except (AttributeError, ValueError):
+            pass
     return main(argv)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised where the command runs: it unwinds as Ctrl-C does (a pool
+    is stopped, temporary files are removed), then the CLI prints one line and exits with
+    the shell's status for the signal (128 + its number: 143, 129)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = int(signum)
+
+
+def _on_terminate(main_pid: int):
+    def handler(signum, frame):
+        if os.getpid() != main_pid:  # a forked worker that kept this handler: as before
+            import signal
+
+            signal.signal(signum, signal.SIG_DFL)
+            os.kill(os.getpid(), signum)
+            return
+        raise Terminated(signum)
+
+    return handler
+
+
+@contextmanager
+def _terminate_as_interrupt():
+    """SIGTERM and SIGHUP raise :class:`Terminated` in this process for the body (the
+    previous handlers come back after it)."""
+    import signal
+
+    sigs = [getattr(signal, n) for n in ("SIGTERM", "SIGHUP") if hasattr(signal, n)]
+    previous = {}
+    try:
+        for s in sigs:
+            previous[s] = signal.signal(s, _on_terminate(os.getpid()))
+    except ValueError:  # not the main thread: leave signals alone
+        pass
+    try:
+        yield
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -110,7 +163,8 @@ def main(argv: list[str] | None = None) -> int:
     previous = warnings.formatwarning
     warnings.formatwarning = _one_line_warning  # the CLI's own process (and forked workers)
     try:
-        return _main(argv)
+        with _terminate_as_interrupt():
+            return _main(argv)
     finally:
         warnings.formatwarning = previous  # main() called as a function leaves no trace
 
@@ -122,7 +176,9 @@ def _main(argv: list[str] | None) -> int:
     except SystemExit as exc:  # usage error (one line, printed) or --help/--version
         return int(exc.code or 0) if not isinstance(exc.code, str) else 2
     try:
-        code = int(args.func(args) or 0)
+        refuse_out_is_input(args)
+        with input_roots(getattr(args, d, None) for d in INPUT_OPTIONS):
+            code = int(args.func(args) or 0)
         sys.stdout.flush()
         return code
     except BrokenPipeError:
@@ -140,12 +196,21 @@ def _main(argv: list[str] | None) -> int:
         # A file-system refusal on an output or input path is the user's to fix: one line.
         if exc.errno in _USER_ERRNOS:
             where = exc.filename if exc.filename is not None else ""
-            if not where and getattr(args, "out", None) is not None:
-                where = f"--out {args.out}"  # a failed write names no file (a full disk)
+            if exc.errno in (errno.ENOSPC, errno.EDQUOT) and getattr(args, "out", None) is not None:
+                # a full disk is the output's: a copy names its source file first (shutil)
+                where = f"--out {args.out}"
+            elif not where and getattr(args, "out", None) is not None:
+                where = f"--out {args.out}"  # a failed write names no file
             print(f"aerial-synth: error: {where}: {exc.strerror or exc}".replace(": : ", ": "),
                   file=sys.stderr)
             return 2
         raise
+    except Terminated as exc:
+        import signal
+
+        name = signal.Signals(exc.signum).name
+        print(f"aerial-synth: terminated ({name})", file=sys.stderr)
+        return 128 + exc.signum
     except KeyboardInterrupt:
         print("aerial-synth: interrupted", file=sys.stderr)
         return 130

@@ -105,6 +105,9 @@ def check_output_file(path: str | os.PathLike, option: str = "--out") -> Path:
 def check_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:
     """Refuse an output folder path that is not a folder or cannot be created/written."""
     path, st = _stat_output(path, option, "a folder path")
+    real = Path(os.path.realpath(path))
+    if real.parent == real:
+        raise OutputError(f"{option} {path}: expected a folder to write into, not the file-system root")
     if st is not None:
         if not stat.S_ISDIR(st.st_mode):
             raise OutputError(f"{option} {path}: expected a folder, found {_kind(st.st_mode)}"
@@ -142,7 +145,9 @@ def atomic_write_chunks(path: str | os.PathLike, chunks: Iterable[bytes | str]) 
     if st is not None and not stat.S_ISREG(st.st_mode):
         raise OutputError(f"{path}: expected a regular file to replace, found {_kind(st.st_mode)}")
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    # the temporary name: ".<name>.XXXXXXXX.tmp", the name cut to fit the 255-byte limit
+    fd, tmp = tempfile.mkstemp(prefix=f".{os.fsdecode(os.fsencode(path.name)[:200])}.",
+                               suffix=".tmp", dir=path.parent)
     try:
         os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual file mode
         with os.fdopen(fd, "wb", buffering=1 << 20) as fh:

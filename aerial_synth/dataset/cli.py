@@ -11,6 +11,7 @@ from ..camera import CameraConfig
 from ..errors import AerialSynthError
 from ..formats.registry import names as format_names
 from ..formats.registry import parse_names
+from ..out_guard import out_lock, refuse_here
 from ..placement.config import SCENARIOS
 from ..render.cli import add_camera_args, camera_config_from_args
 from ..render.config import RANDOMISE, RENDER_PRESETS
@@ -195,6 +196,9 @@ def _cmd_export(args) -> int:
 
 
 def _cmd_show(args) -> int:
-    paths = show_dataset(args.dir, args.out, limit=args.limit, thumb_px=args.thumb)
+    if args.out == "":  # Path('') would silently mean the current folder
+        refuse_here(args.out)
+    with out_lock(args.out, "show"):
+        paths = show_dataset(args.dir, args.out, limit=args.limit, thumb_px=args.thumb)
     print(f"wrote {len(paths) - 1} previews and {paths[-1]}", file=sys.stdout)
     return 0

@@ -149,6 +149,7 @@ class ExportConfig:
         self._check_ranges_and_mix()
         if not isinstance(self.box, BoxConfig):
             raise ConfigError(f"box: expected a BoxConfig, got {type(self.box).__name__}")
+        self.camera_config()  # the camera's bounds (aerial_synth.camera), checked now
 
     def _check_ranges_and_mix(self) -> None:
         E = ExportError

@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..formats.registry import get, names
+from ..safe_input import image_file_complete
 from .config import ExportConfig
 
 __all__ = [
@@ -69,9 +70,12 @@ def owned_names() -> tuple[str, ...]:
 
 
 def is_done(cfg: ExportConfig, out: Path, index: int) -> bool:
-    """Image ``index`` is complete: its metadata (written last), image and label files exist."""
+    """Image ``index`` is complete: its metadata (written last), label files and whole image
+    files (header of the configured size, container end present) exist. A file cut short
+    is made again by ``--resume``, never carried into the finished dataset."""
     if not meta_path(out, index).is_file():
         return False
-    return all(p.is_file() for p in image_paths(cfg, out, index)) and all(
+    size = (cfg.width_px, cfg.height_px)
+    return all(image_file_complete(p, size) for p in image_paths(cfg, out, index)) and all(
         p.is_file() for p in label_paths(cfg, out, index).values()
     )

@@ -28,7 +28,7 @@ def read_manifest(out) -> dict | None:
         if not p.is_file():
             return None
         d = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):  # nested past the parser's depth: no manifest
         return None
     return d if isinstance(d, dict) and d.get("format") == MANIFEST_FORMAT else None
 

@@ -27,6 +27,7 @@ from ..errors import ExportError, OutputError
 from ..formats import dota, meta
 from ..formats.registry import get, names
 from ..io_utils import atomic_write_bytes, check_output_dir, is_inside
+from ..safe_input import check_image_pixels, cv_text, decode_image
 
 __all__ = ["Drawn", "draw_labels", "contact_sheet", "show_dataset"]
 
@@ -63,7 +64,7 @@ def draw_labels(bgr: np.ndarray, boxes, label: bool = True) -> np.ndarray:
                         col, scale, cv2.LINE_AA, shift=2, tipLength=0.3)
         cv2.circle(img, tuple(np.round(p[0] * 4).astype(int)), 2 * scale, col, -1, cv2.LINE_AA, shift=2)
         if label:
-            text = SHORT.get(b.category, b.category) + ("*" if b.difficult else "")
+            text = cv_text(SHORT.get(b.category, b.category) + ("*" if b.difficult else ""))
             org = (int(p[:, 0].min()), max(int(p[:, 1].min()) - 3, 10))
             cv2.putText(img, text, org, cv2.FONT_HERSHEY_SIMPLEX, 0.35 * scale, col, scale, cv2.LINE_AA)
     return img
@@ -127,6 +128,7 @@ def _decode(path: Path) -> np.ndarray:
     """Read and decode one image (BGR); a truncated or unreadable file raises ExportError."""
     import cv2
 
+    check_image_pixels(path, ExportError, f"show {path}")  # over OpenCV's limit: refused first
     try:
         data = path.read_bytes()
     except OSError as exc:
@@ -139,7 +141,7 @@ def _decode(path: Path) -> np.ndarray:
     if ext in (".jpg", ".jpeg") and (not data.startswith(b"\xff\xd8")
                                      or not data.rstrip(b"\x00").endswith(b"\xff\xd9")):
         raise ExportError(f"show {path}: truncated or damaged JPEG (no end-of-image marker)")
-    bgr = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    bgr = decode_image(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)  # libpng silenced
     if bgr is None:
         raise ExportError(f"show {path}: cannot decode the image")
     return bgr

@@ -6,9 +6,11 @@ Imports nothing heavy at import time (``aerial-synth --help`` stays instant).
 from __future__ import annotations
 
 import sys
+from contextlib import nullcontext
 from pathlib import Path
 
 from ..errors import EvaluationError
+from ..out_guard import out_lock, refuse_here, remove_dead_temps
 from ..validators import arg_choice, arg_float, arg_int
 from .scoring_cli import add_scoring_args, cmd_scored_eval, uses_scoring
 
@@ -75,8 +77,8 @@ def register(sub) -> None:
                    help="share of real source images held out for val when --real has no val split (0.2)")
     m.add_argument("--tile", type=arg_int("--tile", 1), default=None, metavar="PX",
                    help="cut real images into PX x PX tiles (DOTA devkit splitter)")
-    m.add_argument("--overlap", type=arg_int("--overlap", 0), default=200, metavar="PX",
-                   help="tile overlap (200)")
+    m.add_argument("--overlap", type=arg_int("--overlap", 0), default=None, metavar="PX",
+                   help="tile overlap (200; with --tile only)")
     m.add_argument("--keep-threshold", type=arg_float("--keep-threshold", 0.0, 1.0, lo_open=True),
                    default=0.7, metavar="F",
                    help="keep a cut box when this share of its area is inside the tile (0.7)")
@@ -127,18 +129,20 @@ def _classes(text):
 
 
 def _cmd_eval(args) -> int:
-    from .evaluation import (  # lazy: shapely
-        check_report_dir,
-        run_eval,
-        summary_table,
-        write_eval_report,
-    )
+    from .evaluation import check_report_dir  # lazy: shapely
 
     out = None
     if args.out is not None:
         out = check_report_dir(args.out, [("--gt", Path(args.gt)), ("--pred", Path(args.pred))])
-    if uses_scoring(args):
-        return cmd_scored_eval(args, out)
+    with out_lock(args.out, "eval") if out is not None else nullcontext():
+        if uses_scoring(args):  # --merge-classes, --iou-type, --ignore-border, --group
+            return cmd_scored_eval(args, out)
+        return _eval(args, out)
+
+
+def _eval(args, out) -> int:
+    from .evaluation import run_eval, summary_table, write_eval_report  # lazy: shapely
+
     res = run_eval(args.gt, args.pred, iou=args.iou, metric=args.metric, pred_format=args.pred_format,
                    names=args.names, images=args.images, split=args.split,
                    classes=_classes(args.classes))
@@ -153,17 +157,24 @@ def _cmd_eval(args) -> int:
 def _cmd_mix(args) -> int:
     from .mix import MixConfig, make_mix  # lazy: shapely, OpenCV; the parser is built at --help
 
+    refuse_here(args.out)  # the mix is built beside --out and renamed into place
+    if args.overlap is not None and args.tile is None:
+        raise EvaluationError(f"--overlap {args.overlap}: applies to tiles; give --tile PX too, "
+                              "or drop --overlap")
     classes = None if args.classes == "all" else _classes(args.classes)
     cfg = MixConfig(
         real=Path(args.real), synthetic=Path(args.synthetic), out=Path(args.out),
         real_fraction=args.real_fraction, real_images=args.real_images,
         synthetic_images=args.synthetic_images, format=args.format, seed=args.seed,
-        val=args.val, val_fraction=args.val_fraction, tile=args.tile, overlap=args.overlap,
+        val=args.val, val_fraction=args.val_fraction, tile=args.tile,
+        overlap=200 if args.overlap is None else args.overlap,
         keep_threshold=args.keep_threshold, gsd=args.gsd, gsd_missing=args.gsd_missing,
         real_gsd=args.real_gsd,
         classes=classes, force=args.force,
     )
-    res = make_mix(cfg)
+    with out_lock(args.out, "mix"):
+        remove_dead_temps(args.out)  # left by a killed mix: no live run owns them now
+        res = make_mix(cfg)
     c = res["counts"]
     print(f"mix: {c['train_real']} real + {c['train_synthetic']} synthetic training images "
           f"(real share {c['real_share']:.4f}), {c['val_real']} real + {c['val_synthetic']} "
@@ -178,10 +189,16 @@ def _cmd_stats(args) -> int:
     # lazy: shapely and OpenCV load only when stats runs (the parser is built at --help)
     from . import evaluation, stats
 
+    if args.compare_gsd is not None and args.compare is None:
+        raise EvaluationError(f"--compare-gsd {args.compare_gsd:g}: is the GSD of --compare DIR2; "
+                              "give --compare too, or drop --compare-gsd")
     inputs = [("DIR", Path(args.dir))] + ([("--compare", Path(args.compare))] if args.compare else [])
     out = evaluation.check_report_dir(args.out, inputs)
-    text = stats.run_stats(Path(args.dir), out, compare=Path(args.compare) if args.compare else None,
-                     gsd=args.gsd, compare_gsd=args.compare_gsd, max_images=args.max_images,
-                     seed=args.seed, classes=None if args.classes == "all" else _classes(args.classes))
+    with out_lock(args.out, "stats"):
+        text = stats.run_stats(Path(args.dir), out,
+                               compare=Path(args.compare) if args.compare else None,
+                               gsd=args.gsd, compare_gsd=args.compare_gsd,
+                               max_images=args.max_images, seed=args.seed,
+                               classes=None if args.classes == "all" else _classes(args.classes))
     print(text)
     return 0

@@ -21,6 +21,7 @@ from ..io_utils import (
     check_output_dir,
     is_inside,
 )
+from ..safe_input import MAX_COORD_PX, class_name, quote, shown
 from .ap import METRICS, Detections, EvalResult, evaluate
 from .labels import (
     ImageLabels,
@@ -60,6 +61,7 @@ def read_task1_folder(pred_dir: Path, image_index: dict[str, int]) -> Detections
         name = f.stem[len("Task1_"):]
         if not name:
             raise EvaluationError(f"{f}: expected Task1_<class>.txt, got an empty class name")
+        class_name(name, f"--pred {shown(f)}", EvaluationError)  # text a report can print
         lines = _read_lines(f)
         fast = _task1_fast(lines, image_index)
         if fast is not None:
@@ -75,10 +77,10 @@ def read_task1_folder(pred_dir: Path, image_index: dict[str, int]) -> Detections
             t = ln.split()
             if len(t) != 10:
                 raise EvaluationError(f"{f}:{n}: expected 'image score x1 y1 x2 y2 x3 y3 x4 y4' "
-                                      f"(10 fields), got {len(t)} fields: {ln[:80]!r}")
+                                      f"(10 fields), got {len(t)} fields: {quote(ln)}")
             i = image_index.get(t[0])
             if i is None:
-                raise EvaluationError(f"{f}:{n}: image {t[0]!r} is not in the ground truth "
+                raise EvaluationError(f"{f}:{n}: image {quote(t[0])} is not in the ground truth "
                                       f"({len(image_index)} images in --gt)")
             vals = []
             for k, tok in enumerate(t[1:]):
@@ -86,9 +88,12 @@ def read_task1_folder(pred_dir: Path, image_index: dict[str, int]) -> Detections
                     v = float(tok)
                 except ValueError:
                     v = float("nan")
+                what = "score" if k == 0 else f"coordinate {k}"
                 if not np.isfinite(v):
-                    what = "score" if k == 0 else f"coordinate {k}"
-                    raise EvaluationError(f"{f}:{n}: expected {what} as a finite number, got {tok!r}")
+                    raise EvaluationError(f"{f}:{n}: expected {what} as a finite number, got {quote(tok)}")
+                if k and abs(v) > MAX_COORD_PX:
+                    raise EvaluationError(f"{f}:{n}: expected {what} within +-{MAX_COORD_PX:g}, "
+                                          f"got {quote(tok)}")
                 vals.append(v)
             img.append(i)
             cls.append(name)
@@ -110,7 +115,7 @@ def _task1_fast(lines, image_index):
         vals = np.array([r[1:] for r in rows], dtype=np.float64).reshape(-1, 9)
     except (KeyError, ValueError):
         return None
-    if not np.isfinite(vals).all():
+    if not np.isfinite(vals).all() or (vals.size and np.abs(vals[:, 1:]).max() > MAX_COORD_PX):
         return None
     return idx, vals[:, 0], vals[:, 1:].reshape(-1, 4, 2)
 

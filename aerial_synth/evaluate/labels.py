@@ -9,8 +9,6 @@ file and line.
 
 from __future__ import annotations
 
-import os
-import struct
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +16,15 @@ import numpy as np
 from ..errors import EvaluationError
 from ..formats import dota, vedai, yolo_obb
 from ..formats.labels import ImageLabels, read_lines
+from ..safe_input import (
+    check_image_pixels,
+    check_link,
+    class_name,
+    load_yaml,
+    quote,
+    read_image,
+    shown,
+)
 
 __all__ = [
     "IMAGE_EXTS",
@@ -40,14 +47,14 @@ def parse_names(text: str, option: str = "--names") -> list[str]:
     """Class names from a data YAML (``names:`` list or {index: name}) or a comma list."""
     p = Path(text)
     if text.endswith((".yaml", ".yml")) or p.is_file():
-        import yaml
-
         try:
-            data = yaml.safe_load(p.read_text(encoding="utf-8-sig"))
+            check_link(p, EvaluationError)
+            raw = p.read_text(encoding="utf-8-sig")
         except FileNotFoundError:
-            raise EvaluationError(f"{option} {text}: no such file") from None
-        except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
-            raise EvaluationError(f"{option} {text}: cannot read it as YAML ({type(exc).__name__})") from None
+            raise EvaluationError(f"{option} {shown(text)}: no such file") from None
+        except (OSError, UnicodeDecodeError) as exc:
+            raise EvaluationError(f"{option} {shown(text)}: cannot read it as YAML ({type(exc).__name__})") from None
+        data = load_yaml(raw, f"{option} {shown(text)}", EvaluationError)  # nesting, alias budgets
         names = data.get("names") if isinstance(data, dict) else None
         if isinstance(names, dict):
             try:
@@ -56,16 +63,21 @@ def parse_names(text: str, option: str = "--names") -> list[str]:
                 keys = None
             if keys is None or keys != list(range(len(keys))):
                 raise EvaluationError(f"{option} {text}: expected names with indices 0..n-1, got {list(names)[:5]}")
-            out = [str(names[k]) for k in keys]
+            out = [names[k] for k in keys]
         elif isinstance(names, list):
-            out = [str(x) for x in names]
+            out = list(names)
         else:
             raise EvaluationError(f"{option} {text}: expected a 'names:' list or mapping in the YAML")
     else:
         out = [t.strip() for t in text.split(",")]
-    out = [n.replace(" ", "-") for n in out]
-    if not out or any(not n for n in out):
-        raise EvaluationError(f"{option}: expected class names (a data YAML or a comma list), got {text!r}")
+    if not out or any(n is None or n == "" for n in out):
+        raise EvaluationError(f"{option}: expected class names (a data YAML or a comma list), "
+                              f"got {quote(text)}")
+    # a name is a word or a number (YAML reads 1 as an int); a list or mapping is no name
+    out = [class_name(n.replace(" ", "-") if isinstance(n, str) else
+                      (str(n) if isinstance(n, (int, float)) and not isinstance(n, bool) else n),
+                      f"{option} {shown(text)}: names[{i}]", EvaluationError)
+           for i, n in enumerate(out)]
     return out
 
 
@@ -73,52 +85,14 @@ def parse_names(text: str, option: str = "--names") -> list[str]:
 
 
 def image_size(path) -> tuple[int, int]:
-    """(width, height) in pixels, from the PNG/JPEG header (whole decode for other types)."""
+    """(width, height) in pixels, from the image header (PNG, JPEG, BMP, GIF, TIFF, WebP;
+    a whole decode for other types); an image over OpenCV's size limit is refused."""
     path = Path(path)
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(32)
-            if head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR":
-                w, h = struct.unpack(">II", head[16:24])
-                return int(w), int(h)
-            if head[:2] == b"\xff\xd8":
-                size = _jpeg_size(fh)
-                if size is not None:
-                    return size
-    except OSError as exc:
-        raise EvaluationError(f"{path}: cannot read the image ({exc.strerror})") from None
-    import cv2
-
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise EvaluationError(f"{path}: expected an image file, cannot decode it")
+    size = check_image_pixels(path, EvaluationError)
+    if size is not None:
+        return size
+    img = read_image(path, error=EvaluationError)
     return int(img.shape[1]), int(img.shape[0])
-
-
-def _jpeg_size(fh):
-    fh.seek(2)
-    while True:
-        b = fh.read(1)
-        while b and b != b"\xff":
-            b = fh.read(1)
-        while b == b"\xff":
-            b = fh.read(1)
-        if not b:
-            return None
-        marker = b[0]
-        if marker in (0xD8, 0x01) or 0xD0 <= marker <= 0xD7:
-            continue
-        seg = fh.read(2)
-        if len(seg) < 2:
-            return None
-        n = struct.unpack(">H", seg)[0]
-        if marker in (0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD, 0xCE, 0xCF):
-            data = fh.read(5)
-            if len(data) < 5:
-                return None
-            h, w = struct.unpack(">HH", data[1:5])
-            return int(w), int(h)
-        fh.seek(n - 2, os.SEEK_CUR)
 
 
 def _image_index(folder: Path | None) -> dict[str, Path]:
@@ -172,6 +146,12 @@ def resolve_dota_folder(path, split: str | None = None, option: str = "--gt") ->
                 lab = base / s / "labelTxt"
                 img = base / s / "images"
                 return lab, (img if img.is_dir() else None)
+    if split:  # the split asked for is not there: say so, not "found none"
+        have = sorted({s.name for base in (path, path / "dota") if base.is_dir()
+                       for s in base.iterdir() if (s / "labelTxt").is_dir()})
+        raise EvaluationError(
+            f"--split {quote(split)}: {shown(path)} has no {shown(split)}/labelTxt/ (nor "
+            f"dota/{shown(split)}/labelTxt/); its splits: {', '.join(have) or 'none'}")
     if path.name == "labelTxt" or any(p.suffix == ".txt" for p in path.iterdir()):
         img = path.parent / "images"
         return path, (img if img.is_dir() else None)

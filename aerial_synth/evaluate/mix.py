@@ -42,6 +42,7 @@ from ..errors import EvaluationError
 from ..formats import dota, yolo_obb
 from ..formats.labels import ImageLabels
 from ..io_utils import check_output_dir, dumps_json, is_inside
+from ..safe_input import image_file_complete, quote, read_image, shown
 from .ap import to_polygons
 from .labels import (
     IMAGE_EXTS,
@@ -307,10 +308,18 @@ def _plan_real(items: list[ImageLabels], cfg: MixConfig) -> list[list[_Item]]:
             else:
                 f = it.gsd_m / cfg.gsd
                 if abs(f - 1.0) > 1e-9:
+                    least = cfg.tile or 1
+                    if w * f < least or h * f < least:
+                        raise EvaluationError(
+                            f"--gsd {cfg.gsd:g}: {shown(it.image_path)} ({w} x {h} px at {it.gsd_m:g} "
+                            f"m/px) would shrink to {w * f:.3g} x {h * f:.3g} px, less than "
+                            + (f"one --tile ({cfg.tile} px)" if cfg.tile else "1 px")
+                            + "; choose a smaller --gsd")
                     nw, nh = max(1, int(round(w * f))), max(1, int(round(h * f)))
                     sx, sy = nw / w, nh / h
                     w, h = nw, nh
-                    gsd = cfg.gsd
+                    # the GSD the rounded size gives (the labels' gsd: header must be true)
+                    gsd = it.gsd_m / ((sx + sy) / 2)
         scale_tag = "" if (sx, sy) == (1.0, 1.0) else f"__{sx:.4g}"
         out = []
         if cfg.tile is None:
@@ -339,12 +348,7 @@ def _link(src: Path, dst: Path) -> str:
 
 
 def _load(path: Path):
-    import cv2
-
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise EvaluationError(f"{path}: expected an image, cannot decode it")
-    return img
+    return read_image(path, error=EvaluationError)
 
 
 class _Writer:
@@ -400,6 +404,9 @@ class _Writer:
                 how_here = _link(first, dst)
                 how = "copy" if "copy" in (how, how_here) else how
             elif untouched:
+                if not image_file_complete(src.image_path):  # linked as is: check it first
+                    raise EvaluationError(f"{shown(src.image_path)}: truncated or damaged image "
+                                          "(its header or end is missing)")
                 how = _link(src.image_path, dst)
             else:
                 arr = self.image(item)
@@ -509,6 +516,10 @@ def make_mix(cfg: MixConfig) -> dict:
         val_items += [_Item("synthetic", s, (1.0, 1.0), (0, 0), None, f"syn-{s.name}") for s in syn_val]
     for group in (chosen, val_items):
         names = [i.out_stem for i in group]
+        for i in group:  # the file system's limit on one name (the source name + tile suffix)
+            if len(os.fsencode(i.out_stem)) + len(".png") > 255:
+                raise EvaluationError(f"{shown(i.src.image_path)}: the mix would name it "
+                                      f"{quote(i.out_stem)}.png, over 255 bytes; rename the source")
         if len(set(names)) != len(names):
             dup = sorted({n for n in names if names.count(n) > 1})[0]
             raise EvaluationError(f"mix: two source images give the output name {dup!r}; rename one")

@@ -9,6 +9,8 @@ import math
 
 import numpy as np
 
+from ..safe_input import cv_text
+
 __all__ = ["COLORS", "line_chart", "histogram_chart", "grid", "png_bytes"]
 
 #: BGR colours for series 0, 1, 2, ...
@@ -60,7 +62,7 @@ class _Axes:
             self.y1 = self.y0 + 1.0
         self.px0, self.px1 = _L, self.w - _R
         self.py0, self.py1 = self.h - _B, _T
-        cv2.putText(self.img, title[:70], (_L, 24), _FONT, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
+        cv2.putText(self.img, cv_text(title[:70]), (_L, 24), _FONT, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
         for t in _nice_ticks(self.x0, self.x1):
             x = self.X(t)
             cv2.line(self.img, (x, self.py1), (x, self.py0), (232, 232, 232), 1)
@@ -74,11 +76,11 @@ class _Axes:
             s = _fmt(t)
             cv2.putText(self.img, s, (self.px0 - 8 - 8 * len(s), y + 4), _FONT, 0.4, (0, 0, 0), 1, cv2.LINE_AA)
         cv2.rectangle(self.img, (self.px0, self.py1), (self.px1, self.py0), (0, 0, 0), 1)
-        cv2.putText(self.img, xlabel[:60], ((self.px0 + self.px1) // 2 - 4 * len(xlabel[:60]), self.h - 12),
+        cv2.putText(self.img, cv_text(xlabel[:60]), ((self.px0 + self.px1) // 2 - 4 * len(xlabel[:60]), self.h - 12),
                     _FONT, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
         # vertical y label: draw on a strip and rotate
         strip = np.full((20, self.h), 255, np.uint8)
-        cv2.putText(strip, ylabel[:45], (max(0, self.h // 2 - 4 * len(ylabel[:45])), 14), _FONT, 0.45, 0, 1, cv2.LINE_AA)
+        cv2.putText(strip, cv_text(ylabel[:45]), (max(0, self.h // 2 - 4 * len(ylabel[:45])), 14), _FONT, 0.45, 0, 1, cv2.LINE_AA)
         strip = cv2.rotate(strip, cv2.ROTATE_90_COUNTERCLOCKWISE)
         self.img[:, 2:22][strip < 128] = 0
 
@@ -99,7 +101,7 @@ class _Axes:
         for lab, c in zip(labels, colors):
             x = self.px1 - 8 - 8 * min(len(lab), 40) - 24
             self.cv2.line(self.img, (x, y - 4), (x + 18, y - 4), c, 3)
-            self.cv2.putText(self.img, lab[:40], (x + 24, y), _FONT, 0.42, (0, 0, 0), 1, self.cv2.LINE_AA)
+            self.cv2.putText(self.img, cv_text(lab[:40]), (x + 24, y), _FONT, 0.42, (0, 0, 0), 1, self.cv2.LINE_AA)
             y += 18
 
 

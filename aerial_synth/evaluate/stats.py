@@ -31,7 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import EvaluationError
 from ..io_utils import atomic_write_bytes, atomic_write_json, atomic_write_text
+from ..safe_input import check_image_pixels, decode_image, image_file_complete
 from .labels import image_size, read_dataset
 from .plots import grid, histogram_chart, line_chart, png_bytes
 
@@ -96,7 +98,11 @@ def _nn_distances(centres: np.ndarray) -> np.ndarray:
 def _load_bgr(path: Path) -> np.ndarray | None:
     import cv2
 
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    check_image_pixels(path, EvaluationError)  # over OpenCV's limit: refused, naming it
+    if not image_file_complete(path):  # cut short: listed as unreadable, not half decoded
+        return None
+    data = np.fromfile(path, np.uint8)  # bytes to OpenCV, never a file name (undecodable names)
+    img = decode_image(data, cv2.IMREAD_UNCHANGED)  # libpng's own messages silenced
     if img is None:
         return None
     if img.dtype == np.uint16:

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import LabelFormatError
+from ..safe_input import MAX_COORD_PX, check_link, load_json, quote
 from ..vehicles import CLASSES
 
 __all__ = ["CATEGORIES", "fmt_num", "parse_float", "parse_number", "polygon4", "read_text",
@@ -30,9 +30,17 @@ def parse_float(token: str, where: str) -> float:
     try:
         v = float(token)
     except ValueError:
-        raise LabelFormatError(f"{where}: expected a number, got {token!r}") from None
+        raise LabelFormatError(f"{where}: expected a number, got {quote(token)}") from None
     if not np.isfinite(v):
-        raise LabelFormatError(f"{where}: expected a finite number, got {token!r}")
+        raise LabelFormatError(f"{where}: expected a finite number, got {quote(token)}")
+    return v
+
+
+def parse_coordinate(token: str, where: str, what: str, limit: float = MAX_COORD_PX) -> float:
+    """:func:`parse_number` within +-``limit`` (pixels, or image widths when normalised)."""
+    v = parse_number(token, where, what)
+    if abs(v) > limit:
+        raise LabelFormatError(f"{where}: expected {what} within +-{limit:g}, got {quote(token)}")
     return v
 
 
@@ -41,9 +49,9 @@ def parse_number(token: str, where: str, what: str) -> float:
     try:
         v = float(token)
     except ValueError:
-        raise LabelFormatError(f"{where}: expected {what} as a number, got {token!r}") from None
+        raise LabelFormatError(f"{where}: expected {what} as a number, got {quote(token)}") from None
     if not np.isfinite(v):
-        raise LabelFormatError(f"{where}: expected {what} as a finite number, got {token!r}")
+        raise LabelFormatError(f"{where}: expected {what} as a finite number, got {quote(token)}")
     return v
 
 
@@ -55,6 +63,7 @@ def polygon4(points) -> tuple[tuple[float, float], ...]:
 
 def read_text(path) -> str:
     """A label file's UTF-8 text; a file that is not UTF-8 text raises LabelFormatError."""
+    check_link(path, LabelFormatError)  # a link out of the input folder is never read
     try:
         return Path(path).read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:
@@ -64,7 +73,4 @@ def read_text(path) -> str:
 
 def read_json(path):
     """A JSON file's value; malformed JSON raises LabelFormatError naming the line."""
-    try:
-        return json.loads(read_text(path))
-    except json.JSONDecodeError as exc:
-        raise LabelFormatError(f"{path}:{exc.lineno}: expected JSON, {exc.msg}") from None
+    return load_json(read_text(path), str(path), LabelFormatError)  # with a nesting budget

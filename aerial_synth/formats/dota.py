@@ -23,7 +23,17 @@ import numpy as np
 
 from ..errors import LabelFormatError
 from ..io_utils import atomic_write_text
-from ._common import CATEGORIES, fmt_num, parse_float, parse_number, polygon4, read_text
+from ..safe_input import quote
+from ._common import (
+    CATEGORIES,
+    MAX_COORD_PX,
+    fmt_num,
+    parse_coordinate,
+    parse_float,
+    parse_number,
+    polygon4,
+    read_text,
+)
 from .labels import ImageLabels, read_lines
 from .registry import LabelFormat
 
@@ -86,23 +96,23 @@ def from_lines(lines, where: str = "<labelTxt>", categories=CATEGORIES) -> DotaL
     if len(lines) < 2:
         raise LabelFormatError(f"{where}: expected 2 header lines, got {len(lines)} lines")
     if not lines[0].startswith("imagesource:"):
-        raise LabelFormatError(f"{where}:1: expected 'imagesource:<source>', got {lines[0]!r}")
+        raise LabelFormatError(f"{where}:1: expected 'imagesource:<source>', got {quote(lines[0])}")
     if not lines[1].startswith("gsd:"):
-        raise LabelFormatError(f"{where}:2: expected 'gsd:<metres per pixel>', got {lines[1]!r}")
+        raise LabelFormatError(f"{where}:2: expected 'gsd:<metres per pixel>', got {quote(lines[1])}")
     g = lines[1][4:].strip()
     gsd = None if g in ("null", "") else parse_float(g, f"{where}:2 gsd")
     objects = []
     for n, ln in enumerate(lines[2:], start=3):
         f = ln.split(" ")
         if len(f) != 10:
-            raise LabelFormatError(f"{where}:{n}: expected 10 fields, got {len(f)}: {ln!r}")
+            raise LabelFormatError(f"{where}:{n}: expected 10 fields, got {len(f)}: {quote(ln)}")
         xy = [parse_float(t, f"{where}:{n} coordinate {i + 1}") for i, t in enumerate(f[:8])]
         if categories is not None and f[8] not in categories:
             raise LabelFormatError(
-                f"{where}:{n}: expected category in {', '.join(categories)}, got {f[8]!r}"
+                f"{where}:{n}: expected category in {', '.join(categories)}, got {quote(f[8])}"
             )
         if f[9] not in ("0", "1"):
-            raise LabelFormatError(f"{where}:{n}: expected difficult 0 or 1, got {f[9]!r}")
+            raise LabelFormatError(f"{where}:{n}: expected difficult 0 or 1, got {quote(f[9])}")
         objects.append(DotaObject(polygon4(xy), f[8], int(f[9])))
     return DotaLabel(lines[0][len("imagesource:"):], gsd, tuple(objects))
 
@@ -147,21 +157,21 @@ def labels_from_lines(lines, where: str = "<labelTxt>", name: str = "") -> Image
             if g not in ("", "null", "None", "none"):
                 gsd = parse_number(g, f"{where}:{n}", "gsd")
                 if gsd <= 0:
-                    raise LabelFormatError(f"{where}:{n}: expected gsd > 0, got {g!r}")
+                    raise LabelFormatError(f"{where}:{n}: expected gsd > 0, got {quote(g)}")
             continue
         f = ln.split()
         if len(f) not in (9, 10):
             raise LabelFormatError(
                 f"{where}:{n}: expected 'x1 y1 x2 y2 x3 y3 x4 y4 category [difficult]' "
-                f"(9 or 10 fields), got {len(f)} fields: {ln[:80]!r}")
-        xy = [parse_number(t, f"{where}:{n}", f"coordinate {i + 1}") for i, t in enumerate(f[:8])]
+                f"(9 or 10 fields), got {len(f)} fields: {quote(ln)}")
+        xy = [parse_coordinate(t, f"{where}:{n}", f"coordinate {i + 1}") for i, t in enumerate(f[:8])]
         d = 0
         if len(f) == 10:
             try:
                 d = int(f[9])
             except ValueError:
                 raise LabelFormatError(
-                    f"{where}:{n}: expected difficult as an integer (0 or 1), got {f[9]!r}") from None
+                    f"{where}:{n}: expected difficult as an integer (0 or 1), got {quote(f[9])}") from None
         polys.append(xy)
         classes.append(f[8])
         diff.append(d != 0)
@@ -197,7 +207,7 @@ def _lenient_fast(lines):
         xy = np.array([f[:8] for f in body], dtype=np.float64).reshape(-1, 4, 2)
     except ValueError:
         return None
-    if not np.isfinite(xy).all():
+    if not np.isfinite(xy).all() or (xy.size and np.abs(xy).max() > MAX_COORD_PX):
         return None
     return xy, [f[8] for f in body], np.array([f[9] != "0" for f in body], bool), gsd, source
 

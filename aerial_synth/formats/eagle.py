@@ -19,6 +19,7 @@ from pathlib import Path
 
 from ..errors import LabelFormatError
 from ..io_utils import atomic_write_text
+from ..safe_input import quote
 from ._common import CATEGORIES, fmt_num, parse_float, polygon4, read_text
 from .registry import LabelFormat
 
@@ -78,18 +79,18 @@ def from_lines(lines, where: str = "<eagle>", categories=CATEGORIES) -> list[Eag
             continue
         f = ln.split(" ")
         if len(f) != N_FIELDS:
-            raise LabelFormatError(f"{where}:{n}: expected {N_FIELDS} fields, got {len(f)}: {ln!r}")
+            raise LabelFormatError(f"{where}:{n}: expected {N_FIELDS} fields, got {len(f)}: {quote(ln)}")
         xy = [parse_float(t, f"{where}:{n} coordinate {i + 1}") for i, t in enumerate(f[:8])]
         ang = parse_float(f[8], f"{where}:{n} orientation_deg")
         if not 0.0 <= ang < 360.0:
-            raise LabelFormatError(f"{where}:{n}: expected orientation_deg in [0, 360), got {f[8]!r}")
+            raise LabelFormatError(f"{where}:{n}: expected orientation_deg in [0, 360), got {quote(f[8])}")
         if categories is not None and f[9] not in categories:
             raise LabelFormatError(
-                f"{where}:{n}: expected class in {', '.join(categories)}, got {f[9]!r}"
+                f"{where}:{n}: expected class in {', '.join(categories)}, got {quote(f[9])}"
             )
         for k, name in ((10, "visibility_difficult"), (11, "orientation_unclear")):
             if f[k] not in ("0", "1"):
-                raise LabelFormatError(f"{where}:{n}: expected {name} 0 or 1, got {f[k]!r}")
+                raise LabelFormatError(f"{where}:{n}: expected {name} 0 or 1, got {quote(f[k])}")
         out.append(EagleObject(polygon4(xy), ang, f[9], int(f[10]), int(f[11])))
     return out
 

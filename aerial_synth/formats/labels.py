@@ -14,12 +14,14 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import LabelFormatError
+from ..safe_input import check_link
 
 __all__ = ["ImageLabels", "read_lines"]
 
 
 def read_lines(path) -> list[str]:
     """Text lines of a real-world label or prediction file (UTF-8, a byte-order mark ignored)."""
+    check_link(path, LabelFormatError)  # a link out of the input folder is never read
     try:
         return Path(path).read_text(encoding="utf-8-sig").splitlines()
     except UnicodeDecodeError:

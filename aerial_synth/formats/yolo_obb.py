@@ -28,7 +28,16 @@ import numpy as np
 
 from ..errors import LabelFormatError
 from ..io_utils import atomic_write_text
-from ._common import CATEGORIES, fmt_num, parse_float, parse_number, polygon4, read_text
+from ..safe_input import quote
+from ._common import (
+    CATEGORIES,
+    fmt_num,
+    parse_coordinate,
+    parse_float,
+    parse_number,
+    polygon4,
+    read_text,
+)
 from .labels import ImageLabels
 from .registry import DatasetInfo, LabelFormat
 
@@ -102,9 +111,9 @@ def from_lines(lines, where: str = "<yolo-obb>", n_classes: int | None = len(CAT
             continue
         f = ln.split(" ")
         if len(f) != 9:
-            raise LabelFormatError(f"{where}:{n}: expected 9 fields, got {len(f)}: {ln!r}")
+            raise LabelFormatError(f"{where}:{n}: expected 9 fields, got {len(f)}: {quote(ln)}")
         if not f[0].isdigit() or (n_classes is not None and int(f[0]) >= n_classes):
-            raise LabelFormatError(f"{where}:{n}: expected a class index 0..{(n_classes or 1) - 1}, got {f[0]!r}")
+            raise LabelFormatError(f"{where}:{n}: expected a class index 0..{(n_classes or 1) - 1}, got {quote(f[0])}")
         xy = [parse_float(t, f"{where}:{n} coordinate {i + 1}") for i, t in enumerate(f[1:])]
         out.append(YoloObbObject(int(f[0]), polygon4(xy)))
     return out
@@ -154,15 +163,16 @@ def labels_from_lines(lines, where: str, names, size_wh, *, with_conf: bool = Fa
             continue
         f = ln.split()
         if len(f) != nf:
-            raise LabelFormatError(f"{where}:{n}: expected {what} ({nf} fields), got {len(f)} fields: {ln[:80]!r}")
+            raise LabelFormatError(f"{where}:{n}: expected {what} ({nf} fields), got {len(f)} fields: {quote(ln)}")
         try:
             c = int(f[0])
         except ValueError:
-            raise LabelFormatError(f"{where}:{n}: expected a class index, got {f[0]!r}") from None
+            raise LabelFormatError(f"{where}:{n}: expected a class index, got {quote(f[0])}") from None
         if not 0 <= c < len(names):
             raise LabelFormatError(
                 f"{where}:{n}: expected a class index in 0..{len(names) - 1} (--names), got {c}")
-        xy = np.array([parse_number(t, f"{where}:{n}", f"coordinate {i + 1}") for i, t in enumerate(f[1:9])])
+        xy = np.array([parse_coordinate(t, f"{where}:{n}", f"coordinate {i + 1}", 1e3)
+                       for i, t in enumerate(f[1:9])])  # normalised: within 1,000 image sides
         polys.append(xy.reshape(4, 2) * (w, h))
         classes.append(names[c])
         if with_conf:

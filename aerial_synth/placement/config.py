@@ -22,6 +22,7 @@ import numpy as np
 
 from .. import validators as V
 from ..errors import ConfigError, PlacementError
+from ..safe_input import load_yaml
 from .parking_config import PARKING_KINDS, ParkingConfig, parse_parking
 from .spacing import SpacingSampler
 
@@ -63,6 +64,11 @@ SCENARIOS: tuple[str, ...] = tuple(list_scenarios())
 
 def _opt(check, name, v, **kw):
     return None if v is None else check(name, v, **kw)
+
+
+#: Most steps one probe direction may march (max_distance_m / step_m): the thesis's 0.05 m
+#: over 16 m is 320; 1e-9 m asked for 1.6e10 and never finished.
+MAX_PROBE_STEPS = 20_000
 
 
 @dataclass(frozen=True)
@@ -107,6 +113,12 @@ class ProbeConfig:
         s(self, "max_turn_deg", V.in_range(p + "max_turn_deg", self.max_turn_deg, 0.0, 180.0,
                                            lo_open=True))
         s(self, "edge_jump_m", V.in_range(p + "edge_jump_m", self.edge_jump_m, 0.0, 20.0, lo_open=True))
+        steps = self.max_distance_m / self.step_m
+        if steps > MAX_PROBE_STEPS:  # each probe marches this many steps in every direction
+            raise ConfigError(
+                f"{p}step_m: expected at least {p}max_distance_m / {MAX_PROBE_STEPS:,} = "
+                f"{self.max_distance_m / MAX_PROBE_STEPS:g} m (a probe would march {steps:,.0f} "
+                f"steps), got {V.show(self.step_m)}")
 
 
 @dataclass(frozen=True)
@@ -442,7 +454,6 @@ def load_scenario(name_or_path: str | ScenarioConfig, overrides: Mapping | None 
     Errors name the file and field (``scenarios/jam.yaml: spacing.mean_m: ...``), or the
     override (``--set spacing.mean_m: ...``; ``override_label`` replaces ``--set``).
     """
-    import yaml
 
     if overrides is not None and not isinstance(overrides, Mapping):
         raise ConfigError(f"overrides: expected a mapping of key: value, got {V.show(overrides)}")
@@ -475,12 +486,7 @@ def load_scenario(name_or_path: str | ScenarioConfig, overrides: Mapping | None 
         key = (str(p), source, text, override_label)
         if not overrides and key in _PARSED:
             return _PARSED[key]
-        try:
-            base = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            raise ConfigError(f"{source}: broken YAML ({' '.join(str(exc).split())})") from None
-        except (ValueError, TypeError, OverflowError, RecursionError) as exc:
-            raise ConfigError(f"{source}: broken YAML ({type(exc).__name__})") from None
+        base = load_yaml(text, source, ConfigError)  # nesting and alias budgets
         if base is None:
             base = {}
         if not isinstance(base, dict):

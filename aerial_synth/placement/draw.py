@@ -6,6 +6,7 @@ import colorsys
 
 import numpy as np
 
+from ..safe_input import cv_text
 from .model import Placement, footprint_corners_xy
 
 __all__ = ["draw_placement", "line_color_bgr"]
@@ -60,6 +61,7 @@ def draw_placement(view, placement: Placement, title: str | None = None) -> np.n
         cv2.line(img, tuple(np.round(a * s).astype(int)), tuple(np.round(front * s).astype(int)),
                  (255, 255, 255), 1, cv2.LINE_AA, shift=3)
     if title:
+        title = cv_text(title)  # a scene file's name may hold bytes that are not UTF-8
         # white text on a dark band (a thick black outline drawn under thin white text
         # advances differently per glyph in Hershey fonts and leaves a ghost of the title)
         (tw, th), base = cv2.getTextSize(title, cv2.FONT_HERSHEY_SIMPLEX, 0.6, 1)

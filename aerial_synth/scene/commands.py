@@ -17,6 +17,7 @@ import yaml
 
 from ..errors import OutputError, SceneError
 from ..io_utils import check_output_file
+from ..out_guard import out_lock
 from .georef import SceneWarning
 from .io import SCENES_DIR, export_glb, list_scenes, load_scene
 from .mapview import render_map, save_png
@@ -92,6 +93,9 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 
 def cmd_show(args: argparse.Namespace) -> int:
+    if Path(args.out).suffix.lower() != ".png":  # PNG bytes under another name mislead viewers
+        raise OutputError(f"--out {args.out}: expected an output path ending in .png (a PNG is "
+                          "written)")
     check_output_file(args.out, "--out")
     scene = load_warning_once(lambda: load_scene(args.scene, labels=args.labels, seed=args.scene_seed,
                                                   bbox=args.bbox, crs=args.crs))
@@ -121,12 +125,13 @@ def cmd_from_osm(args: argparse.Namespace) -> int:
     if Path(args.out).suffix.lower() != ".glb":
         raise OutputError(f"--out {args.out}: expected an output path ending in .glb")
     check_output_file(args.out, "--out")
-    t0 = time.perf_counter()
-    scene = load_osm_scene(args.file, bbox=args.bbox, crs=args.crs,
-                           seed=0 if args.scene_seed is None else args.scene_seed,
-                           use_cache=not args.no_cache)
-    t_build = time.perf_counter() - t0
-    export_glb(scene, args.out)
+    with out_lock(args.out, "scene from-osm"):
+        t0 = time.perf_counter()
+        scene = load_osm_scene(args.file, bbox=args.bbox, crs=args.crs,
+                               seed=0 if args.scene_seed is None else args.scene_seed,
+                               use_cache=not args.no_cache)
+        t_build = time.perf_counter() - t0
+        export_glb(scene, args.out)
     osm = scene.meta.get("osm", {})
     print(_summary(scene))
     print(f"{osm.get('roads', 0)} roads ({osm.get('oneway_roads', 0)} one-way), "

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..errors import AerialSynthError, SceneError
 from ..io_utils import atomic_write_bytes
+from ..safe_input import quote, shown
 from .georef import (
     FAR_M,
     SceneWarning,
@@ -176,6 +177,24 @@ def _georeference(path: Path, tscene, rules, items, raw_max_m: float, ext: str):
     return origin, crs
 
 
+#: Largest coordinate (metres) a scene file may place geometry at, after its node transforms
+#: and units: 100,000 km, far beyond any map projection's coordinates of the Earth (a UTM
+#: northing is below 10,000 km), far below where float64 arithmetic overflows.
+MAX_COORD_M = 1e8
+
+
+def _check_plausible(path: Path, name: str, v: np.ndarray, t: np.ndarray) -> None:
+    """Refuse a node whose transformed vertices or translation are not finite or lie
+    beyond :data:`MAX_COORD_M` (a translation of 1e308 overflowed later, in the georeference)."""
+    for what, arr in (("translation", t), ("transformed vertices", v)):
+        a = np.abs(np.asarray(arr, np.float64))
+        with np.errstate(invalid="ignore", over="ignore"):
+            worst = float(a.max()) if a.size else 0.0
+        if not np.isfinite(a).all() or worst > MAX_COORD_M:
+            raise SceneError(f"scene file {shown(path)}: node {quote(name)}: expected {what} within "
+                             f"{MAX_COORD_M:g} m of the origin (finite), got {worst:g}")
+
+
 def load_mesh_scene(path: str | Path, labels: str | Path | None = None) -> Scene:
     """Load a glTF/GLB, OBJ or PLY file as a labelled :class:`Scene`.
 
@@ -297,6 +316,7 @@ def _mesh_items(path: Path, tscene, up: str, scale: float) -> tuple[list, float]
             if scale != 1.0:
                 v = v * scale
                 t = t * scale
+            _check_plausible(path, name, v, t)
             if np.linalg.det(R) < 0:
                 faces = faces[:, ::-1]  # mirrored node: keep counter-clockwise winding
             items.append((g, name, v, t, faces, mat_name, col))
@@ -373,6 +393,8 @@ def load_scene(
     crs    : OSM only: projected CRS to build in (default: the local UTM zone)
     """
     s = str(name_or_path)
+    if not s.strip():  # Path('') would be the current folder: "scene file .: unsupported ..."
+        raise SceneError(f"scene: expected a bundled scene name or a scene file, got {quote(s)}")
     p = Path(s)
 
     if is_osm_path(s):
@@ -389,6 +411,9 @@ def load_scene(
         _no_labels_for_spec(labels, s)
         return _load_spec(p, seed)
     if p.suffix or "/" in s or "\\" in s or p.exists():
+        if seed is not None:  # a mesh's geometry is fixed: a seed would be silently ignored
+            raise SceneError(f"--scene-seed {seed}: applies to procedural scene specs and OSM "
+                             f"extracts, but {quote(s)} is a mesh file; drop --scene-seed")
         return load_mesh_scene(p, labels)
     spec = SCENES_DIR / f"{s}.yaml"
     if not spec.is_file():

@@ -18,6 +18,7 @@ from typing import Any, Mapping
 
 from .. import validators as V
 from ..errors import AerialSynthError, SceneError
+from ..safe_input import load_yaml, shown
 from .georef import check_crs
 from .model import LABEL_IDS, LABELS, MATERIAL_IDS, MATERIALS, LabelConfig
 
@@ -147,22 +148,14 @@ def _default_rule_objects() -> tuple[LabelRule, ...]:
 
 def read_yaml(path: Path, what: str) -> Any:
     """The YAML file ``path``; SceneError naming ``what`` and the file when it is missing,
-    unreadable or broken."""
-    import yaml
-
+    unreadable or broken, or nests or expands aliases beyond :mod:`..safe_input`'s budgets."""
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise SceneError(f"{what} {path}: file not found") from None
+        raise SceneError(f"{what} {shown(path)}: file not found") from None
     except (OSError, UnicodeDecodeError) as exc:
-        raise SceneError(f"{what} {path}: cannot read ({exc})") from None
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        problem = getattr(exc, "problem", None) or " ".join(str(exc).split())
-        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark is not None else ""
-        raise SceneError(f"{what} {path}: broken YAML ({where}{problem})") from None
+        raise SceneError(f"{what} {shown(path)}: cannot read ({exc})") from None
+    return load_yaml(text, f"{what} {shown(path)}", SceneError)  # nesting and alias budgets
 
 
 def load_rules(path: str | Path | None) -> LabelRules:

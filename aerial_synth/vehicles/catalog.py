@@ -39,6 +39,7 @@ import numpy as np
 
 from .. import validators as v
 from ..errors import AssetError
+from ..safe_input import load_yaml, shown
 from .bodies import CAR_PROFILES
 from .model import (
     AXES,
@@ -289,16 +290,15 @@ def load_catalog(path: str | Path | None = None) -> Catalog:
     path : the catalog file; None = the bundled ``vehicle_assets/catalog.yaml``.
     Raises :class:`AssetError` (one line: file, entry, field, expected, got) on bad input.
     """
-    import yaml
 
     p = bundled_catalog_path() if path is None else Path(path)
     if not p.is_file():
         raise AssetError(f"{p}: catalog file not found")
     try:
-        data = yaml.safe_load(p.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        msg = " ".join(str(exc).split())
-        raise AssetError(f"{p}: not valid YAML: {msg}") from None
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise AssetError(f"{shown(p)}: cannot read it ({type(exc).__name__})") from None
+    data = load_yaml(text, shown(p), AssetError)  # nesting and alias budgets
     return catalog_from_mapping(data, path=p)
 
 

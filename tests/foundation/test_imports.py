@@ -155,7 +155,9 @@ def test_top_level_import_stays_light():
 #: The root package ``aerial_synth`` holds only ``__version__``.
 LAYERS = (
     ("aerial_synth", "errors", "numba_setup", "_open3d"),  # leaves: import nothing of ours
-    ("validators", "io_utils", "png", "versions"),  # field checks, atomic writes, PNG, versions
+    ("validators", "io_utils", "png", "versions", "safe_input"),  # field checks, atomic
+    # writes, PNG, versions, hostile-input guards (budgeted YAML/JSON, links, image headers)
+    ("out_guard",),  # the --out lock and refusals shared by every writing command
     ("annotate", "camera_rays"),  # mask -> oriented box; pixel rays (numba)
     ("camera",),  # pinhole model, poses
     ("scene",),  # labelled meshes, RayScene, procedural and OSM scenes, tiles
@@ -170,6 +172,7 @@ LAYERS = (
 #: ``evaluate`` stands beside the pipeline: it reads label files, so it may import only
 #: these components, and only sim2real and the cli import it.
 EVALUATE_MAY_IMPORT = {"formats", "annotate", "camera_rays", "validators", "io_utils", "png",
+                       "safe_input", "out_guard",
                        "aerial_synth", "errors", "numba_setup", "_open3d"}
 _RANK = {c: i for i, line in enumerate(LAYERS) for c in line}
 

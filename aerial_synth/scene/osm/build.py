@@ -55,7 +55,15 @@ def _project(geoms: np.ndarray, transformer, origin_xy) -> np.ndarray:
 
     def fn(xy):
         x, y = transformer.transform(xy[:, 0], xy[:, 1])
-        return np.column_stack([np.asarray(x) - ox, np.asarray(y) - oy])
+        out = np.column_stack([np.asarray(x) - ox, np.asarray(y) - oy])
+        if not np.isfinite(out).all():  # e.g. an extract spanning the globe: no one CRS holds it
+            i = int(np.argmin(np.isfinite(out).all(axis=1)))
+            crs = getattr(transformer, "target_crs", None)
+            name = crs.to_string() if hasattr(crs, "to_string") else "the projected CRS"
+            raise SceneError(
+                f"OSM extract: the point lon {xy[i, 0]:.6f}, lat {xy[i, 1]:.6f} has no finite "
+                f"coordinates in {name}; cut the extract with --bbox to one region (or give --crs)")
+        return out
 
     return shapely.transform(geoms, fn)
 
