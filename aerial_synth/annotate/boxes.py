@@ -24,12 +24,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from enum import StrEnum
 from typing import Callable, Mapping
 
 import numpy as np
 
 from ..errors import ConfigError
+from .choices import BOX_FITS, BOX_MODES, BoxFit, BoxMode
 
 __all__ = [
     "BOX_MODES",
@@ -52,24 +52,6 @@ __all__ = [
     "annotate_frame",
 ]
 
-class BoxMode(StrEnum):
-    """``--box``: the rectangle of the visible mask (the thesis) or of the whole vehicle."""
-
-    VISIBLE = "visible"
-    AMODAL = "amodal"
-
-
-class BoxFit(StrEnum):
-    """``--box-fit``: the minimum-area rectangle of the largest region's pixel centres grown
-    by 0.25 px per side (default), or of the 3 x 3-dilated contour (the thesis literally)."""
-
-    PIXELS = "pixels"
-    DILATED = "dilated"
-
-
-#: the values the CLI and configs accept, in order (:class:`BoxMode`, :class:`BoxFit`)
-BOX_MODES: tuple[str, ...] = tuple(m.value for m in BoxMode)
-BOX_FITS: tuple[str, ...] = tuple(m.value for m in BoxFit)
 STATUSES: tuple[str, ...] = ("kept", "difficult", "dropped")
 
 
