@@ -479,6 +479,19 @@ def _counts(entries: list[dict]) -> dict:
     return counts
 
 
+def _check_out_names(group) -> None:
+    """The output names of one split: each within the file system's 255 bytes (the source
+    name + tile suffix), no two alike."""
+    names = [i.out_stem for i in group]
+    for i in group:
+        if len(os.fsencode(i.out_stem)) + len(".png") > 255:
+            raise EvaluationError(f"{shown(i.src.image_path)}: the mix would name it "
+                                  f"{quote(i.out_stem)}.png, over 255 bytes; rename the source")
+    if len(set(names)) != len(names):
+        dup = sorted({n for n in names if names.count(n) > 1})[0]
+        raise EvaluationError(f"mix: two source images give the output name {dup!r}; rename one")
+
+
 def make_mix(cfg: MixConfig) -> dict:
     """Build the mix (see the module docstring); returns the manifest."""
     out = _check_out(cfg)
@@ -515,14 +528,7 @@ def make_mix(cfg: MixConfig) -> dict:
     if cfg.val in ("synthetic", "both"):
         val_items += [_Item("synthetic", s, (1.0, 1.0), (0, 0), None, f"syn-{s.name}") for s in syn_val]
     for group in (chosen, val_items):
-        names = [i.out_stem for i in group]
-        for i in group:  # the file system's limit on one name (the source name + tile suffix)
-            if len(os.fsencode(i.out_stem)) + len(".png") > 255:
-                raise EvaluationError(f"{shown(i.src.image_path)}: the mix would name it "
-                                      f"{quote(i.out_stem)}.png, over 255 bytes; rename the source")
-        if len(set(names)) != len(names):
-            dup = sorted({n for n in names if names.count(n) > 1})[0]
-            raise EvaluationError(f"mix: two source images give the output name {dup!r}; rename one")
+        _check_out_names(group)
 
     classes = list(cfg.classes) if cfg.classes is not None else sorted(
         {c for it in real_train + real_val + syn_train + syn_val for c in it.classes})
