@@ -143,3 +143,36 @@ def test_ctrl_c_starts_no_further_task(tiny_scene, tmp_path):
     assert p.returncode == 130 and err.decode().strip() == "aerial-synth: interrupted"
     assert after < 80 and after - at_signal <= 4, (at_signal, after)  # the in-flight writes only
     assert not out.exists()
+
+
+def test_a_worker_that_ignores_sigterm_is_killed_after_the_grace(monkeypatch):
+    """A pool worker blocked on the result queue's lock (held by a worker killed mid-put)
+    survives SIGTERM for good: concurrent.futures catches its SystemExit and puts again. The
+    pool's shutdown waited for it forever (a clean-clone run hung in
+    test_a_killed_pool_worker_has_its_images_rendered_again); it is now killed after
+    STOP_GRACE_S, and reported as stopped by us, not as the cause of death."""
+    import subprocess
+    import types
+
+    from aerial_synth.dataset.engines import pool as engine_pool
+
+    monkeypatch.setattr(engine_pool, "STOP_GRACE_S", 0.3)
+    stubborn = subprocess.Popen([sys.executable, "-c", "import signal, time; "
+                                 "signal.signal(signal.SIGTERM, signal.SIG_IGN); print('up', flush=True); "
+                                 "time.sleep(120)"], stdout=subprocess.PIPE)
+    polite = subprocess.Popen([sys.executable, "-c", "import time; print('up', flush=True); time.sleep(120)"],
+                              stdout=subprocess.PIPE)
+    try:
+        for p in (stubborn, polite):
+            assert p.stdout.readline().strip() == b"up"
+            p.send_signal(signal.SIGTERM)
+        procs = [types.SimpleNamespace(pid=stubborn.pid), types.SimpleNamespace(pid=polite.pid)]
+        killed = engine_pool._kill_stuck(procs)
+        assert killed == {stubborn.pid}
+        assert stubborn.wait(timeout=10) == -signal.SIGKILL
+        assert polite.wait(timeout=10) == -signal.SIGTERM
+    finally:
+        for p in (stubborn, polite):
+            p.kill()
+            p.wait()
+            p.stdout.close()

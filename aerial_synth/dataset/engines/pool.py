@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import os
 import signal
+import time
 import warnings
 from collections.abc import Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -98,7 +99,7 @@ class PoolEngine(SerialEngine):
             if broken is None:
                 pool.shutdown(wait=True)  # workers exit normally (their exit handlers run)
                 break
-            codes = _stop_pool(pool)
+            codes = _stop_pool(pool, kill_stuck=True)
             if ENTRY_POINT_EXIT in codes:  # a worker ran an unguarded script again and stopped
                 raise _not_started(workers)
             restarts += 1
@@ -133,7 +134,7 @@ def _not_started(workers, why: str = "") -> ExportError:
                        "exports must guard its entry point with if __name__ == '__main__'")
 
 
-def _stop_pool(pool) -> list:
+def _stop_pool(pool, kill_stuck: bool = False) -> list:
     """Stop a ProcessPoolExecutor's workers now: cancel what has not started, terminate the
     workers (SIGTERM: they exit normally, see :func:`init_pool_worker`), reap them;
     returns their exit codes (None: unknown). Python 3.14 has ``terminate_workers()``;
@@ -148,15 +149,57 @@ def _stop_pool(pool) -> list:
             p.terminate()  # sends SIGTERM unless the code is known (does not read it)
         except (OSError, AttributeError, ValueError):
             pass
+    # after a worker died, the others may never end on SIGTERM (see _kill_stuck); on Ctrl-C
+    # they end on their own, only later than a grace could promise, and a kill would leave
+    # numba's semaphores to the resource tracker's warning
+    killed = _kill_stuck(procs) if kill_stuck else set()
     pool.shutdown(wait=True, cancel_futures=True)
     codes = []
     for p in procs:
         try:
             p.join(timeout=5)
-            codes.append(p.exitcode)
+            # a worker killed here had been told to stop: its SIGKILL is not a cause of death
+            codes.append(-signal.SIGTERM if p.pid in killed else p.exitcode)
         except (OSError, AttributeError, ValueError, AssertionError):
             codes.append(None)
     return codes
+
+
+#: seconds a worker of a broken pool has to end after SIGTERM before it is killed
+STOP_GRACE_S = 5.0
+
+
+def _running(pid) -> bool:
+    """Whether process ``pid`` still runs (not gone, not a zombie), read from /proc without
+    reaping it (a fork-server child's exit code can be read once: the pool reads it)."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as fh:
+            return fh.read().rsplit(b")", 1)[1].split()[0] not in (b"Z", b"X")
+    except (OSError, IndexError):
+        return False
+
+
+def _kill_stuck(procs) -> set:
+    """SIGKILL the workers still running :data:`STOP_GRACE_S` after their SIGTERM; returns
+    their pids. A worker can ignore SIGTERM for good: one killed while it held the result
+    queue's lock leaves the others blocked on that lock, and concurrent.futures catches the
+    SystemExit of their SIGTERM handler and tries the same put again; the pool's shutdown then
+    waited for them forever (seen in a clean-clone run of the pool-death test)."""
+    pids = [p.pid for p in procs if getattr(p, "pid", None)]
+    if not os.path.isdir("/proc"):
+        return set()
+    deadline = time.monotonic() + STOP_GRACE_S
+    while time.monotonic() < deadline and any(_running(pid) for pid in pids):
+        time.sleep(0.02)
+    killed = set()
+    for pid in pids:
+        if _running(pid):
+            try:
+                os.kill(pid, signal.SIGKILL)
+                killed.add(pid)
+            except OSError:
+                pass
+    return killed
 
 
 def _death(codes) -> str:
