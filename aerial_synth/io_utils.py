@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import stat
 import tempfile
 from collections.abc import Iterable, Iterator
@@ -20,6 +21,7 @@ from .errors import OutputError
 
 __all__ = [
     "RawJson",
+    "replace_dir",
     "StreamedList",
     "atomic_write_bytes",
     "atomic_write_chunks",
@@ -243,3 +245,16 @@ def _json_chunks(obj: Any, level: int) -> Iterator[str]:
 def atomic_write_json(path: str | os.PathLike, obj: Any) -> Path:
     """Write ``obj`` as deterministic JSON to ``path`` atomically."""
     return atomic_write_text(path, dumps_json(obj))
+
+
+def replace_dir(tmp: Path, out: Path) -> None:
+    """Put the finished folder ``tmp`` (a sibling of ``out``) at ``out``. An existing ``out`` is
+    renamed aside first (``.NAME.XXXX.old``, what a dead run's cleanup looks for) and removed
+    after, so ``out`` is always the old folder or the new one, never a mix."""
+    if out.exists():
+        trash = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".old", dir=out.parent))
+        os.rename(out, trash / "old")
+        os.rename(tmp, out)
+        shutil.rmtree(trash, ignore_errors=True)
+    else:
+        os.rename(tmp, out)

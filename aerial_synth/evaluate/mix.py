@@ -41,7 +41,7 @@ import numpy as np
 from ..errors import EvaluationError
 from ..formats import dota, yolo_obb
 from ..formats.labels import ImageLabels
-from ..io_utils import check_output_dir, dumps_json, is_inside
+from ..io_utils import check_output_dir, dumps_json, is_inside, replace_dir
 from ..safe_input import image_file_complete, quote, read_image, shown
 from .ap import to_polygons
 from .labels import (
@@ -576,13 +576,7 @@ def make_mix(cfg: MixConfig) -> dict:
         }
         (tmp / "manifest.json").write_text(dumps_json(manifest), encoding="utf-8")
         os.chmod(tmp, 0o777 & ~_umask())
-        if out.exists():
-            trash = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".old", dir=out.parent))
-            os.rename(out, trash / "old")
-            os.rename(tmp, out)
-            shutil.rmtree(trash, ignore_errors=True)
-        else:
-            os.rename(tmp, out)
+        replace_dir(tmp, out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

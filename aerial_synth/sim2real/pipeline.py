@@ -34,6 +34,7 @@ from ..io_utils import (
     atomic_write_text,
     check_output_dir,
     is_inside,
+    replace_dir,
 )
 from . import report as rep
 from . import ultra
@@ -159,13 +160,7 @@ def run_sim2real(cfg: Sim2RealConfig) -> dict:
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)).resolve()
     try:
         report = _run(cfg, tmp, sets, gsds, items, plans, opts, device, device_name)
-        if out.exists():
-            trash = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".old", dir=out.parent))
-            os.rename(out, trash / "old")
-            os.rename(tmp, out)
-            shutil.rmtree(trash, ignore_errors=True)
-        else:
-            os.rename(tmp, out)
+        replace_dir(tmp, out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
