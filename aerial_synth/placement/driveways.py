@@ -24,11 +24,11 @@ import time
 
 import numpy as np
 
-from ..errors import ConfigError, PlacementError
+from ..errors import PlacementError
 from ..scene.model import LABEL_IDS
 from .footprints import footprint_points
 from .model import PlacedVehicle, Placement, footprint_corners_xy, with_lonlat
-from .parking import outline, place_parking
+from .parking import mix_table, outline, place_parking
 
 __all__ = ["DrivewaySite", "find_sites", "fill_sites", "place_driveways", "driveway_report"]
 
@@ -112,25 +112,6 @@ def find_sites(rayscene) -> list[DrivewaySite]:
     return sites
 
 
-def _mix(catalog, mix: dict, where: str):
-    names = {m.name: m for m in catalog.models}
-    classes = sorted({m.cls for m in catalog.models})
-    models, weights = [], []
-    for key, w in mix.items():
-        if key in names:
-            group = [names[key]]
-        elif key in classes:
-            group = [m for m in catalog.models if m.cls == key and m.weight > 0]
-        else:
-            raise ConfigError(f"{where}.{key}: unknown class or model; expected one of "
-                              f"{', '.join(classes)} or a catalog model")
-        cw = np.array([m.weight for m in group], float)
-        cw = cw / cw.sum() if cw.sum() > 0 else np.full(len(group), 1.0 / len(group))
-        models += group
-        weights += list(float(w) * cw)
-    return models, np.array(weights)
-
-
 def fill_sites(sites, catalog, rng: np.random.Generator, rayscene, first_id: int = 1,
                obstacles=None) -> tuple[list[PlacedVehicle], dict]:
     """Park vehicles in the sites' bays. Returns (vehicles, stats)."""
@@ -142,7 +123,7 @@ def fill_sites(sites, catalog, rng: np.random.Generator, rayscene, first_id: int
              "by_kind": {}}
     nid = first_id
     for site in sites:
-        models, w = _mix(catalog, site.mix, f"driveways[{site.id}].mix")
+        models, w = mix_table(catalog, site.mix, f"driveways[{site.id}].mix", in_traffic_only=True)
         stats["bays"] += len(site.bays)
         kk = stats["by_kind"].setdefault(site.kind, {"sites": 0, "vehicles": 0})
         kk["sites"] += 1

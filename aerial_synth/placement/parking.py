@@ -36,8 +36,11 @@ __all__ = ["Lot", "Kerb", "find_lots", "find_kerbs", "fill_bays", "place_parking
 
 
 # ------------------------------------------------------------------------- filling
-def _mix_table(catalog, mix: dict, field_name: str) -> tuple[list, np.ndarray]:
-    """(models, weights) of a class mix; an unknown class or model raises ConfigError."""
+def mix_table(catalog, mix: dict, field_name: str, in_traffic_only: bool = False) -> tuple[list, np.ndarray]:
+    """(models, weights) of a class mix; an unknown class or model raises ConfigError.
+
+    in_traffic_only : a class stands for its models of traffic weight > 0 only (driveways:
+                      the towed bodies, weight 0, come only when named)"""
     names = {m.name: m for m in catalog.models}
     classes = sorted({m.cls for m in catalog.models})
     models, weights = [], []
@@ -45,7 +48,7 @@ def _mix_table(catalog, mix: dict, field_name: str) -> tuple[list, np.ndarray]:
         if key in names:
             group = [names[key]]
         elif key in classes:
-            group = [m for m in catalog.models if m.cls == key]
+            group = [m for m in catalog.models if m.cls == key and (m.weight > 0 or not in_traffic_only)]
         else:
             raise ConfigError(
                 f"{field_name}.{key}: unknown class or model; expected one of {', '.join(classes)} "
@@ -59,8 +62,8 @@ def _mix_table(catalog, mix: dict, field_name: str) -> tuple[list, np.ndarray]:
 
 
 def check_mix(catalog, cfg: ParkingConfig) -> None:
-    _mix_table(catalog, cfg.mix, "parking.mix")
-    _mix_table(catalog, cfg.depot_mix, "parking.depot_mix")
+    mix_table(catalog, cfg.mix, "parking.mix")
+    mix_table(catalog, cfg.depot_mix, "parking.depot_mix")
 
 
 @dataclass
@@ -203,8 +206,8 @@ def _draw_models(catalog, cfg: ParkingConfig, bw: np.ndarray, bl: np.ndarray,
                  rng: np.random.Generator) -> np.ndarray:
     """(n,) catalog model index per bay (-1: nothing fits): the class mix among the
     vehicles that fit the bay (``depot_mix`` for bays of at least ``depot_bay_min_m``)."""
-    tables = {False: _mix_table(catalog, cfg.mix, "parking.mix"),
-              True: _mix_table(catalog, cfg.depot_mix, "parking.depot_mix")}
+    tables = {False: mix_table(catalog, cfg.mix, "parking.mix"),
+              True: mix_table(catalog, cfg.depot_mix, "parking.depot_mix")}
     model_idx = np.full(len(bw), -1)
     pos = {m.name: i for i, m in enumerate(catalog.models)}
     for key in sorted({(float(a), float(b)) for a, b in zip(bw, bl)}):
