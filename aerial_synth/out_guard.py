@@ -44,9 +44,11 @@ def lock_path(out) -> Path:
 
 
 @contextmanager
-def out_lock(out, command: str, option: str = "--out") -> Iterator[None]:
+def out_lock(out, command: str, option: str = "--out", busy: str | None = None,
+             error: type = OutputError) -> Iterator[None]:
     """Hold the exclusive lock on ``out`` for the body; a second holder is refused with
-    one line naming ``option``. The lock file is removed at the end."""
+    one line naming ``option`` (``busy``, raised as ``error``, when given). The lock file is
+    removed at the end; export's lock is this one too (dataset/output.py)."""
     try:
         import fcntl
     except ImportError:  # pragma: no cover - no flock on this platform: no lock
@@ -70,9 +72,9 @@ def out_lock(out, command: str, option: str = "--out") -> Iterator[None]:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            raise OutputError(
-                f"{option} {shown(out)}: another aerial-synth run is writing it right now; wait for "
-                f"it to finish or choose another {option}") from None
+            raise error(busy or
+                        f"{option} {shown(out)}: another aerial-synth run is writing it right now; "
+                        f"wait for it to finish or choose another {option}") from None
         try:
             yield
         finally:

@@ -25,12 +25,12 @@ from __future__ import annotations
 
 import os
 import shutil
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import ExportError, OutputError
 from ..io_utils import check_output_dir
+from ..out_guard import LOCK_SUFFIX, out_lock
 from .config import ExportConfig
 from .layout import owned_names
 from .manifest import read_manifest
@@ -40,7 +40,6 @@ __all__ = ["PARTIAL_SUFFIX", "OutputPlan", "partial_dir", "plan_output", "output
 
 PARTIAL_SUFFIX = ".aerial-synth-partial"
 OLD_SUFFIX = ".aerial-synth-old"
-LOCK_SUFFIX = ".aerial-synth-lock"
 
 
 def partial_dir(out: Path) -> Path:
@@ -159,38 +158,15 @@ def _fresh(out: Path, part: Path, into: str, shown: str) -> OutputPlan:
     return OutputPlan(out, part, "overwrite" if into == "dataset" else "new", into, fresh=True)
 
 
-@contextmanager
 def output_lock(out_dir):
     """Hold an exclusive lock on ``--out`` for an export's writing phase, so a second export
     into the same folder (or its partial build) is refused in one line instead of mixing its
-    files in. The lock is ``flock`` on ``.<name>.aerial-synth-lock`` beside ``--out``
-    (released by the kernel if the process dies; the file is removed at the end)."""
-    try:
-        import fcntl
-    except ImportError:  # pragma: no cover - no flock on this platform: no lock
-        yield
-        return
-    out = Path(os.path.realpath(out_dir))
-    lock = out.parent / f".{out.name}{LOCK_SUFFIX}"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
-    try:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            raise ExportError(
-                f"--out {out_dir}: another aerial-synth export is writing this folder right now; "
-                "wait for it to finish or choose another folder"
-            ) from None
-        try:
-            yield
-        finally:
-            try:
-                os.unlink(lock)
-            except OSError:
-                pass
-    finally:
-        os.close(fd)  # releases the lock
+    files in: :func:`aerial_synth.out_guard.out_lock` (``flock`` on
+    ``.<name>.aerial-synth-lock`` beside ``--out``, released by the kernel if the process
+    dies; the file is removed at the end), the lock every writing command takes."""
+    return out_lock(out_dir, "export", busy=f"--out {out_dir}: another aerial-synth export is writing "
+                    "this folder right now; wait for it to finish or choose another folder",
+                    error=ExportError)
 
 
 def _existing_ancestor(p: Path) -> Path:
