@@ -42,6 +42,7 @@ outputs and benchmarks keep their bytes.
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -199,6 +200,10 @@ def parse_mix(spec) -> SceneMix:
     if s in PRESETS:
         return SceneMix(_from_text(PRESETS[s], f"--scene-mix {s}"))
     p = Path(s)
+    if os.path.exists(s) and not p.is_file() and "," not in s and ":" not in s:
+        # an existing path that is not a file (/dev/null, a folder): not an entry "/dev" + "null"
+        raise ExportError(f"--scene-mix {s}: expected a YAML file, found "
+                          f"{'a folder' if p.is_dir() else 'no regular file'}")
     if p.suffix.lower() in (".yaml", ".yml") and "," not in s and ":" not in s.replace(":\\", ""):
         if not p.is_file():
             raise ExportError(f"--scene-mix {s}: file not found")

@@ -142,3 +142,11 @@ def test_every_default_entry_places_vehicles():
         s = scenes.setdefault(e.scene, load_scene(e.scene))
         pl = place(RayScene(s), e.scenario, np.random.default_rng(0), catalog=cat, scene_name=e.scene)
         assert len(pl.vehicles) > 20, e
+
+
+@pytest.mark.parametrize("path", ["/dev/null", "FOLDER"])
+def test_a_path_that_is_not_a_yaml_file_is_named_as_such(path, tmp_path):
+    """`--scene-mix /dev/null` used to read as an entry: scene '/dev', scenario 'null'."""
+    path = str(tmp_path) if path == "FOLDER" else path
+    with pytest.raises(ExportError, match=rf"--scene-mix {path}: expected a YAML file, found"):
+        parse_mix(path)
