@@ -8,6 +8,7 @@ with status 2; no traceback is shown for these.
 from __future__ import annotations
 
 __all__ = [
+    "own_warnings",
     "AerialSynthError",
     "ConfigError",
     "SceneError",
@@ -73,3 +74,11 @@ class LabelFormatError(ExportError, EvaluationError):
     what arrived). Raised by :mod:`aerial_synth.formats` for the exporter's own files and for
     real-world files read by ``eval``, ``mix``, ``stats`` and ``show``, so it is both an
     :class:`ExportError` and an :class:`EvaluationError`."""
+
+
+def own_warnings(caught) -> list[str]:
+    """The messages of the recorded warnings ``caught`` that aerial-synth raised (its warning
+    classes live in its own modules). A library's one-time import warning (open3d 0.18's
+    "built with CUDA support, but no suitable CUDA devices") reaches only the first placement
+    of a process: recorded in metadata, it made an image's meta depend on which worker made it."""
+    return [str(w.message) for w in caught if w.category.__module__.startswith("aerial_synth.")]

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..annotate.boxes import annotate_frame
 from ..camera import sample_pose_targeted
-from ..errors import ExportError
+from ..errors import ExportError, own_warnings
 from ..formats import coco, meta
 from ..formats.registry import get as get_format
 from ..io_utils import atomic_write_bytes, atomic_write_text
@@ -165,12 +165,7 @@ class ImageWorker:
         self._cameras = self._group_cameras(group, pl)
         add_placement(rs, self._visible_part(rs, pl), self.catalog,
                       simple_boxes=self.cfg.simple_vehicles)
-        # our own warnings only (PlacementWarning, SceneWarning): a library's one-time import
-        # warning (open3d's "built with CUDA support, but no suitable CUDA devices") reaches
-        # only the first placement of a process, and would make the meta depend on which
-        # worker placed which group
-        self._placement_warnings = sorted({str(w.message) for w in caught
-                                           if w.category.__module__.startswith("aerial_synth.")})
+        self._placement_warnings = sorted(set(own_warnings(caught)))  # ours only
         self._group, self._rayscene, self._placement = group, rs, pl
 
     @functools.cached_property

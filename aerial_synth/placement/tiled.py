@@ -34,7 +34,7 @@ from typing import Mapping
 
 import numpy as np
 
-from ..errors import PlacementError
+from ..errors import PlacementError, own_warnings
 from ..scene.raycast import RayScene
 from ..vehicles import load_catalog
 from .config import load_scenario
@@ -245,8 +245,7 @@ def _place_tile(job) -> dict:
             if "found no road" not in str(exc):
                 raise
             pl = None  # a tile without roads (a park, a lake) holds no vehicles
-    out = {"warnings": [str(w.message) for w in caught  # ours only (see dataset/worker.py)
-                        if w.category.__module__.startswith("aerial_synth.")], "scene_s": scene_s, "place_s": 0.0,
+    out = {"warnings": own_warnings(caught), "scene_s": scene_s, "place_s": 0.0,
            "scene_cpu_s": scene_cpu, "place_cpu_s": _cpu() - cs - scene_cpu,
            "owned": [], "placed": 0, "max_line": -1, "stats": None, "rays": 0, "casts": 0,
            "stopped_full": False}
