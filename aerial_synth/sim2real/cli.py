@@ -48,6 +48,9 @@ def register(sub) -> None:
                    help="synthetic GSD to rescale real images to (default: the export's)")
     p.add_argument("--real-gsd", type=arg_float("--real-gsd", 0.0, lo_open=True), default=None,
                    metavar="M", help="GSD of real images whose labels carry no gsd: header")
+    p.add_argument("--real-scale", default="arm", metavar="arm|native|arm,native",
+                   help="arm: rescale real images to each arm's GSD; native: predict them at their "
+                   "own pixels; both: score both ways, the first is the headline (arm)")
     p.add_argument("--real-classes", default="small-vehicle,large-vehicle", metavar="LIST|all",
                    help="real truth classes kept (small-vehicle,large-vehicle)")
     p.add_argument("--conf", type=arg_float("--conf", 0.0, 1.0, hi_open=True), default=0.001,

@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..evaluate.scoring import parse_ignore_border
-from .config import Sim2RealConfig, parse_arms
+from .config import Sim2RealConfig, parse_arms, parse_real_scale
 from .pipeline import run_sim2real
 from .report import summary_text
 from .ultra import require_train_extra
@@ -24,7 +24,8 @@ def run_command(args) -> int:
         weights=None if args.weights is None else Path(args.weights), minutes=args.minutes,
         epochs=args.epochs, imgsz=args.imgsz, device=args.device, seed=args.seed, batch=args.batch,
         workers=args.workers, tile=args.tile, overlap=args.overlap, gsd=args.gsd,
-        real_gsd=args.real_gsd, real_classes=classes, conf=args.conf, merge_iou=args.merge_iou,
+        real_gsd=args.real_gsd, real_scale=parse_real_scale(args.real_scale), real_classes=classes,
+        conf=args.conf, merge_iou=args.merge_iou,
         iou_type=args.iou_type, ignore_border=parse_ignore_border(args.ignore_border),
         group=args.group, contact_images=args.contact_images, force=args.force)
 

@@ -19,9 +19,13 @@ from ..errors import EvaluationError
 from ..evaluate.labels import IMAGE_EXTS, find_data_yaml, parse_names
 
 __all__ = ["Sim2RealError", "Arm", "SyntheticSet", "Sim2RealConfig", "parse_arm", "parse_arms",
-           "inspect_synthetic", "DEFAULT_MODEL"]
+           "inspect_synthetic", "parse_real_scale", "DEFAULT_MODEL", "REAL_SCALES"]
 
 DEFAULT_MODEL = "yolo11n-obb.yaml"
+#: how real images meet the detector: "arm" rescales each to the arm's synthetic GSD (needs
+#: every image's GSD); "native" predicts them at their own pixels (no GSD needed): what a
+#: detector meets when nobody rescales for it, and what a GSD range is meant to cover
+REAL_SCALES = ("arm", "native")
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
 
@@ -60,6 +64,15 @@ def parse_arms(values) -> tuple[Arm, ...]:
                                 f"(NAME=DIR) differently")
         seen.add(a.name)
     return tuple(arms)
+
+
+def parse_real_scale(text: str) -> tuple[str, ...]:
+    """``arm``, ``native`` or both (comma list, first = the report's headline)."""
+    vals = tuple(v.strip() for v in str(text).split(","))
+    if not vals or any(v not in REAL_SCALES for v in vals) or len(set(vals)) != len(vals):
+        raise Sim2RealError(f"--real-scale: expected arm, native or a comma list of both (first = "
+                            f"headline), got {text!r}")
+    return vals
 
 
 @dataclass(frozen=True)
@@ -158,6 +171,7 @@ class Sim2RealConfig:
     overlap: int | None = None
     gsd: float | None = None
     real_gsd: float | None = None
+    real_scale: tuple[str, ...] = ("arm",)
     real_classes: tuple[str, ...] | None = ("small-vehicle", "large-vehicle")
     conf: float = 0.001
     merge_iou: float = 0.3
@@ -197,6 +211,9 @@ class Sim2RealConfig:
         for opt, v in (("--gsd", self.gsd), ("--real-gsd", self.real_gsd)):
             if v is not None and not (np.isfinite(v) and v > 0):
                 raise Sim2RealError(f"{opt}: expected a number > 0, got {v!r}")
+        if isinstance(self.real_scale, str):
+            object.__setattr__(self, "real_scale", parse_real_scale(self.real_scale))
+        parse_real_scale(",".join(self.real_scale))
         if not (0.0 <= self.conf < 1.0):
             raise Sim2RealError(f"--conf: expected a number in [0, 1), got {self.conf!r}")
         if not (0.0 < self.merge_iou < 1.0):

@@ -89,9 +89,15 @@ def check_inputs(cfg: Sim2RealConfig):
     for k in cfg.ignore_border:
         if k is not None and k not in groups:
             raise Sim2RealError(f"--ignore-border: no group {k!r} in --real (groups: {', '.join(groups)})")
-    plans = {g: [plan_image(it, g, cfg.real_gsd, cfg.tile, cfg.overlap) for it in items]
-             for g in sorted(set(gsds.values()))}
+    targets = {t for a in cfg.arms for t in (_target(cfg, gsds, a.name, s) for s in cfg.real_scale)}
+    plans = {t: [plan_image(it, t, cfg.real_gsd, cfg.tile, cfg.overlap) for it in items]
+             for t in sorted(targets, key=lambda t: (t is not None, t or 0.0))}
     return out, sets, gsds, items, plans, opts
+
+
+def _target(cfg: Sim2RealConfig, gsds: dict, arm: str, scale: str) -> float | None:
+    """The GSD the real images are rescaled to for ``arm`` (None: kept at their own pixels)."""
+    return gsds[arm] if scale == "arm" else None
 
 
 def prepare_training_set(folder: Path, sets: list[SyntheticSet]) -> tuple[Path, int, int, bool]:
@@ -170,7 +176,7 @@ def run_sim2real(cfg: Sim2RealConfig) -> dict:
 def _run(cfg, tmp: Path, sets, gsds, items, plans, opts, device, device_name) -> dict:
     names = [g.name for g in items]
     per_class_opts = ScoringOptions(None, opts.iou_type, opts.ignore_border, opts.group)
-    arms, curves, sheets = [], {}, {}
+    arms, curves, sheets, pr_curves = [], {}, {}, {}
     for a in cfg.arms:
         arm_dir = tmp / "arms" / a.name
         data_yaml, n_train, n_val, val_is_train = prepare_training_set(arm_dir / "data", sets[a.name])
@@ -181,23 +187,25 @@ def _run(cfg, tmp: Path, sets, gsds, items, plans, opts, device, device_name) ->
                          seed=cfg.seed, batch=cfg.batch, workers=cfg.workers)
         _log(f"arm {a.name}: {tr.epochs} epochs in {tr.seconds:.0f} s; predicting {len(items)} real images")
         predictor = ultra.Predictor(tr.weights, imgsz=cfg.imgsz, device=device, conf=cfg.conf)
-        plan = plans[gsds[a.name]]
-        merged = _predict_arm(predictor, plan, cfg)
-        img_names = [n for n, (_, sc, _) in zip(names, merged) for _ in range(len(sc))]
-        xy = np.concatenate([m[0] for m in merged] or [np.zeros((0, 4, 2))])
-        sc = np.concatenate([m[1] for m in merged] or [np.zeros(0)])
-        cl = [c for m in merged for c in m[2]]
-        pred_dir = arm_dir / "predictions"
-        write_task1(pred_dir, img_names, xy, sc, cl, list(sets[a.name][0].names))
         shutil.rmtree(arm_dir / "data", ignore_errors=True)  # the mirror (links) is not output
-        # scored from the files just written: what an independent `aerial-synth eval` reads
-        dets = read_task1_folder(pred_dir, {n: i for i, n in enumerate(names)})
-        agn = score(items, dets, opts)
-        per_cls = score(items, dets, per_class_opts)
-        figs = rep.arm_real_figures(agn, per_cls)
-        c0 = rep.agnostic(agn)
+        by_scale = {}
+        for k, scale in enumerate(cfg.real_scale):  # the first is the headline
+            pred_dir = arm_dir / ("predictions" if k == 0 else f"predictions_{scale}")
+            merged = _predict_arm(predictor, plans[_target(cfg, gsds, a.name, scale)], cfg)
+            img_names = [n for n, (_, sc, _) in zip(names, merged) for _ in range(len(sc))]
+            xy = np.concatenate([m[0] for m in merged] or [np.zeros((0, 4, 2))])
+            sc = np.concatenate([m[1] for m in merged] or [np.zeros(0)])
+            cl = [c for m in merged for c in m[2]]
+            write_task1(pred_dir, img_names, xy, sc, cl, list(sets[a.name][0].names))
+            # scored from the files just written: what an independent `aerial-synth eval` reads
+            dets = read_task1_folder(pred_dir, {n: i for i, n in enumerate(names)})
+            agn = score(items, dets, opts)
+            by_scale[scale] = (pred_dir, dets, agn, rep.arm_real_figures(agn, score(items, dets, per_class_opts)))
+            label = a.name if k == 0 else f"{a.name} ({scale})"
+            pr_curves[label] = agn
+        pred_dir, dets, agn, figs = by_scale[cfg.real_scale[0]]
         curves[a.name] = agn
-        thr = rep.best_f1_threshold(c0)
+        thr = rep.best_f1_threshold(rep.agnostic(agn))
         sheets[a.name] = (dets, thr)
         if tmp not in tr.weights.resolve().parents:
             raise RuntimeError(f"Ultralytics wrote the weights outside the run folder: {tr.weights}")
@@ -209,7 +217,11 @@ def _run(cfg, tmp: Path, sets, gsds, items, plans, opts, device, device_name) ->
             "epochs": tr.epochs, "seconds": round(tr.seconds, 1),
             "synthetic_val_map50": None if tr.val_map50 is None else round(tr.val_map50, 6),
             "synthetic_val_map50_95": None if tr.val_map50_95 is None else round(tr.val_map50_95, 6),
-            "real_ap50": figs["ap50"], "real_recall": figs["recall"], "real": figs,
+            "real_scale": cfg.real_scale[0], "real_ap50": figs["ap50"], "real_recall": figs["recall"],
+            "real": figs,
+            "real_by_scale": {s: {"gsd_m": _target(cfg, gsds, a.name, s), "ap50": f["ap50"],
+                                  "recall": f["recall"], "real": f, "predictions": str(p.relative_to(tmp))}
+                              for s, (p, _, _, f) in by_scale.items()},
             "contact_sheet_score_threshold": round(thr, 6),
             "predictions": str(pred_dir.relative_to(tmp)), "weights": str(weights_rel),
         })
@@ -221,7 +233,7 @@ def _run(cfg, tmp: Path, sets, gsds, items, plans, opts, device, device_name) ->
             "weights": None if cfg.weights is None else str(cfg.weights), "minutes": cfg.minutes,
             "epochs": cfg.epochs, "imgsz": cfg.imgsz, "seed": cfg.seed, "batch": cfg.batch,
             "workers": cfg.workers, "tile": cfg.tile, "overlap": cfg.overlap, "gsd": cfg.gsd,
-            "real_gsd": cfg.real_gsd, "real_classes": None if cfg.real_classes is None else list(cfg.real_classes),
+            "real_gsd": cfg.real_gsd, "real_scale": list(cfg.real_scale), "real_classes": None if cfg.real_classes is None else list(cfg.real_classes),
             "conf": cfg.conf, "merge_iou": cfg.merge_iou, "contact_images": cfg.contact_images,
         },
         "versions": dict(aerial_synth=__version__, python=sys.version.split()[0], **ultra.versions()),
@@ -233,7 +245,7 @@ def _run(cfg, tmp: Path, sets, gsds, items, plans, opts, device, device_name) ->
         "arms": arms,
         "files": {},
     }
-    files = _write_figures(tmp, report, curves, sheets, items, cfg.contact_images)
+    files = _write_figures(tmp, report, curves, sheets, items, cfg.contact_images, pr_curves)
     files["summary"] = "summary.txt"
     files["report"] = "report.json"
     report["files"] = files
@@ -262,26 +274,30 @@ def _real_summary(cfg, items, plans, opts) -> dict:
         "dir": str(cfg.real), "images": len(items),
         "vehicles": sum(d["vehicles"] for d in by_group.values()),
         "groups": by_group,
-        "tiles_by_gsd": {f"{k:g}": sum(len(r.tiles) for r in v) for k, v in plans.items()},
+        "tiles_by_gsd": {("native" if k is None else f"{k:g}"): sum(len(r.tiles) for r in v)
+                         for k, v in plans.items()},
         "image_gsd_m": {g.name: r.gsd_m for g, r in zip(items, next(iter(plans.values())))} if plans else {},
     }
 
 
-def _write_figures(tmp: Path, report, curves, sheets, items, contact_images: int) -> dict:
+def _write_figures(tmp: Path, report, curves, sheets, items, contact_images: int, pr_curves=None) -> dict:
+    """PR charts (``pr_curves``: {label: ScoreResult}, every arm at every --real-scale; default
+    ``curves``) and one contact sheet per arm (``curves``/``sheets``: the headline scale)."""
     import cv2
 
     files = {}
     if not curves or contact_images < 0:
         return files
+    pr_curves = pr_curves or curves
     any_res = next(iter(curves.values()))
     img = rep.pr_chart("real images, class-agnostic (all groups)",
-                       {k: rep.agnostic(v) for k, v in curves.items()})
+                       {k: rep.agnostic(v) for k, v in pr_curves.items()})
     atomic_write_bytes(tmp / "pr.png", png_bytes(img))
     files["pr"] = ["pr.png"]
     for grp in any_res.groups:
         safe = "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in grp)
         img = rep.pr_chart(f"real images, class-agnostic: {grp} ({any_res.iou_type[grp]})",
-                           {k: rep.agnostic(v, grp) for k, v in curves.items()})
+                           {k: rep.agnostic(v, grp) for k, v in pr_curves.items()})
         atomic_write_bytes(tmp / f"pr_{safe}.png", png_bytes(img))
         files["pr"].append(f"pr_{safe}.png")
     # contact sheet: the image with the most vehicles of each group, then the next fullest

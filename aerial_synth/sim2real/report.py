@@ -18,7 +18,7 @@ REPORT_FIELDS = ("format", "version", "parameters", "versions", "device", "real"
 #: fields of each arm in report.json
 ARM_FIELDS = ("name", "dirs", "gsd_m", "classes", "training_images", "validation_images",
               "val_is_train", "epochs", "seconds", "synthetic_val_map50", "synthetic_val_map50_95",
-              "real_ap50", "real_recall", "real", "predictions", "weights")
+              "real_scale", "real_ap50", "real_recall", "real", "real_by_scale", "predictions", "weights")
 
 
 def agnostic(res: ScoreResult, group: str | None = None):
@@ -73,7 +73,22 @@ def summary_text(report: dict) -> str:
         lines.append(row)
     if groups:
         lines.append("(per group: AP50/recall)")
+    scales = report["parameters"].get("real_scale") or ["arm"]
+    lines.append(f"real images {_SCALE_TEXT[scales[0]]}")
+    for scale in scales[1:]:
+        lines += ["", f"the same weights, real images {_SCALE_TEXT[scale]}:"]
+        for a in report["arms"]:
+            r = a["real_by_scale"][scale]
+            row = f"{a['name'][:16]:<16} {'':>9} {'':>6} {'':>8} {'':>9} {_f(r['ap50']):>9} {_f(r['recall']):>6}"
+            for g in groups:
+                pg = r["real"]["per_group"][g]
+                row += f" {_f(pg['ap50']) + '/' + _f(pg['recall'], 2):>14}"
+            lines.append(row)
     return "\n".join(lines)
+
+
+_SCALE_TEXT = {"arm": "rescaled to each arm's synthetic GSD (--real-scale arm)",
+               "native": "at their own pixels, not rescaled (--real-scale native)"}
 
 
 def pr_chart(title: str, curves: dict) -> np.ndarray:

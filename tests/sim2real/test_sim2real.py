@@ -78,6 +78,30 @@ def test_real_without_gsd_header_names_the_file(tmp_path, capsys, extra_present)
     assert not out.exists()
 
 
+def test_native_scale_needs_no_gsd_and_keeps_pixels(tmp_path, capsys, extra_present):
+    """--real-scale native plans the real images at their own pixels (no gsd: header needed);
+    arm,native plans both; a bad value is one line and exit 2."""
+    from aerial_synth.sim2real.config import Sim2RealConfig
+    from aerial_synth.sim2real.pipeline import check_inputs
+
+    syn = write_synthetic(tmp_path / "syn", gsd=0.25)
+    real = write_real(tmp_path / "real", "nogsd", [box(10, 10, 30, 20)], header=False)
+    cfg = Sim2RealConfig(arms=parse_arms([str(syn)]), real=real, out=tmp_path / "o", epochs=1,
+                         real_scale=("native",))
+    plans = check_inputs(cfg)[4]
+    assert list(plans) == [None] and plans[None][0].scale == (1.0, 1.0)
+    assert plans[None][0].scaled_wh == plans[None][0].size_wh
+    cfg = Sim2RealConfig(arms=parse_arms([str(syn)]), real=real, out=tmp_path / "o", epochs=1,
+                         real_scale="arm,native", real_gsd=0.125)
+    plans = check_inputs(cfg)[4]
+    assert list(plans) == [None, 0.25]
+    assert plans[0.25][0].scale == (0.5, 0.5) and plans[None][0].scale == (1.0, 1.0)
+    rc, err = _run(capsys, "--synthetic", syn, "--real", real, "--out", tmp_path / "o2",
+                   "--real-scale", "arm,nat")
+    assert rc == 2 and len(err) == 1 and "--real-scale" in err[0] and "'arm,nat'" in err[0]
+    assert not (tmp_path / "o2").exists()
+
+
 def test_real_image_without_labels(tmp_path, capsys, extra_present):
     syn = write_synthetic(tmp_path / "syn")
     real = write_real(tmp_path / "real", "a", [box(10, 10, 30, 20)])
@@ -249,11 +273,28 @@ def test_summary_text_lists_every_arm_and_group():
     arm.update(name="traffic", training_images=10, epochs=3, seconds=12.5, synthetic_val_map50=0.5,
                real_ap50=0.25, real_recall=0.5,
                real={"per_group": {"minsk": {"ap50": 0.3, "recall": 0.6}, "vedai": {"ap50": None, "recall": 0.0}}})
+    native = {"ap50": 0.0625, "recall": 0.25,
+              "real": {"per_group": {"minsk": {"ap50": 0.5, "recall": 0.75}, "vedai": {"ap50": None, "recall": 0.0}}}}
+    arm["real_by_scale"] = {"arm": {"ap50": 0.25, "recall": 0.5, "real": arm["real"]}, "native": native}
     report = {k: None for k in REPORT_FIELDS}
-    report.update(arms=[arm, dict(arm, name="random", real_ap50=0.125)],
+    report.update(parameters={"real_scale": ["arm", "native"]},
+                  arms=[arm, dict(arm, name="random", real_ap50=0.125)],
                   device={"name": "CPU: test", "used": "cpu"},
                   versions={"aerial_synth": "0", "ultralytics": "8.4.190", "torch": "2"},
                   real={"dir": "r", "images": 3, "vehicles": 9}, scoring={"iou_type_by_group": {}})
     text = summary_text(report)
     assert "traffic" in text and "random" in text and "0.125" in text
     assert "minsk" in text and "0.300/0.60" in text and "-/0.00" in text
+    head, native_part = text.split("--real-scale native")
+    assert "--real-scale arm" in head and "0.062" not in head
+    assert native_part.count("0.062") == 2 and native_part.count("0.500/0.75") == 2
+
+
+def test_real_scale_option():
+    from aerial_synth.sim2real.config import parse_real_scale
+
+    assert parse_real_scale("arm") == ("arm",)
+    assert parse_real_scale("native,arm") == ("native", "arm")
+    for bad in ("", "arm,arm", "gsd", "arm,"):
+        with pytest.raises(Sim2RealError, match="--real-scale"):
+            parse_real_scale(bad)
