@@ -89,7 +89,7 @@ def _offline_cmd(args):
 
 
 SMOKE = ["--epochs", "1", "--imgsz", "128", "--device", "cpu", "--workers", "0", "--seed", "0",
-         "--conf", "0.001", "--batch", "4", "--ignore-border", "same=2"]
+         "--conf", "0.001", "--batch", "4", "--ignore-border", "same=2", "--real-scale", "arm,native"]
 
 
 @pytest.fixture(scope="module")
@@ -131,6 +131,37 @@ def test_report_holds_every_field(smoke, data):
     assert "real AP50" in summary and "8.4.190" in summary
     assert not list(out.parent.glob(".report.*")), "temporary folders left behind"
     assert not list((data[0] / "yolo-obb" / "labels").glob("*.cache")), "label cache written into the export"
+
+
+def test_native_scale_scores_the_same_weights_unscaled(smoke, data, tmp_path):
+    """--real-scale arm,native: the headline is the rescaled one; group ``same`` is at the
+    synthetic GSD, so its predictions and figures are the same both ways, while ``coarse``
+    (rescaled by 0.15 / 0.12 for the arm scale) is predicted on other pixels; eval on the
+    native prediction files gives the native figures."""
+    out, _ = smoke
+    _, real = data
+    rep = json.loads((out / "report.json").read_text())
+    assert rep["parameters"]["real_scale"] == ["arm", "native"]
+    a = rep["arms"][0]
+    by = a["real_by_scale"]
+    assert list(by) == ["arm", "native"] and a["real_scale"] == "arm"
+    assert by["arm"]["ap50"] == a["real_ap50"] and by["arm"]["gsd_m"] == a["gsd_m"]
+    assert by["native"]["gsd_m"] is None
+    assert by["native"]["predictions"].endswith("predictions_native")
+    assert by["native"]["real"]["per_group"]["same"] == by["arm"]["real"]["per_group"]["same"]
+
+    def rows(folder, group):
+        return sorted(ln for f in sorted((out / folder).glob("Task1_*.txt"))
+                      for ln in f.read_text().splitlines() if ln.startswith(group + "/"))
+    assert rows(by["arm"]["predictions"], "same") == rows(by["native"]["predictions"], "same")
+    assert rows(by["arm"]["predictions"], "coarse") != rows(by["native"]["predictions"], "coarse")
+    rc = main(["eval", "--gt", str(real), "--pred", str(out / by["native"]["predictions"]),
+               "--merge-classes", "vehicle", "--iou-type", "auto", "--ignore-border", "same=2",
+               "--out", str(tmp_path / "ev")])
+    assert rc == 0
+    ev = json.loads((tmp_path / "ev" / "eval.json").read_text())
+    assert ev["overall"]["ap"]["vehicle"] == pytest.approx(by["native"]["ap50"], abs=1e-6)
+    assert "--real-scale native" in (out / "summary.txt").read_text()
 
 
 def test_independent_rescoring_agrees(smoke, data, tmp_path, capsys):
