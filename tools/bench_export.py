@@ -95,16 +95,19 @@ def main(argv=None) -> int:
             return 2
         limit_threads(1)
 
+    from aerial_synth.camera import CameraConfig
     from aerial_synth.dataset.export import ExportConfig, export_dataset
     from aerial_synth.dataset.gsd import parse_range
+    from aerial_synth.render.config import RenderOptions
 
     gsd = None if a.gsd is None else parse_range("--gsd", a.gsd)
 
     out = Path(a.out) if a.out else Path(tempfile.mkdtemp(prefix="bench_export_")) / "ds"
     cfg = ExportConfig(scene=a.scene, scenario=a.scenario, images=a.images, formats=a.format,
                        seed=a.seed, images_per_placement=a.images_per_placement,
-                       render_preset=None if a.preset == "full" else a.preset,
-                       scene_mix=a.scene_mix, gsd_m=gsd if isinstance(gsd, float) else None,
+                       camera=CameraConfig(gsd_m=gsd if isinstance(gsd, float) else None),
+                       render=RenderOptions(preset=a.preset),
+                       scene_mix=a.scene_mix,
                        gsd_range=gsd if isinstance(gsd, tuple) else None)
     load = [round(x, 2) for x in os.getloadavg()]
     cpu0 = _cpu_s()

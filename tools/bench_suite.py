@@ -220,11 +220,13 @@ def _export(a, *engine: str, preset: str = "full", images: int | None = None) ->
 
 def _warm(a) -> None:
     """Fills numba's on-disk kernel cache, so no timed run pays a compile."""
+    from aerial_synth.camera import CameraConfig
     from aerial_synth.dataset.export import ExportConfig, export_dataset
 
     tmp = Path(tempfile.mkdtemp(prefix="bench_suite_"))
     try:
-        export_dataset(ExportConfig(scene=a.scene, images=2, formats="dota", width_px=256, height_px=256),
+        export_dataset(ExportConfig(scene=a.scene, images=2, formats="dota",
+                                    camera=CameraConfig(width_px=256, height_px=256)),
                        tmp / "warm", force=True, progress=False)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)

@@ -13,8 +13,12 @@ from ..formats.registry import names as format_names
 from ..formats.registry import parse_names
 from ..out_guard import out_lock, refuse_here
 from ..placement.config import SCENARIOS
-from ..render.cli import add_camera_args, camera_config_from_args
-from ..render.config import RANDOMISE, RENDER_PRESETS
+from ..render.cli import (
+    add_camera_args,
+    add_render_options,
+    camera_config_from_args,
+    render_options_from_args,
+)
 from ..scene.cli import add_scene_args
 from ..validators import arg_choice, arg_float, arg_int
 from .config import IMAGE_EXTS, MAX_IMAGES, ExportConfig
@@ -96,10 +100,7 @@ def register(sub) -> None:
     p.add_argument("--image-ext", type=arg_choice("--image-ext", IMAGE_EXTS), default="png",
                    metavar="|".join(IMAGE_EXTS), help="image files (png)")
     r = p.add_argument_group("rendering (docs/rendering.md)")
-    r.add_argument("--preset", type=arg_choice("--preset", RENDER_PRESETS), default="full",
-                   help="shading preset: full (every realism factor) or fast (full)")
-    r.add_argument("--randomise", type=arg_choice("--randomise", RANDOMISE),
-                   default="none", help="textures: domain-randomised materials and light (none)")
+    add_render_options(r)
     r.add_argument("--distractors", type=arg_float("--distractors", 0.0, 1000.0), default=0.0,
                    metavar="PER_HA", help="unlabelled street objects (manholes, containers, "
                    "signs, ...) per hectare; 0 = none, render's default is 6 (0)")
@@ -135,7 +136,9 @@ def _register_show(sub) -> None:
     s.set_defaults(func=_cmd_show)
 
 
-def config_from_args(args):
+def config_from_args(args) -> ExportConfig:
+    """The :class:`ExportConfig` of ``export``'s options: its camera from the shared camera
+    group, its render options from the shared render group, its boxes from BoxConfig's."""
     # --altitude and --gsd may be ranges LO:HI (dataset/gsd.py): the config keeps the range,
     # its camera the defaults (the per-image camera is drawn from the range)
     altitude_range = args.altitude if isinstance(args.altitude, tuple) else None
@@ -166,19 +169,14 @@ def config_from_args(args):
         images_per_placement=args.images_per_placement,
         n_vehicles=args.vehicles,
         n_lines=args.lines,
-        width_px=cam.width_px,
-        height_px=cam.height_px,
-        altitude_m=cam.altitude_m,
-        gsd_m=cam.gsd_m,
+        camera=cam,
         gsd_range=gsd_range,
         altitude_range=altitude_range,
         scene_mix=getattr(args, "scene_mix", None),
-        max_tilt_deg=cam.max_tilt_deg,
         box=box,
         image_ext=args.image_ext,
         simple_vehicles=args.simple_vehicles,
-        render_preset=None if args.preset == "full" else args.preset,
-        randomise=None if args.randomise == "none" else args.randomise,
+        render=render_options_from_args(args),
         distractors=args.distractors or None,
         tile_m=args.tile_m,
         margin_m=args.margin_m,

@@ -3,6 +3,13 @@
 Every field of :class:`ExportConfig` changes the exported bytes, so all go into the manifest;
 run options that do not (workers, resume, force, progress) are arguments of
 :func:`~aerial_synth.dataset.export.export_dataset` instead.
+
+The camera, the boxes and the render options are the dataclasses that own their defaults and
+checks (``camera``: :class:`~aerial_synth.camera.CameraConfig`, ``box``:
+:class:`~aerial_synth.annotate.boxes.BoxConfig`, ``render``:
+:class:`~aerial_synth.render.config.RenderOptions`), nested. The manifest keeps its flat
+parameter names (:data:`CAMERA_KEYS`, :data:`RENDER_KEYS`; :meth:`ExportConfig.to_dict`),
+so its bytes are those of every earlier version and older exports can be resumed.
 """
 
 from __future__ import annotations
@@ -16,13 +23,13 @@ from ..annotate.boxes import BoxConfig
 from ..camera import MAX_ALTITUDE_M, MAX_GSD_M, CameraConfig
 from ..errors import ConfigError, ExportError
 from ..formats.registry import parse_names
-from ..render.config import RANDOMISE, RenderConfig
-from ..render.config import RENDER_PRESETS as _RENDER_PRESETS
+from ..render.config import RenderOptions
 from .gsd import parse_range, widest_camera_config
 from .scene_mix import parse_mix
 from .seeds import PLACEMENT_STREAM
 
-__all__ = ["IMAGE_EXTS", "PLACEMENT_STREAM", "SPLITS", "ExportConfig", "ExportResult"]
+__all__ = ["CAMERA_KEYS", "IMAGE_EXTS", "PLACEMENT_STREAM", "RENDER_KEYS", "SPLITS", "ExportConfig",
+           "ExportResult"]
 
 SPLITS = ("train", "val")
 IMAGE_EXTS = ("png", "jpg")
@@ -30,12 +37,14 @@ IMAGE_EXTS = ("png", "jpg")
 #: rendering on 2 cores at 0.8 s an image): a larger dataset is several exports
 MAX_IMAGES = 1_000_000
 #: parameters that appear in the manifest only when set (added after manifest version 1)
-_OPTIONAL_FIELDS = ("bbox", "crs", "render_preset", "randomise", "distractors", "tile_m",
-                    "margin_m", "gsd_range", "altitude_range", "scene_mix")
-#: render presets and randomisation modes: the values of the enums of aerial_synth.render.config
-#: (reading a config imports no renderer)
-RENDER_PRESETS = _RENDER_PRESETS
-RANDOMISE_MODES = RANDOMISE
+_OPTIONAL_FIELDS = ("bbox", "crs", "distractors", "tile_m", "margin_m", "gsd_range",
+                    "altitude_range", "scene_mix")
+#: the manifest's names of ``camera``'s fields, in the manifest's order (an export sets no
+#: focal_px / fov_deg: its lens comes from gsd_m or a range)
+CAMERA_KEYS = ("width_px", "height_px", "altitude_m", "gsd_m", "max_tilt_deg")
+#: manifest name -> ``render``'s field; each appears only when not RenderOptions' default
+#: (added after manifest version 1)
+RENDER_KEYS = {"render_preset": "preset", "randomise": "randomise"}
 
 
 @dataclass(frozen=True)
@@ -53,18 +62,20 @@ class ExportConfig:
     seed                : dataset seed (0 is a seed like any other)
     images_per_placement: a fresh placement every K images (K >= 1)
     n_vehicles / n_lines: how much to place per placement (default: the scenario's)
-    width_px, height_px, altitude_m, gsd_m, max_tilt_deg : camera (see CameraConfig)
+    camera              : the camera (CameraConfig: width_px, height_px, altitude_m, gsd_m,
+                          max_tilt_deg; not focal_px / fov_deg); with a range, its altitude_m
+                          or gsd_m fixes the lens (aerial_synth.dataset.gsd)
     box                 : box extraction and flag thresholds (BoxConfig)
     image_ext           : "png" (lossless) or "jpg" (quality 95)
     simple_vehicles     : box meshes instead of catalog meshes (fast tests)
-    render_preset       : shading preset, "full" (default when None) or "fast"
-    randomise           : "none" (default when None) or "textures" (domain randomisation)
+    render              : shading preset ("full" or "fast") and randomise mode ("none" or
+                          "textures", domain randomisation): RenderOptions
     distractors         : distractors per hectare (manholes, containers, signs, ...; never
                           labelled), drawn once per dataset from SeedSequence([seed,
                           DISTRACTOR_KEY]); None or 0 = none
     gsd_range / altitude_range : (lo, hi) metres: each image draws its nadir GSD from the
                           range (log-uniform), the lens fixed (aerial_synth.dataset.gsd);
-                          at most one, and gsd_range not with gsd_m
+                          at most one, and gsd_range not with camera.gsd_m
     scene_mix           : placement groups draw (scene, scenario) from weighted entries
                           (aerial_synth.dataset.scene_mix); stored as its canonical text;
                           scene and scenario then only fill entries that name no scenario
@@ -86,16 +97,11 @@ class ExportConfig:
     images_per_placement: int = 10
     n_vehicles: int | None = None
     n_lines: int | None = None
-    width_px: int = CameraConfig.width_px  # the camera's defaults are CameraConfig's
-    height_px: int = CameraConfig.height_px
-    altitude_m: float = CameraConfig.altitude_m
-    gsd_m: float | None = CameraConfig.gsd_m
-    max_tilt_deg: float = CameraConfig.max_tilt_deg
+    camera: CameraConfig = field(default_factory=CameraConfig)
     box: BoxConfig = field(default_factory=BoxConfig)
     image_ext: str = "png"
     simple_vehicles: bool = False
-    render_preset: str | None = None
-    randomise: str | None = None
+    render: RenderOptions = field(default_factory=RenderOptions)
     distractors: float | None = None
     tile_m: float | None = None
     margin_m: float | None = None
@@ -122,8 +128,6 @@ class ExportConfig:
             s(self, "n_vehicles", v.integer("--vehicles", self.n_vehicles, 1, error=E))
         if self.n_lines is not None:
             s(self, "n_lines", v.integer("--lines", self.n_lines, 1, error=E))
-        s(self, "width_px", v.integer("--width", self.width_px, 1, error=E))
-        s(self, "height_px", v.integer("--height", self.height_px, 1, error=E))
         v.one_of("--image-ext", self.image_ext, IMAGE_EXTS, error=E)
         if not isinstance(self.scene, str) or not self.scene:
             raise E(f"--scene: expected a scene name or file, got {v.show(self.scene)}")
@@ -131,10 +135,12 @@ class ExportConfig:
             raise E(f"--labels: expected a label-rules file, got {v.show(self.labels)}")
         if not isinstance(self.scenario, str) or not self.scenario:
             raise E(f"--scenario: expected a scenario name or file, got {v.show(self.scenario)}")
-        if self.render_preset is not None:
-            v.one_of("--preset", self.render_preset, RENDER_PRESETS, error=E)
-        if self.randomise is not None:
-            v.one_of("--randomise", self.randomise, RANDOMISE_MODES, error=E)
+        for name, cls in (("camera", CameraConfig), ("box", BoxConfig), ("render", RenderOptions)):
+            if not isinstance(getattr(self, name), cls):  # each checks its own fields
+                raise ConfigError(f"{name}: expected a {cls.__name__}, got {type(getattr(self, name)).__name__}")
+        if self.camera.focal_px is not None or self.camera.fov_deg is not None:
+            raise E("camera: an export's lens is set by gsd_m (or a --gsd / --altitude range), "
+                    f"got focal_px {v.show(self.camera.focal_px)}, fov_deg {v.show(self.camera.fov_deg)}")
         if self.distractors is not None:
             s(self, "distractors", v.in_range("--distractors", self.distractors, 0.0, 1000.0,
                                               error=E))
@@ -147,9 +153,7 @@ class ExportConfig:
         elif self.margin_m is not None:
             raise E(f"--margin-m: only with --tile-m (a tiled export), got --margin-m {v.show(self.margin_m)}")
         self._check_ranges_and_mix()
-        if not isinstance(self.box, BoxConfig):
-            raise ConfigError(f"box: expected a BoxConfig, got {type(self.box).__name__}")
-        self.camera_config()  # the camera's bounds (aerial_synth.camera), checked now
+        self.camera_config()  # a range's widest camera within the camera's bounds, checked now
 
     def _check_ranges_and_mix(self) -> None:
         E = ExportError
@@ -166,8 +170,8 @@ class ExportConfig:
             raise E(f"--gsd and --altitude: give a range to one of them (both fix the lens), got "
                     f"--gsd {self.gsd_range[0]:g}:{self.gsd_range[1]:g} --altitude "
                     f"{self.altitude_range[0]:g}:{self.altitude_range[1]:g}")
-        if self.gsd_range is not None and self.gsd_m is not None:
-            raise E(f"--gsd: one value or one range, got gsd_m {v.show(self.gsd_m)} and gsd_range "
+        if self.gsd_range is not None and self.camera.gsd_m is not None:
+            raise E(f"--gsd: one value or one range, got gsd_m {v.show(self.camera.gsd_m)} and gsd_range "
                     f"{v.show(self.gsd_range)}")
         if self.scene_mix is not None:
             s(self, "scene_mix", parse_mix(self.scene_mix).text())
@@ -185,32 +189,30 @@ class ExportConfig:
         return {"train": self.n_train, "val": self.images - self.n_train}
 
     def camera_config(self) -> CameraConfig:
-        """The camera of every image; with a GSD or altitude range the one that sees
-        farthest (per image: :func:`aerial_synth.dataset.gsd.image_camera_config`)."""
+        """The camera every image fits in: :attr:`camera`, or with a GSD or altitude range
+        the one that sees farthest (per image:
+        :func:`aerial_synth.dataset.gsd.image_camera_config`)."""
         widest = widest_camera_config(self)
-        if widest is not None:
-            return widest
-        return CameraConfig(
-            altitude_m=self.altitude_m,
-            width_px=self.width_px,
-            height_px=self.height_px,
-            gsd_m=self.gsd_m,
-            max_tilt_deg=self.max_tilt_deg,
-        )
-
-    def render_config(self):
-        """The :class:`~aerial_synth.render.RenderConfig` of every image."""
-        return RenderConfig.preset(self.render_preset or "full",
-                                   randomise=self.randomise or "none")
+        return self.camera if widest is None else widest
 
     def to_dict(self) -> dict:
-        """Every parameter, as the manifest stores it. Fields added after the first release
-        (:data:`_OPTIONAL_FIELDS`) are left out while unset, so a dataset exported without
-        them keeps the same manifest bytes and can still be resumed."""
+        """Every parameter, as the manifest stores it: flat, under the names and in the order
+        of every earlier version (``camera``'s fields as :data:`CAMERA_KEYS`, ``render``'s as
+        :data:`RENDER_KEYS`). Fields added after the first release (:data:`_OPTIONAL_FIELDS`,
+        :data:`RENDER_KEYS`) are left out while unset or at their default, so a dataset
+        exported without them keeps the same manifest bytes and can still be resumed."""
         d = {}
         for f in fields(self):
             val = getattr(self, f.name)
             if f.name in _OPTIONAL_FIELDS and val is None:
+                continue
+            if f.name == "camera":
+                d.update((k, getattr(val, k)) for k in CAMERA_KEYS)
+                continue
+            if f.name == "render":
+                default = RenderOptions()
+                d.update((k, getattr(val, a)) for k, a in RENDER_KEYS.items()
+                         if getattr(val, a) != getattr(default, a))
                 continue
             if f.name == "box":
                 val = val.to_dict()
@@ -221,7 +223,13 @@ class ExportConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> "ExportConfig":
+        """The inverse of :meth:`to_dict` (a manifest's ``parameters``, any version)."""
         kw = dict(d)
+        kw["camera"] = CameraConfig(**{k: kw.pop(k) for k in CAMERA_KEYS if k in kw})
+        kw["render"] = RenderOptions(**{a: kw.pop(k) for k, a in RENDER_KEYS.items()
+                                        if kw.get(k) is not None})
+        for k in RENDER_KEYS:
+            kw.pop(k, None)
         kw["box"] = BoxConfig(**kw.get("box", {}))
         kw["formats"] = tuple(kw.get("formats", ()))
         return cls(**kw)

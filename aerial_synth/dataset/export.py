@@ -99,7 +99,7 @@ def validate_inputs(cfg: ExportConfig):
     catalog = load_catalog()
     scene = ImageWorker.for_config(cfg, Path(".")).scene
     if getattr(cfg, "tile_m", None) is not None:  # a capped render pad: said once, here
-        cut = export_pads(scene, cfg.render_config(), cfg.camera_config(), catalog).warning
+        cut = export_pads(scene, cfg.render.config(), cfg.camera_config(), catalog).warning
         if cut is not None:
             warnings.warn(cut, stacklevel=2)
     return scene, catalog
@@ -193,5 +193,5 @@ def _check_frame_memory(cfg: ExportConfig, processes: int | None) -> None:
     (``processes`` None: a cluster's workers run elsewhere, not checked here)."""
     if processes is None:
         return
-    check_frame_memory(cfg.width_px, cfg.height_px, max(1, min(int(processes), int(cfg.images))),
+    check_frame_memory(cfg.camera.width_px, cfg.camera.height_px, max(1, min(int(processes), int(cfg.images))),
                        error=ExportError)

@@ -132,10 +132,10 @@ class GsdRange:
         """The range of an ExportConfig (``gsd_range`` or ``altitude_range``), else None."""
         g, a = getattr(cfg, "gsd_range", None), getattr(cfg, "altitude_range", None)
         if g is not None:
-            f = float(cfg.altitude_m) / math.sqrt(g[0] * g[1])
+            f = float(cfg.camera.altitude_m) / math.sqrt(g[0] * g[1])
             return cls(f, float(g[0]), float(g[1]))
         if a is not None:
-            gsd = float(cfg.gsd_m) if cfg.gsd_m is not None else DEFAULT_GSD_M
+            gsd = float(cfg.camera.gsd_m) if cfg.camera.gsd_m is not None else DEFAULT_GSD_M
             f = math.sqrt(a[0] * a[1]) / gsd
             return cls(f, a[0] / f, a[1] / f)
         return None
@@ -156,9 +156,10 @@ class GsdRange:
 
     def camera_config(self, cfg, gsd_m: float):
         """The CameraConfig of an image at ``gsd_m``: this lens, altitude gsd x focal."""
-        return CameraConfig(altitude_m=gsd_m * self.focal_px, width_px=cfg.width_px,
-                            height_px=cfg.height_px, focal_px=self.focal_px,
-                            max_tilt_deg=cfg.max_tilt_deg)
+        cam = cfg.camera
+        return CameraConfig(altitude_m=gsd_m * self.focal_px, width_px=cam.width_px,
+                            height_px=cam.height_px, focal_px=self.focal_px,
+                            max_tilt_deg=cam.max_tilt_deg)
 
 
 #: a frame's ground footprint at nadir times this must fit in the scene for the draw to
@@ -174,7 +175,7 @@ def scene_cap_m(cfg, scene_xy_bounds) -> float | None:
         return None
     b = np.asarray(scene_xy_bounds, dtype=np.float64)
     extent = float(np.min(b[1, :2] - b[0, :2]))
-    return extent / (max(cfg.width_px, cfg.height_px) * FOOTPRINT_MARGIN)
+    return extent / (max(cfg.camera.width_px, cfg.camera.height_px) * FOOTPRINT_MARGIN)
 
 
 def image_gsd_m(cfg, index: int, scene_xy_bounds=None) -> float | None:

@@ -75,7 +75,7 @@ def is_done(cfg: ExportConfig, out: Path, index: int) -> bool:
     is made again by ``--resume``, never carried into the finished dataset."""
     if not meta_path(out, index).is_file():
         return False
-    size = (cfg.width_px, cfg.height_px)
+    size = (cfg.camera.width_px, cfg.camera.height_px)
     return all(image_file_complete(p, size) for p in image_paths(cfg, out, index)) and all(
         p.is_file() for p in label_paths(cfg, out, index).values()
     )

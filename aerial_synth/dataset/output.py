@@ -31,7 +31,8 @@ from pathlib import Path
 from ..errors import ExportError, OutputError
 from ..io_utils import check_output_dir
 from ..out_guard import LOCK_SUFFIX, out_lock
-from .config import ExportConfig
+from ..render.config import RenderOptions
+from .config import RENDER_KEYS, ExportConfig
 from .layout import owned_names
 from .manifest import read_manifest
 
@@ -76,7 +77,14 @@ def _dir_state(p: Path) -> str:
 
 
 def _param_diff(old: dict | None, new: dict) -> list[str]:
-    old = old or {}
+    """The parameters a manifest's ``old`` and this run's ``new`` (``ExportConfig.to_dict``)
+    disagree on. A render option an earlier version wrote at its default (an
+    ``ExportConfig(render_preset="full")`` made in Python) matches its absence."""
+    old = dict(old) if isinstance(old, dict) else {}
+    default = RenderOptions()
+    for key, name in RENDER_KEYS.items():
+        if key in old and old[key] == getattr(default, name):
+            del old[key]
     return sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
 
 

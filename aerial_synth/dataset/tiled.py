@@ -333,7 +333,7 @@ class GroupPlacer:
         self.reach = float(math.ceil(camera_reach_m(cfg.camera_config())))
         # a capped pad is in every image's placement warnings; the exporter prints it once
         # (validate_inputs), not every worker
-        self.pads = export_pads(world, cfg.render_config(), cfg.camera_config(), catalog)
+        self.pads = export_pads(world, cfg.render.config(), cfg.camera_config(), catalog)
         if len(grid) * self.stride > MAX_ID:
             raise ExportError(
                 f"--tile-m: {len(grid)} tiles of up to {self.stride - 1} vehicles each cannot be "

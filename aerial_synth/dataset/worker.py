@@ -130,7 +130,7 @@ class ImageWorker:
 
     @functools.cached_property
     def render_config(self):
-        return self.cfg.render_config()
+        return self.cfg.render.config()
 
     @property
     def catalog(self):

@@ -34,9 +34,10 @@ from ..scene.raycast import RayScene
 from ..validators import arg_choice, arg_float, arg_int
 from . import backends
 from .budget import check_frame_memory
-from .config import RANDOMISE, RENDER_PRESETS, Backend, RenderConfig
+from .config import RANDOMISE, RENDER_PRESETS, Backend, RenderOptions
 
-__all__ = ["register", "add_camera_args", "camera_config_from_args", "run"]
+__all__ = ["register", "add_camera_args", "camera_config_from_args", "add_render_options",
+           "render_options_from_args", "run"]
 
 PLACEMENT_KEY = 0x504C  # "PL"
 
@@ -92,6 +93,24 @@ def camera_config_from_args(args) -> CameraConfig:
     )
 
 
+def add_render_options(p) -> None:
+    """``--preset`` and ``--randomise`` of every command that renders (a parser or an argument
+    group): the choices are the values of :class:`~.config.Preset` and
+    :class:`~.config.Randomise`, the defaults :class:`~.config.RenderOptions`'."""
+    d = RenderOptions()
+    p.add_argument("--preset", type=arg_choice("--preset", RENDER_PRESETS), default=d.preset,
+                   help="shading preset: full (every realism factor) or fast (no ambient "
+                   f"occlusion or sun-disk sampling, coarser shadow rays) ({d.preset})")
+    p.add_argument("--randomise", type=arg_choice("--randomise", RANDOMISE), default=d.randomise,
+                   help="domain randomisation: textures = random material, sun and sky "
+                   f"colours (Tobin et al. 2017), a style to mix with realistic frames ({d.randomise})")
+
+
+def render_options_from_args(args) -> RenderOptions:
+    """The :class:`~.config.RenderOptions` of the options :func:`add_render_options` added."""
+    return RenderOptions(preset=args.preset, randomise=args.randomise)
+
+
 def register(sub) -> None:
     p = sub.add_parser(
         "render",
@@ -124,13 +143,7 @@ def register(sub) -> None:
                    help="depth as float32 metres .npy or 16-bit centimetre PNG (npy)")
     p.add_argument("--backend", type=arg_choice("--backend", tuple(b.value for b in Backend)),
                    default="raycast", help="RGB backend (labels always come from ray casting)")
-    p.add_argument("--preset", type=arg_choice("--preset", RENDER_PRESETS), default="full",
-                   help="shading preset: full (every realism factor) or fast (no ambient "
-                   "occlusion or sun-disk sampling, coarser shadow rays) (full)")
-    p.add_argument("--randomise", type=arg_choice("--randomise", RANDOMISE),
-                   default="none",
-                   help="domain randomisation: textures = random material, sun and sky "
-                   "colours (Tobin et al. 2017), a style to mix with realistic frames (none)")
+    add_render_options(p)
     p.add_argument("--distractors", type=arg_float("--distractors", 0.0, 1000.0), default=6.0,
                    metavar="PER_HA",
                    help="manholes, containers, dumpsters, road signs and benches per hectare, "
@@ -158,11 +171,10 @@ def run(args) -> int:
 
     # validate everything cheap before loading or writing anything
     cam_cfg = camera_config_from_args(args)
-    kw = {"backend": args.backend, "shadows": not args.no_shadows,
-          "randomise": args.randomise}
+    kw = {"backend": args.backend, "shadows": not args.no_shadows}
     if args.jpeg_probability is not None:
         kw["jpeg_probability"] = args.jpeg_probability
-    rcfg = RenderConfig.preset(args.preset, **kw)
+    rcfg = render_options_from_args(args).config(**kw)
     check_frame_memory(cam_cfg.width_px, cam_cfg.height_px)  # before a 30 GB frame is OOM-killed
     _check_args(args)
     out = check_output_dir(args.out, "--out")

@@ -3,7 +3,9 @@ its named presets, and :func:`sample_factors`, which draws one frame's factors.
 
 The choices the CLI offers are enums here, defined once: :class:`Preset` (``--preset``),
 :class:`Randomise` (``--randomise``) and :class:`Backend` (``--backend``, the built-in
-render backends of :mod:`.backends`). Reading a config imports no renderer.
+render backends of :mod:`.backends`). :class:`RenderOptions` is what a command picks by
+name (a preset and a randomise mode, with their defaults): ``render``'s options and
+``ExportConfig.render``. Reading a config imports no renderer.
 """
 
 from __future__ import annotations
@@ -18,8 +20,8 @@ from ..scene.model import MATERIALS
 from ..validators import boolean, in_range, integer, known_keys, one_of, probability
 from . import backends
 
-__all__ = ["Backend", "Preset", "Randomise", "RenderConfig", "PRESETS", "RENDER_PRESETS", "RANDOMISE",
-           "SHADOW_EDGES", "sample_factors"]
+__all__ = ["Backend", "Preset", "Randomise", "RenderConfig", "RenderOptions", "PRESETS",
+           "RENDER_PRESETS", "RANDOMISE", "SHADOW_EDGES", "sample_factors"]
 
 
 class Preset(StrEnum):
@@ -191,6 +193,32 @@ class RenderConfig:
         known_keys("render config", data, [f.name for f in fields(cls)])
         kw = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
         return cls(**kw)
+
+
+@dataclass(frozen=True)
+class RenderOptions:
+    """The render options a command picks by name (validated at construction; a bad value
+    raises :class:`ConfigError`): the one home of their defaults.
+
+    preset    : shading preset, a :class:`Preset` value (``"full"``, every realism factor)
+    randomise : a :class:`Randomise` value (``"none"``: realistic)
+
+    Members of the enums are stored as their text. :meth:`config` is the
+    :class:`RenderConfig` they name."""
+
+    preset: str = Preset.FULL.value
+    randomise: str = RenderConfig.randomise  # RenderConfig's own default ("none")
+
+    def __post_init__(self) -> None:
+        one_of("render preset", self.preset, RENDER_PRESETS)
+        one_of("render randomise", self.randomise, RANDOMISE)
+        object.__setattr__(self, "preset", str(self.preset))
+        object.__setattr__(self, "randomise", str(self.randomise))
+
+    def config(self, **overrides) -> RenderConfig:
+        """The :class:`RenderConfig` of this preset and randomise mode, with keyword
+        overrides (``backend``, ``shadows``, ...)."""
+        return RenderConfig.preset(self.preset, **{"randomise": self.randomise, **overrides})
 
 
 def sample_factors(cfg: RenderConfig, rng: np.random.Generator) -> dict:

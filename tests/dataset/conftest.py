@@ -14,11 +14,13 @@ def tiny_scene(tmp_path_factory) -> str:
 def small_export(tmp_path_factory, tiny_scene: str, name: str, images: int, formats: str, seed: int):
     """A tiny 1-worker export on ``tiny_scene`` (128 px frames, box vehicles, 2 images per
     placement, half train): (config, its folder)."""
+    from aerial_synth.camera import CameraConfig
     from aerial_synth.dataset.export import ExportConfig, export_dataset
 
     out = tmp_path_factory.mktemp(name) / "ds"
     cfg = ExportConfig(scene=tiny_scene, images=images, formats=formats, split=0.5, seed=seed,
-                       images_per_placement=2, n_vehicles=10, width_px=128, height_px=128,
+                       images_per_placement=2, n_vehicles=10,
+                       camera=CameraConfig(width_px=128, height_px=128),
                        simple_vehicles=True)
     export_dataset(cfg, out, workers=1, progress=False)
     return cfg, out

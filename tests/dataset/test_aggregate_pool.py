@@ -43,8 +43,8 @@ def pool_for_all(monkeypatch):
 def _widen(cfg, out, dst, n=N, split=None, no_vehicles=()):
     """An export of ``n`` images made of copies of ``out``'s meta files (index, name and split
     set as an n-image export would have them); the images ``no_vehicles`` have none."""
-    fields = ("scene", "formats", "split", "seed", "images_per_placement", "n_vehicles", "width_px",
-              "height_px", "simple_vehicles")
+    fields = ("scene", "formats", "split", "seed", "images_per_placement", "n_vehicles", "camera",
+              "simple_vehicles")
     wide = ExportConfig(**{**{f: getattr(cfg, f) for f in fields}, "images": n,
                            **({} if split is None else {"split": split})})
     src = [json.loads(meta_path(out, i).read_text()) for i in range(cfg.images)]
@@ -244,7 +244,7 @@ import sys
 from aerial_synth.dataset import aggregate
 from aerial_synth.dataset.export import ExportConfig
 aggregate.POOL_MIN_RECORDS = aggregate.PASS_MIN_RECORDS = 1
-cfg = ExportConfig(**{CFG})
+cfg = ExportConfig.from_dict({CFG})
 aggregate.write_aggregates(cfg, sys.argv[1], workers=2)
 print("written in", __name__)
 """
@@ -258,9 +258,7 @@ def test_a_script_without_a_main_guard_still_gets_its_files(small_export, tmp_pa
     write_aggregates(wide, tmp_path / "ref", workers=1)
     _widen(cfg, out, tmp_path / "script")
     script = tmp_path / "export_script.py"
-    fields = {f: getattr(wide, f) for f in ("scene", "formats", "split", "seed", "images_per_placement",
-                                            "n_vehicles", "width_px", "height_px", "simple_vehicles", "images")}
-    script.write_text(_UNGUARDED.replace("{CFG}", repr(fields)))
+    script.write_text(_UNGUARDED.replace("{CFG}", repr(wide.to_dict())))
     env = {"PYTHONPATH": str(REPO), "PATH": "/usr/bin:/bin"}
     res = subprocess.run([sys.executable, str(script), str(tmp_path / "script")], capture_output=True,
                          text=True, timeout=120, env=env)
@@ -273,10 +271,11 @@ def test_a_script_without_a_main_guard_still_gets_its_files(small_export, tmp_pa
 
 _UNGUARDED_EXPORT = """
 import sys
+from aerial_synth.camera import CameraConfig
 from aerial_synth.dataset.export import ExportConfig, export_dataset
 from aerial_synth.errors import ExportError
-cfg = ExportConfig(scene="city_park", scenario="jam", images=4, formats="dota", width_px=64,
-                   height_px=64)
+cfg = ExportConfig(scene="city_park", scenario="jam", images=4, formats="dota",
+                   camera=CameraConfig(width_px=64, height_px=64))
 try:
     export_dataset(cfg, sys.argv[1], workers=2, force=True, progress=False)
 except ExportError as exc:

@@ -30,7 +30,7 @@ def _widen(cfg, out, dst, n=N):
     as an n-image export would have them)."""
     wide = ExportConfig(**{**{f: getattr(cfg, f) for f in ("scene", "formats", "split", "seed",
                                                             "images_per_placement", "n_vehicles",
-                                                            "width_px", "height_px", "simple_vehicles")},
+                                                            "camera", "simple_vehicles")},
                            "images": n})
     src = [json.loads(meta_path(out, i).read_text()) for i in range(cfg.images)]
     for i in range(n):

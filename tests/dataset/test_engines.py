@@ -5,6 +5,7 @@ import warnings
 
 import pytest
 
+from aerial_synth.camera import CameraConfig
 from aerial_synth.dataset import engines
 from aerial_synth.dataset.engines.dask import DaskEngine
 from aerial_synth.dataset.engines.pool import PoolEngine
@@ -45,7 +46,8 @@ def test_toy_engine_exports_the_serial_bytes(tiny_scene, tmp_path, toy_engine):
         warnings.simplefilter("ignore")  # without a GPU); the first placement group would
         import open3d  # noqa: F401          record it: import it before either export
     cfg = ExportConfig(scene=tiny_scene, images=4, formats="dota,yolo-obb", split=0.5, seed=5,
-                       images_per_placement=2, n_vehicles=8, width_px=96, height_px=96,
+                       images_per_placement=2, n_vehicles=8,
+                       camera=CameraConfig(width_px=96, height_px=96),
                        simple_vehicles=True)
     export_dataset(cfg, tmp_path / "serial", progress=False)
     res = export_dataset(cfg, tmp_path / "toy", engine="toy-reverse", progress=False)

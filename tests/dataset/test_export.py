@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from aerial_synth.annotate import shoelace_area
+from aerial_synth.camera import CameraConfig
 from aerial_synth.dataset.export import ExportConfig, export_dataset
 from aerial_synth.errors import ExportError
 from aerial_synth.formats import dota, eagle, meta, yolo_obb
@@ -21,7 +22,8 @@ ALL = "dota,eagle,yolo-obb,coco"
 
 def _cfg(scene, **kw):
     base = dict(scene=scene, images=4, formats=ALL, split=0.5, seed=3, images_per_placement=2,
-                n_vehicles=10, width_px=256, height_px=256, simple_vehicles=True)
+                n_vehicles=10,
+                camera=CameraConfig(width_px=256, height_px=256), simple_vehicles=True)
     base.update(kw)
     return ExportConfig(**base)
 
@@ -532,7 +534,8 @@ def test_show_out_inside_dataset_refused(exported, tmp_path, where):
 
 def test_show_jpeg_dataset_and_truncated_jpeg(tiny_scene, tmp_path):
     ds = tmp_path / "ds"
-    export_dataset(_cfg(tiny_scene, images=1, formats="dota", image_ext="jpg", width_px=96, height_px=96),
+    export_dataset(_cfg(tiny_scene, images=1, formats="dota", image_ext="jpg",
+                   camera=CameraConfig(width_px=96, height_px=96)),
                    ds, progress=False)
     r = run_cli("show", ds, "--out", tmp_path / "prev")
     assert r.returncode == 0, r.stderr

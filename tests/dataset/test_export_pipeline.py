@@ -8,6 +8,7 @@ import time
 
 import pytest
 
+from aerial_synth.camera import CameraConfig
 from aerial_synth.dataset import worker as W
 from aerial_synth.dataset.engines.pool import init_pool_worker
 from aerial_synth.dataset.export import ExportConfig
@@ -18,7 +19,8 @@ from .conftest import tree_bytes
 
 def _cfg(scene, **kw):
     base = dict(scene=scene, images=4, formats="dota,coco", split=0.5, seed=11, images_per_placement=2,
-                n_vehicles=8, width_px=128, height_px=128, simple_vehicles=True)
+                n_vehicles=8,
+                camera=CameraConfig(width_px=128, height_px=128), simple_vehicles=True)
     base.update(kw)
     return ExportConfig(**base)
 
@@ -162,7 +164,8 @@ def test_group_builds_only_the_vehicles_its_cameras_can_see(tmp_path, monkeypatc
     from aerial_synth.scene.raycast import RayScene
 
     cfg = ExportConfig(scene="city_park", scenario="jam", images=4, images_per_placement=4,
-                       seed=5, n_vehicles=400, width_px=512, height_px=512, altitude_m=30.0)
+                       seed=5, n_vehicles=400,
+                       camera=CameraConfig(width_px=512, height_px=512, altitude_m=30.0))
     w = W.ImageWorker(cfg, tmp_path)
     w._ensure_group(0)
     pl, rs = w._placement, w._rayscene

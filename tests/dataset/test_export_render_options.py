@@ -7,16 +7,20 @@ import json
 
 import pytest
 
+from aerial_synth.camera import CameraConfig
+from aerial_synth.dataset.config import RENDER_KEYS
 from aerial_synth.dataset.export import ExportConfig, export_dataset
 from aerial_synth.dataset.worker import _load_scene
-from aerial_synth.errors import ExportError
+from aerial_synth.errors import ConfigError, ExportError
+from aerial_synth.render.config import RenderOptions
 
 from .conftest import tree_bytes
 
 
 def _cfg(scene, **kw):
     base = dict(scene=scene, images=2, formats="dota,yolo-obb", split=0.5, seed=5,
-                images_per_placement=2, n_vehicles=8, width_px=192, height_px=192,
+                images_per_placement=2, n_vehicles=8,
+                camera=CameraConfig(width_px=192, height_px=192),
                 simple_vehicles=True)
     base.update(kw)
     return ExportConfig(**base)
@@ -44,13 +48,15 @@ def test_unset_options_stay_out_of_the_manifest(plain):
 
 
 def test_fast_preset_and_randomised_textures_change_pixels_not_labels(plain, tiny_scene, tmp_path):
-    for kw in ({"render_preset": "fast"}, {"randomise": "textures"}):
-        out = tmp_path / next(iter(kw))
-        export_dataset(_cfg(tiny_scene, **kw), out, workers=1, progress=False)
+    for key, render in (("render_preset", RenderOptions(preset="fast")),
+                        ("randomise", RenderOptions(randomise="textures"))):
+        out = tmp_path / key
+        export_dataset(_cfg(tiny_scene, render=render), out, workers=1, progress=False)
         assert _labels(out) == _labels(plain)
         assert _images(out) != _images(plain)
         cfg = json.loads((out / "manifest.json").read_text())["parameters"]
-        assert cfg[next(iter(kw))] == next(iter(kw.values()))
+        assert cfg[key] == getattr(render, RENDER_KEYS[key])  # the manifest's flat name
+        assert [k for k in cfg if k in RENDER_KEYS] == [key]  # the other one at its default
 
 
 def test_distractors_are_in_the_scene_and_never_labelled(tiny_scene, tmp_path):
@@ -74,10 +80,18 @@ def test_distractors_are_in_the_scene_and_never_labelled(tiny_scene, tmp_path):
 
 
 @pytest.mark.parametrize("kw, field", [
-    ({"render_preset": "slow"}, "--preset"), ({"randomise": "all"}, "--randomise"),
     ({"distractors": -1}, "--distractors"), ({"distractors": float("nan")}, "--distractors"),
     ({"images": 1_000_001}, "--images"), ({"images": 10**20}, "--images"),
 ])
 def test_bad_render_options_are_one_line(tiny_scene, kw, field):
     with pytest.raises(ExportError, match=f"^{field}: expected"):
         _cfg(tiny_scene, **kw)
+
+
+@pytest.mark.parametrize("kw, field", [({"preset": "slow"}, "render preset"),
+                                       ({"randomise": "all"}, "render randomise")])
+def test_bad_render_choices_are_refused_by_render_options(kw, field):
+    """The checks live in RenderOptions, once (ExportConfig nests it)."""
+    with pytest.raises(ConfigError, match=f"^{field}: expected one of") as exc:
+        RenderOptions(**kw)
+    assert "\n" not in str(exc.value)

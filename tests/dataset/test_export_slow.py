@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from aerial_synth.camera import CameraConfig
 from aerial_synth.dataset.export import ExportConfig, export_dataset
 from aerial_synth.formats import dota
 
@@ -12,7 +13,8 @@ from .conftest import tree_bytes
 @pytest.mark.slow
 def test_city_park_jam_all_formats_two_workers(tmp_path):
     cfg = ExportConfig(scene="city_park", scenario="jam", images=4, formats="dota,eagle,yolo-obb,coco",
-                       images_per_placement=2, width_px=512, height_px=512, seed=1)
+                       images_per_placement=2,
+                       camera=CameraConfig(width_px=512, height_px=512), seed=1)
     r1 = export_dataset(cfg, tmp_path / "a", workers=1, progress=False)
     export_dataset(cfg, tmp_path / "b", workers=2, progress=False)
     a, b = tree_bytes(tmp_path / "a"), tree_bytes(tmp_path / "b")

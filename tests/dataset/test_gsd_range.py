@@ -7,11 +7,13 @@ import math
 import numpy as np
 import pytest
 
+from aerial_synth.camera import CameraConfig
 from aerial_synth.dataset.export import ExportConfig, export_dataset
 from aerial_synth.dataset.gsd import GsdRange, image_camera_config, image_gsd_m, parse_range
 from aerial_synth.errors import ExportError
 from aerial_synth.evaluate.stats import dataset_stats
 from aerial_synth.formats import dota, meta
+from aerial_synth.render.config import RenderOptions
 
 from .conftest import run_cli, tree_bytes
 
@@ -69,7 +71,7 @@ def test_range_keeps_the_lens_and_moves_the_camera():
     assert r.focal_px == pytest.approx(60.0 / 0.12)
     assert (r.gsd_lo_m, r.gsd_hi_m) == pytest.approx((0.06, 0.24))
     # no range: the plain camera, byte-identical exports as before
-    cfg = ExportConfig(gsd_m=0.1)
+    cfg = ExportConfig(camera=CameraConfig(gsd_m=0.1))
     assert GsdRange.of(cfg) is None and image_gsd_m(cfg, 0) is None
     assert image_camera_config(cfg, 3) == cfg.camera_config()
 
@@ -78,7 +80,7 @@ def test_config_refuses_conflicts_and_round_trips():
     with pytest.raises(ExportError, match="give a range to one of them"):
         ExportConfig(gsd_range=(0.05, 0.3), altitude_range=(30, 90))
     with pytest.raises(ExportError, match="one value or one range"):
-        ExportConfig(gsd_range=(0.05, 0.3), gsd_m=0.1)
+        ExportConfig(gsd_range=(0.05, 0.3), camera=CameraConfig(gsd_m=0.1))
     with pytest.raises(ExportError, match="LO < HI"):
         ExportConfig(gsd_range=(0.3, 0.05))
     cfg = ExportConfig(gsd_range=[0.05, 0.3])
@@ -106,8 +108,10 @@ def test_cli_bad_ranges_one_line_exit_2(tmp_path, args, says):
 
 def _ranged(scene, **kw):
     base = dict(scene=scene, images=6, formats="dota,eagle", split=0.5, seed=7,
-                images_per_placement=2, n_vehicles=10, width_px=128, height_px=128,
-                simple_vehicles=True, render_preset="fast", gsd_range=(0.05, 0.3))
+                images_per_placement=2, n_vehicles=10,
+                camera=CameraConfig(width_px=128, height_px=128),
+                render=RenderOptions(preset="fast"),
+                simple_vehicles=True, gsd_range=(0.05, 0.3))
     base.update(kw)
     return ExportConfig(**base)
 
@@ -156,8 +160,9 @@ def test_median_car_length_in_metres_is_the_same_at_every_gsd(tiny_scene, tmp_pa
     for gsd, px in ((0.05, 600), (0.12, 250), (0.3, 100)):
         out = tmp_path / f"g{gsd}"
         cfg = ExportConfig(scene=tiny_scene, images=4, seed=3, images_per_placement=2,
-                           n_vehicles=10, width_px=px, height_px=px, gsd_m=gsd,
-                           simple_vehicles=True, render_preset="fast")
+                           n_vehicles=10, camera=CameraConfig(width_px=px, height_px=px, gsd_m=gsd),
+                           render=RenderOptions(preset="fast"),
+                           simple_vehicles=True)
         export_dataset(cfg, out, workers=1, progress=False)
         summary, arrays, _ = dataset_stats(out, classes=("small-vehicle",))
         assert summary["gsd_m"]["median"] == pytest.approx(gsd, rel=1e-4)

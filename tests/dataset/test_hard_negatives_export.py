@@ -11,7 +11,7 @@ import pytest
 import shapely
 import yaml
 
-from aerial_synth.camera import Camera
+from aerial_synth.camera import Camera, CameraConfig
 from aerial_synth.dataset.export import ExportConfig, export_dataset
 from aerial_synth.scene import load_scene
 
@@ -28,8 +28,9 @@ def export(tmp_path_factory):
     f = d / "res_neg.yaml"
     f.write_text(yaml.safe_dump(spec))
     cfg = ExportConfig(scene=str(f), scenario="residential", images=2, formats="dota,eagle,yolo-obb,coco",
-                       split=0.5, seed=1, images_per_placement=2, width_px=256, height_px=256,
-                       gsd_m=0.3, simple_vehicles=True)
+                       split=0.5, seed=1, images_per_placement=2,
+                       camera=CameraConfig(width_px=256, height_px=256, gsd_m=0.3),
+                       simple_vehicles=True)
     out = d / "ds"
     export_dataset(cfg, out, workers=1, progress=False)
     return out, load_scene(f)

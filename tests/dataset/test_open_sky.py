@@ -5,6 +5,7 @@ import json
 
 import numpy as np
 
+from aerial_synth.camera import CameraConfig
 from aerial_synth.dataset import worker as worker_mod
 from aerial_synth.dataset.export import ExportConfig, export_dataset
 from aerial_synth.scene import load_scene
@@ -40,8 +41,9 @@ def _centres_under_deck(scene_path, out) -> list[bool]:
 def _cfg(scene):
     # 12 m up, tilted up to 35 deg: a camera aimed at the north-south road can sit 8 m west
     return ExportConfig(scene=scene, images=16, formats="dota", seed=1, images_per_placement=8,
-                        n_vehicles=12, width_px=64, height_px=64, gsd_m=0.1, altitude_m=12.0,
-                        max_tilt_deg=35.0, simple_vehicles=True)
+                        n_vehicles=12,
+                        camera=CameraConfig(width_px=64, height_px=64, gsd_m=0.1, altitude_m=12.0, max_tilt_deg=35.0),
+                        simple_vehicles=True)
 
 
 def test_low_cameras_are_redrawn_out_from_under_a_building(tmp_path, monkeypatch):

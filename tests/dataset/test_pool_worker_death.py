@@ -12,6 +12,7 @@ import warnings
 
 import pytest
 
+from aerial_synth.camera import CameraConfig
 from aerial_synth.dataset.engines.pool import MAX_POOL_RESTARTS
 from aerial_synth.dataset.export import ExportConfig, export_dataset
 from aerial_synth.errors import ExportError
@@ -24,7 +25,8 @@ pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="re
 
 def _cfg(scene: str, images: int = 24) -> ExportConfig:
     return ExportConfig(scene=scene, images=images, formats="dota", split=0.5, seed=3,
-                        images_per_placement=2, n_vehicles=10, width_px=128, height_px=128,
+                        images_per_placement=2, n_vehicles=10,
+                        camera=CameraConfig(width_px=128, height_px=128),
                         simple_vehicles=True)
 
 

@@ -6,6 +6,7 @@ import json
 
 import pytest
 
+from aerial_synth.camera import CameraConfig
 from aerial_synth.dataset.export import ExportConfig, export_dataset
 from aerial_synth.errors import ExportError
 from aerial_synth.formats import registry
@@ -48,7 +49,8 @@ def test_register_refuses_bad_names_and_duplicates(count_format):
 @pytest.mark.parametrize("workers", [1, pytest.param(2, marks=pytest.mark.slow)])
 def test_export_with_a_registered_test_format(count_format, tiny_scene, tmp_path, workers):
     cfg = ExportConfig(scene=tiny_scene, images=3, formats="count,dota", split=0.7, seed=2,
-                       images_per_placement=2, n_vehicles=8, width_px=160, height_px=120,
+                       images_per_placement=2, n_vehicles=8,
+                       camera=CameraConfig(width_px=160, height_px=120),
                        simple_vehicles=True)
     assert cfg.formats == ("dota", "count")
     out = tmp_path / "ds"
@@ -86,8 +88,6 @@ def test_unregistered_format_refused(tiny_scene):
     (dict(formats=("dota", "kitti")), "unknown format 'kitti'"),
     (dict(split=0), "--split"),
     (dict(split=float("nan")), "--split"),
-    (dict(width_px=0), "--width"),
-    (dict(height_px=2.5), "--height"),
     (dict(n_vehicles=0), "--vehicles"),
     (dict(n_lines=-1), "--lines"),
     (dict(seed=-1), "--seed"),
@@ -116,8 +116,9 @@ def test_one_module_plus_one_registry_line(monkeypatch, tiny_scene, tmp_path):
     monkeypatch.setattr(registry, "_LOADED", dict(registry._LOADED))
     assert "count" in registry.names()
     assert isinstance(registry.get("count"), CountFormat)
-    cfg = ExportConfig(scene=tiny_scene, images=1, formats="count", seed=1, n_vehicles=6, width_px=96,
-                       height_px=96, simple_vehicles=True)
+    cfg = ExportConfig(scene=tiny_scene, images=1, formats="count", seed=1, n_vehicles=6,
+                       camera=CameraConfig(width_px=96, height_px=96),
+                       simple_vehicles=True)
     out = tmp_path / "ds"
     export_dataset(cfg, out, progress=False)
     assert sorted(p.name for p in out.iterdir()) == ["count", "manifest.json", "meta", "summary.json"]

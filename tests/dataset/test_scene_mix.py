@@ -6,10 +6,12 @@ import json
 import numpy as np
 import pytest
 
+from aerial_synth.camera import CameraConfig
 from aerial_synth.dataset.export import ExportConfig, export_dataset
 from aerial_synth.dataset.scene_mix import PRESETS, MixEntry, SceneMix, check_names, parse_mix
 from aerial_synth.errors import ExportError
 from aerial_synth.formats import meta
+from aerial_synth.render.config import RenderOptions
 
 from ..helpers import write_crossing_obj
 from .conftest import run_cli
@@ -110,8 +112,10 @@ def test_mixed_export_records_each_groups_scene_and_scenario(tmp_path):
     b = write_crossing_obj(tmp_path / "b.obj", 50)
     mix = f"{a}/jam:1,{b}/normal:1"
     cfg = ExportConfig(scene_mix=mix, images=6, formats="dota", split=0.5, seed=5,
-                       images_per_placement=1, n_vehicles=6, width_px=96, height_px=96,
-                       simple_vehicles=True, render_preset="fast")
+                       images_per_placement=1, n_vehicles=6,
+                       camera=CameraConfig(width_px=96, height_px=96),
+                       render=RenderOptions(preset="fast"),
+                       simple_vehicles=True)
     out = tmp_path / "ds"
     export_dataset(cfg, out, workers=1, progress=False)
     m = parse_mix(cfg.scene_mix)

@@ -66,6 +66,7 @@ def tiny_dota(tmp_path):
 @pytest.fixture(scope="session")
 def tiny_export(tmp_path_factory) -> Path:
     """A 2-image synthetic export (DOTA + YOLO-OBB, 256 px, box vehicles) on an 80 m scene."""
+    from aerial_synth.camera import CameraConfig
     from aerial_synth.dataset.export import ExportConfig, export_dataset
 
     lines = []
@@ -82,6 +83,7 @@ def tiny_export(tmp_path_factory) -> Path:
     scene.write_text("\n".join(lines) + "\n")
     out = root / "ds"
     export_dataset(ExportConfig(scene=str(scene), images=2, formats="dota,yolo-obb", split=0.5,
-                                seed=1, images_per_placement=2, n_vehicles=10, width_px=256,
-                                height_px=256, simple_vehicles=True), out, workers=1, progress=False)
+                                seed=1, images_per_placement=2, n_vehicles=10,
+                                camera=CameraConfig(width_px=256, height_px=256),
+                                simple_vehicles=True), out, workers=1, progress=False)
     return out

@@ -59,17 +59,20 @@ def test_cli_refuses_a_frame_that_cannot_fit(cmd, tmp_path, monkeypatch, capsys)
 
 
 def test_export_counts_one_frame_per_local_worker(tmp_path, monkeypatch):
+    from aerial_synth.camera import CameraConfig
     from aerial_synth.dataset.export import ExportConfig, export_dataset
 
     one = frame_bytes(2048, 2048)
     monkeypatch.setattr(budget, "available_memory_bytes", lambda: int(2.5 * one))
-    cfg = ExportConfig(scene="city_park", images=4, width_px=2048, height_px=2048)
+    cfg = ExportConfig(scene="city_park", images=4,
+                       camera=CameraConfig(width_px=2048, height_px=2048))
     for kw in ({"workers": 3}, {"dask": "local:3"}):
         with pytest.raises(ExportError, match="3 frames"):
             export_dataset(cfg, tmp_path / "ds", progress=False, **kw)
     # 2 images: at most 2 frames at once, whatever the worker count (then it would run;
     # stopped here by a bad scene name to keep the test fast)
-    small = ExportConfig(scene="no_such_scene_anywhere", images=2, width_px=2048, height_px=2048)
+    small = ExportConfig(scene="no_such_scene_anywhere", images=2,
+                         camera=CameraConfig(width_px=2048, height_px=2048))
     with pytest.raises(Exception) as e:
         export_dataset(small, tmp_path / "ds2", workers=3, progress=False)
     assert "frames" not in str(e.value)

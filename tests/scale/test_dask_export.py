@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from aerial_synth.camera import CameraConfig
 from aerial_synth.dataset.export import ExportConfig, export_dataset
 from aerial_synth.errors import ExportError
 
@@ -20,7 +21,7 @@ from .conftest import run_cli, tree_bytes
 distributed = pytest.importorskip("distributed")
 
 ARGS = dict(images=8, formats="dota,coco", split=0.75, seed=4, images_per_placement=4, n_vehicles=8,
-            width_px=96, height_px=96, simple_vehicles=True)
+            camera=CameraConfig(width_px=96, height_px=96), simple_vehicles=True)
 
 
 def _cfg(scene):

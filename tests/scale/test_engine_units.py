@@ -68,6 +68,7 @@ def test_killed_worker_is_one_line(monkeypatch, tmp_path):
     for them): the export stops with one ExportError naming the images and --resume, and
     cancels the other tasks, instead of Dask's traceback."""
     distributed = pytest.importorskip("distributed")
+    from aerial_synth.camera import CameraConfig
     from aerial_synth.dataset.config import ExportConfig
     from aerial_synth.dataset.engines import dask as engine_dask
 
@@ -100,7 +101,8 @@ def test_killed_worker_is_one_line(monkeypatch, tmp_path):
                         ("_scatter", lambda self, s, c: (None, None))):
         monkeypatch.setattr(engine_dask.DaskCluster, name, value)
     eng = engine_dask.DaskCluster(Client())
-    cfg = ExportConfig(scene="city_park", images=20, images_per_placement=10, width_px=8192, height_px=8192)
+    cfg = ExportConfig(scene="city_park", images=20, images_per_placement=10,
+                       camera=CameraConfig(width_px=8192, height_px=8192))
     with pytest.raises(ExportError) as e:
         eng.run(cfg, tmp_path, range(20))
     msg = str(e.value)

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
+from aerial_synth.camera import CameraConfig
 from aerial_synth.dataset.export import ExportConfig, export_dataset
 from aerial_synth.dataset.tiled import (
     GroupPlacer,
@@ -23,15 +24,18 @@ from aerial_synth.dataset.tiled import (
 from aerial_synth.dataset.worker import ImageWorker
 from aerial_synth.errors import ExportError
 from aerial_synth.placement.tiled import place_tiled
+from aerial_synth.render.config import RenderOptions
 from aerial_synth.scene.tiles import TiledWorld
 
 from .conftest import run_cli, tree_bytes
 
-CROSS = dict(images=4, images_per_placement=2, n_vehicles=8, width_px=96, height_px=96,
+CROSS = dict(images=4, images_per_placement=2, n_vehicles=8,
+             camera=CameraConfig(width_px=96, height_px=96),
              simple_vehicles=True, seed=4, formats="dota,coco")
 #: a small camera: 96 px at 0.25 m from 30 m, tilt up to 10 deg (reach about 25 m)
-SMALL_CAM = dict(width_px=96, height_px=96, gsd_m=0.25, altitude_m=30.0, max_tilt_deg=10.0,
-                 simple_vehicles=True, render_preset="fast")
+SMALL_CAM = dict(camera=CameraConfig(width_px=96, height_px=96, gsd_m=0.25, altitude_m=30.0, max_tilt_deg=10.0),
+                 render=RenderOptions(preset="fast"),
+                 simple_vehicles=True)
 
 
 def _labels_and_images(tree):
@@ -255,7 +259,7 @@ def test_camera_reach_bounds_every_targeted_footprint():
     the vehicle it aims at (what keeps a group's frames inside its render window)."""
     from types import SimpleNamespace
 
-    from aerial_synth.camera import CameraConfig, sample_pose_targeted
+    from aerial_synth.camera import sample_pose_targeted
 
     for cam_cfg in (CameraConfig(), CameraConfig(width_px=96, height_px=96, gsd_m=0.25, altitude_m=30.0,
                                                  max_tilt_deg=10.0), CameraConfig(max_tilt_deg=25.0)):
@@ -311,7 +315,8 @@ def test_bad_tiled_input_one_line_exit_2(cross_scene, tmp_path, extra, field, wo
 
 def test_bad_tiled_config_in_python():
     with pytest.raises(ExportError, match="--max-tilt"):
-        ExportConfig(tile_m=100.0, max_tilt_deg=60.0)  # corners see the horizon
+        ExportConfig(tile_m=100.0,
+                     camera=CameraConfig(max_tilt_deg=60.0))  # corners see the horizon
     with pytest.raises(ExportError, match="longest vehicle"):
         ExportConfig(tile_m=10.0)
     with pytest.raises(ExportError, match="--labels"):

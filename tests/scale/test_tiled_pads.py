@@ -22,6 +22,7 @@ from aerial_synth.dataset.tiled import (
     nadir_in_view,
 )
 from aerial_synth.render import RenderConfig
+from aerial_synth.render.config import RenderOptions
 from aerial_synth.render.cull import lowest_sun_deg, secondary_reach_m
 from aerial_synth.scene.tiles import TiledWorld
 from aerial_synth.vehicles import load_catalog
@@ -129,22 +130,23 @@ def test_cut_pad_is_a_placement_warning(tmp_path):
     scene = tmp_path / "c.yaml"
     scene.write_text(yaml.safe_dump({"generator": "city", "name": "c", "seed": 5, "size_km": 0.5}))
     cfg = ExportConfig(scene=str(scene), tile_m=250.0, images=1, n_vehicles=100, seed=2,
-                       width_px=96, height_px=96, gsd_m=0.25, altitude_m=30.0, max_tilt_deg=10.0,
-                       simple_vehicles=True, render_preset="fast")
+                       camera=CameraConfig(width_px=96, height_px=96, gsd_m=0.25, altitude_m=30.0, max_tilt_deg=10.0),
+                       render=RenderOptions(preset="fast"),
+                       simple_vehicles=True)
     world = TiledWorld.load(str(scene))
     grid = world.grid(250.0, 60.0)
     cat = load_catalog()
 
     sunset = RenderConfig.preset("fast", sun_elevation_deg=(1.5, 20.0))
-    orig = ExportConfig.render_config
+    orig = RenderOptions.config
     try:
-        ExportConfig.render_config = lambda self: sunset
+        RenderOptions.config = lambda self, **kw: sunset
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             placer = GroupPlacer(world, grid, cfg, cat)
         _, _, _, _, warned = group_placement(world, grid, cfg, 0, cat, placer)
     finally:
-        ExportConfig.render_config = orig
+        RenderOptions.config = orig
     assert caught == [] and placer.pads.warning is not None
     assert placer.pads.warning in warned
 
@@ -163,11 +165,13 @@ def test_render_window_holds_every_building_whose_shadow_reaches_the_views():
     world = TiledWorld.from_spec(spec)
     grid = world.grid(150.0, 30.0)
     cfg = ExportConfig(scene="city_park", tile_m=150.0, margin_m=30.0, images=8, images_per_placement=2,
-                       n_vehicles=300, seed=3, width_px=96, height_px=96, gsd_m=0.25, altitude_m=30.0,
-                       max_tilt_deg=10.0, simple_vehicles=True, render_preset="fast")
+                       n_vehicles=300, seed=3,
+                       camera=CameraConfig(width_px=96, height_px=96, gsd_m=0.25, altitude_m=30.0, max_tilt_deg=10.0),
+                       render=RenderOptions(preset="fast"),
+                       simple_vehicles=True)
     whole = world.scene_for(tuple(world.bounds.ravel()))
     z0 = float(whole.bounds()[0, 2])
-    tan = math.tan(math.radians(lowest_sun_deg(cfg.render_config())))
+    tan = math.tan(math.radians(lowest_sun_deg(cfg.render.config())))
     buildings = [(box(*o.vertices[:, :2].min(axis=0), *o.vertices[:, :2].max(axis=0)),
                   float(o.vertices[:, 2].max()) - z0)
                  for o in whole.objects if o.name.startswith("building_")]

@@ -30,14 +30,16 @@ def data(tmp_path_factory):
     """A 6-image export (128 px, box vehicles, yolo-obb + dota) and a real collection made of
     its validation images: group ``same`` at the synthetic GSD, group ``coarse`` labelled at
     a coarser GSD (so it is rescaled, 0.15 / 0.12)."""
+    from aerial_synth.camera import CameraConfig
     from aerial_synth.dataset.export import ExportConfig, export_dataset
 
     root = tmp_path_factory.mktemp("sim2real")
     scene = write_crossing_obj(root / "tiny.obj", 40)
     syn = root / "syn"
     cfg = ExportConfig(scene=scene, images=6, formats="yolo-obb,dota", split=0.5, seed=3,
-                       images_per_placement=2, n_vehicles=10, width_px=128, height_px=128,
-                       simple_vehicles=True, gsd_m=0.12)
+                       images_per_placement=2, n_vehicles=10,
+                       camera=CameraConfig(width_px=128, height_px=128, gsd_m=0.12),
+                       simple_vehicles=True)
     export_dataset(cfg, syn, workers=1, progress=False)
     real = root / "real"
     for grp, gsd in (("same", None), ("coarse", 0.15)):

@@ -443,8 +443,8 @@ class DaskCluster:
             t = task_of.get(getattr(exc, "task", None), (indices, 0))[0]
             raise ExportError(
                 f"--dask: every worker that ran images {t[0]}..{t[-1]} died (out of memory? one "
-                f"{cfg.width_px} x {cfg.height_px} px frame needs about "
-                f"{frame_gb(cfg.width_px, cfg.height_px):.1f} GB); the images done are kept: rerun with --resume"
+                f"{cfg.camera.width_px} x {cfg.camera.height_px} px frame needs about "
+                f"{frame_gb(cfg.camera.width_px, cfg.camera.height_px):.1f} GB); the images done are kept: rerun with --resume"
             ) from None
         except Exception:
             for f in futures:

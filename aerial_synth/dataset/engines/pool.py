@@ -111,7 +111,8 @@ class PoolEngine(SerialEngine):
             if restarts > MAX_POOL_RESTARTS:
                 raise ExportError(
                     f"--workers {workers}: a worker process died {restarts} times ({how}; out of memory? one "
-                    f"{cfg.width_px} x {cfg.height_px} px frame needs about {frame_gb(cfg.width_px, cfg.height_px):.1f} GB per "
+                    f"{cfg.camera.width_px} x {cfg.camera.height_px} px frame needs about "
+                    f"{frame_gb(cfg.camera.width_px, cfg.camera.height_px):.1f} GB per "
                     "worker); the images done are kept: rerun with --resume, with fewer workers or smaller "
                     "images"
                 )
