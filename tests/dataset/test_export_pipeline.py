@@ -137,9 +137,18 @@ def test_pool_workers_get_disjoint_core_shares(tiny_scene, tmp_path):
     allowed = sorted(os.sched_getaffinity(0))
     ctx = mp.get_context("spawn")
     slots = ctx.Value("i", 0)
-    with ctx.Pool(2, initializer=init_pool_worker,
-                  initargs=(_cfg(tiny_scene), str(tmp_path), 1, os.getpid(), (), slots, 2)) as pool:
+    pool = ctx.Pool(2, initializer=init_pool_worker,
+                    initargs=(_cfg(tiny_scene), str(tmp_path), 1, os.getpid(), (), slots, 2))
+    try:
         res = pool.map(_probe, range(2), chunksize=1)
+        # close + join: the workers take their stop sentinel and exit. Not Pool.__exit__: its
+        # terminate() holds the task queue's lock and SIGTERMs the workers, which
+        # init_pool_worker turns into a normal exit; one hung there once, in its exit
+        # handlers, with the lock held (the export itself uses ProcessPoolExecutor)
+        pool.close()
+        pool.join()
+    finally:
+        pool.terminate()
     shares = sorted(r[0] for r in res)
     assert sorted(c for s in shares for c in s) == allowed  # disjoint, covering
     assert all(len(s) >= 1 for s in shares)
