@@ -211,9 +211,9 @@ class Sim2RealConfig:
         for opt, v in (("--gsd", self.gsd), ("--real-gsd", self.real_gsd)):
             if v is not None and not (np.isfinite(v) and v > 0):
                 raise Sim2RealError(f"{opt}: expected a number > 0, got {v!r}")
-        if isinstance(self.real_scale, str):
-            object.__setattr__(self, "real_scale", parse_real_scale(self.real_scale))
-        parse_real_scale(",".join(self.real_scale))
+        rs = self.real_scale
+        text = rs if isinstance(rs, str) else ",".join(map(str, rs)) if isinstance(rs, (tuple, list)) else repr(rs)
+        object.__setattr__(self, "real_scale", parse_real_scale(text))  # a tuple, checked
         if not (0.0 <= self.conf < 1.0):
             raise Sim2RealError(f"--conf: expected a number in [0, 1), got {self.conf!r}")
         if not (0.0 < self.merge_iou < 1.0):

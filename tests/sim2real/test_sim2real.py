@@ -298,3 +298,11 @@ def test_real_scale_option():
     for bad in ("", "arm,arm", "gsd", "arm,"):
         with pytest.raises(Sim2RealError, match="--real-scale"):
             parse_real_scale(bad)
+    from aerial_synth.sim2real.config import Sim2RealConfig
+
+    arms = parse_arms(["x=d"])
+    assert Sim2RealConfig(arms=arms, real="r", out="o", epochs=1, real_scale=["native", "arm"]).real_scale == (
+        "native", "arm")
+    for bad in (5, None, ["arm", 1]):
+        with pytest.raises(Sim2RealError, match="--real-scale"):
+            Sim2RealConfig(arms=arms, real="r", out="o", epochs=1, real_scale=bad)
