@@ -1,0 +1,113 @@
+"""Turn a folder of real labelled datasets into the collection ``aerial-synth sim2real --real``
+reads: one DOTA-layout group per dataset (``images/``, ``labelTxt/`` with a ``gsd:`` header
+where the GSD is known), vehicle boxes only. This is how the development set of docs/gsd.md
+and docs/sim2real.md is made from ``../shared/reference/real_samples`` (Minsk drone frames in
+DOTA layout, VEDAI tiles, DOTA8 crops in YOLO-OBB)::
+
+    python tools/make_dev_set.py ../shared/reference/real_samples .s2r/real --gsd vedai=0.25
+
+SRC is anything ``aerial-synth stats`` reads as a collection (DOTA, YOLO-OBB or VEDAI
+sub-folders; readers in ``aerial_synth.formats``, class names DOTA-style). ``--gsd GROUP=M``
+gives the GSD of a group whose labels carry none (VEDAI's 12.5 cm tiles resampled to 512 px
+are 0.25 m); groups without one get no ``gsd:`` header (``sim2real --real-gsd`` then
+decides). Images are copied byte for byte. OUT is built in a temporary sibling and renamed
+into place at the end; an existing OUT is refused unless ``--force``. Prints the images and
+vehicles per group.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from aerial_synth.errors import AerialSynthError  # noqa: E402
+from aerial_synth.evaluate.labels import read_dataset  # noqa: E402
+from aerial_synth.formats import dota  # noqa: E402
+from aerial_synth.io_utils import replace_dir  # noqa: E402
+
+VEHICLES = ("small-vehicle", "large-vehicle")
+
+
+def build(src: Path, out: Path, gsd: dict[str, float], classes=VEHICLES) -> dict[str, list[int]]:
+    """Write the collection into ``out`` (a new folder); returns {group: [images, vehicles]}."""
+    layout, items = read_dataset(src, option="SRC")
+    if layout != "collection":
+        raise SystemExit(f"SRC {src}: expected a folder of datasets (one sub-folder each), "
+                         f"found one {layout} dataset")
+    unknown = sorted(set(gsd) - {it.name.split("/", 1)[0] for it in items})
+    if unknown:
+        raise SystemExit(f"--gsd: no group {', '.join(unknown)} in {src}")
+    counts: dict[str, list[int]] = {}
+    for it in items:
+        group, stem = it.name.split("/", 1)
+        stem = Path(stem).name
+        if it.image_path is None:
+            raise SystemExit(f"{it.label_path}: no image beside it")
+        keep = np.array([c in classes for c in it.classes], bool)
+        it.polygons_xy_px = it.polygons_xy_px.reshape(-1, 4, 2)[keep]
+        it.classes = [c for c, k in zip(it.classes, keep) if k]
+        it.difficult = np.asarray(it.difficult, bool).reshape(-1)[keep]
+        g = it.gsd_m if it.gsd_m is not None else gsd.get(group)
+        (out / group / "images").mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(it.image_path, out / group / "images" / (stem + it.image_path.suffix.lower()))
+        lines = dota.to_lines(dota.from_labels(it), g, it.image_source or group)
+        if g is None:
+            lines = [ln for ln in lines if not ln.startswith("gsd:")]
+        (out / group / "labelTxt").mkdir(parents=True, exist_ok=True)
+        (out / group / "labelTxt" / (stem + ".txt")).write_text("".join(ln + "\n" for ln in lines),
+                                                                 encoding="utf-8")
+        c = counts.setdefault(group, [0, 0])
+        c[0] += 1
+        c[1] += len(it.classes)
+    return counts
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("src", type=Path)
+    ap.add_argument("out", type=Path)
+    ap.add_argument("--gsd", action="append", default=[], metavar="GROUP=M",
+                    help="GSD of a group whose labels carry none (repeatable)")
+    ap.add_argument("--force", action="store_true", help="replace an existing OUT")
+    a = ap.parse_args(argv)
+    gsd = {}
+    for text in a.gsd:
+        k, sep, v = text.partition("=")
+        try:
+            gsd[k.strip()] = float(v)
+            ok = bool(sep and k.strip()) and gsd[k.strip()] > 0
+        except ValueError:
+            ok = False
+        if not ok:
+            ap.error(f"--gsd: expected GROUP=M with M > 0, got {text!r}")
+    if a.out.exists() and not a.force:
+        ap.error(f"{a.out}: exists; choose a new folder or --force")
+    a.out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{a.out.name}.", suffix=".tmp", dir=a.out.parent))
+    try:
+        counts = build(a.src, tmp, gsd)
+        replace_dir(tmp, a.out)
+    except AerialSynthError as e:  # a bad source folder or label file: one line
+        shutil.rmtree(tmp, ignore_errors=True)
+        print(f"make_dev_set: {e}", file=sys.stderr)
+        return 2
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    for group, (n_img, n_veh) in sorted(counts.items()):
+        print(f"{group}: {n_img} images, {n_veh} vehicles")
+    print(f"total: {sum(c[0] for c in counts.values())} images, "
+          f"{sum(c[1] for c in counts.values())} vehicles -> {a.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
