@@ -23,8 +23,6 @@ import sys
 import tempfile
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
@@ -51,10 +49,7 @@ def build(src: Path, out: Path, gsd: dict[str, float], classes=VEHICLES) -> dict
         stem = Path(stem).name
         if it.image_path is None:
             raise SystemExit(f"{it.label_path}: no image beside it")
-        keep = np.array([c in classes for c in it.classes], bool)
-        it.polygons_xy_px = it.polygons_xy_px.reshape(-1, 4, 2)[keep]
-        it.classes = [c for c, k in zip(it.classes, keep) if k]
-        it.difficult = np.asarray(it.difficult, bool).reshape(-1)[keep]
+        it.keep_classes(classes)
         g = it.gsd_m if it.gsd_m is not None else gsd.get(group)
         (out / group / "images").mkdir(parents=True, exist_ok=True)
         shutil.copyfile(it.image_path, out / group / "images" / (stem + it.image_path.suffix.lower()))

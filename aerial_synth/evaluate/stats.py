@@ -246,15 +246,12 @@ def dataset_stats(path, *, gsd: float | None = None, max_images: int = 500, seed
     labelled = [it for it in items if not it.extra.get("unlabelled")]
     other_classes: dict[str, int] = {}
     for it in items:
-        keep = np.array([classes is None or c in classes for c in it.classes], bool)
-        for c, k in zip(it.classes, keep):
+        all_classes = it.classes
+        it.extra["all_polygons"] = it.polygons_xy_px
+        keep = it.extra["keep"] = it.keep_classes(classes)
+        for c, k in zip(all_classes, keep):
             if not k:
                 other_classes[c] = other_classes.get(c, 0) + 1
-        it.extra["all_polygons"] = it.polygons_xy_px
-        it.extra["keep"] = keep
-        it.polygons_xy_px = it.polygons_xy_px[keep]
-        it.classes = [c for c, k in zip(it.classes, keep) if k]
-        it.difficult = np.asarray(it.difficult, bool)[keep]
     dist: dict[str, list] = {k: [] for k in DISTRIBUTIONS}
     counts: dict[str, int] = {}
     n_obj = n_diff = n_trunc = n_trunc_known = 0

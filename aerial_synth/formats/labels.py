@@ -95,3 +95,14 @@ class ImageLabels:
 
     def __len__(self) -> int:
         return len(self.classes)
+
+    def keep_classes(self, classes) -> np.ndarray:
+        """Keep only the objects whose class is in ``classes`` (None: every one), in place.
+        Returns the (n,) bool mask of the objects kept, in the order they had."""
+        keep = np.array([classes is None or c in classes for c in self.classes], bool)
+        self.polygons_xy_px = np.asarray(self.polygons_xy_px, np.float64).reshape(-1, 4, 2)[keep]
+        self.classes = [c for c, k in zip(self.classes, keep) if k]
+        self.difficult = np.asarray(self.difficult, bool).reshape(-1)[keep]
+        if self.scores is not None:
+            self.scores = np.asarray(self.scores, np.float64)[keep]
+        return keep

@@ -66,10 +66,7 @@ def read_real(path: Path, classes: tuple[str, ...] | None) -> list[ImageLabels]:
             raise Sim2RealError(f"--real {path}: no truth box of the classes {','.join(classes)} "
                                 f"(found {','.join(found[:8])}); give --real-classes LIST or all")
         for g in items:
-            k = np.array([c in classes for c in g.classes], bool)
-            g.polygons_xy_px = g.polygons_xy_px.reshape(-1, 4, 2)[k]
-            g.classes = [c for c, keep in zip(g.classes, k) if keep]
-            g.difficult = np.asarray(g.difficult, bool)[k]
+            g.keep_classes(classes)
     return items
 
 
