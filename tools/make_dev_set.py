@@ -18,6 +18,7 @@ vehicles per group.
 from __future__ import annotations
 
 import argparse
+import math
 import shutil
 import sys
 import tempfile
@@ -29,7 +30,7 @@ sys.path.insert(0, str(ROOT))
 from aerial_synth.errors import AerialSynthError  # noqa: E402
 from aerial_synth.evaluate.labels import read_dataset  # noqa: E402
 from aerial_synth.formats import dota  # noqa: E402
-from aerial_synth.io_utils import replace_dir  # noqa: E402
+from aerial_synth.io_utils import check_output_dir, is_inside, replace_dir  # noqa: E402
 
 VEHICLES = ("small-vehicle", "large-vehicle")
 
@@ -78,11 +79,17 @@ def main(argv=None) -> int:
         k, sep, v = text.partition("=")
         try:
             gsd[k.strip()] = float(v)
-            ok = bool(sep and k.strip()) and gsd[k.strip()] > 0
+            ok = bool(sep and k.strip()) and math.isfinite(gsd[k.strip()]) and gsd[k.strip()] > 0
         except ValueError:
             ok = False
         if not ok:
-            ap.error(f"--gsd: expected GROUP=M with M > 0, got {text!r}")
+            ap.error(f"--gsd: expected GROUP=M with M a finite number > 0, got {text!r}")
+    try:
+        check_output_dir(a.out, "OUT")  # a folder, or a new path below writable folders
+    except AerialSynthError as e:
+        ap.error(str(e))
+    if is_inside(a.out, a.src) or is_inside(a.src, a.out):
+        ap.error(f"OUT {a.out}: overlaps SRC {a.src}; choose a folder outside it")
     if a.out.exists() and not a.force:
         ap.error(f"{a.out}: exists; choose a new folder or --force")
     a.out.parent.mkdir(parents=True, exist_ok=True)

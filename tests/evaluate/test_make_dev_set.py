@@ -82,6 +82,7 @@ def test_collection_becomes_dota_with_vehicles_and_gsd(tmp_path):
     (("--gsd", "vedai"), "--gsd: expected GROUP=M"),
     (("--gsd", "vedai=-1"), "--gsd: expected GROUP=M"),
     (("--gsd", "nosuch=0.2"), "--gsd: no group nosuch"),
+    (("--gsd", "vedai=1e400"), "--gsd: expected GROUP=M"),
 ])
 def test_bad_options_write_nothing(tmp_path, args, msg):
     src = _source(tmp_path / "src")
@@ -98,6 +99,20 @@ def test_bad_source_is_one_line(tmp_path):
     r = _run(src, tmp_path / "dev")
     assert r.returncode == 2 and r.stderr.strip().count("\n") == 0 and "a.txt" in r.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["src"]
+
+
+@pytest.mark.parametrize("out", ["/dev/null", "afile", "afile/sub", "src", "src/uav/dev"])
+def test_out_that_is_no_new_folder_or_overlaps_src_is_refused(tmp_path, out):
+    """A device, a file, a path below a file, SRC itself or a folder inside it (with --force
+    too): one line, SRC and the file untouched."""
+    src = _source(tmp_path / "src")
+    (tmp_path / "afile").write_text("x")
+    before = tree_bytes(src)
+    target = out if out.startswith("/") else tmp_path / out
+    r = _run(src, target, "--force")
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 + r.stderr.count("usage:"), r.stderr
+    assert tree_bytes(src) == before and (tmp_path / "afile").read_text() == "x"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", "src"]
 
 
 def test_existing_out_needs_force(tmp_path):
