@@ -10,6 +10,7 @@ name (a preset and a randomise mode, with their defaults): ``render``'s options 
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, fields
 from enum import StrEnum
 
@@ -21,7 +22,7 @@ from ..validators import boolean, in_range, integer, known_keys, one_of, probabi
 from . import backends
 
 __all__ = ["Backend", "Preset", "Randomise", "RenderConfig", "RenderOptions", "PRESETS",
-           "RENDER_PRESETS", "RANDOMISE", "SHADOW_EDGES", "sample_factors"]
+           "RENDER_PRESETS", "RANDOMISE", "SHADOW_EDGES", "device_spec", "sample_factors"]
 
 
 class Preset(StrEnum):
@@ -41,6 +42,19 @@ class Randomise(StrEnum):
 
 #: The built-in render backends (``--backend``), named as the registry names them.
 Backend = StrEnum("Backend", {name.upper(): name for name in backends.BUILTIN})
+
+
+_DEVICE = re.compile(r"cpu|cuda(:[0-9]{1,3})?")
+
+
+def device_spec(value, field: str = "--device") -> str:
+    """``value`` if it names a device the way ``--device`` does (``cpu``, ``cuda`` or
+    ``cuda:N``); else ConfigError (one line). Whether the device exists is the backend's
+    question (:meth:`~.backends.RenderBackend.check`)."""
+    s = str(value)
+    if not _DEVICE.fullmatch(s):
+        raise ConfigError(f"{field}: expected cpu, cuda or cuda:N (N a device index), got {s!r}")
+    return s
 
 
 def _pair(name: str, value, lo: float, hi: float) -> tuple[float, float]:
@@ -150,6 +164,9 @@ class RenderConfig:
     texture: bool = True
     texture_seed: int = 0
     backend: str = "raycast"
+    #: where a device-capable backend (``warp``) runs: ``cpu``, ``cuda`` or ``cuda:N``. Not
+    #: a property of the frame (left out of :meth:`to_dict` at its default)
+    device: str = "cpu"
 
     def __post_init__(self) -> None:
         s = object.__setattr__
@@ -162,6 +179,7 @@ class RenderConfig:
             boolean(f"render config {b}", getattr(self, b))
         one_of("render config backend", self.backend, backends.names())
         s(self, "backend", str(self.backend))
+        s(self, "device", device_spec(self.device, "render config device"))
         one_of("render config exposure_mode", self.exposure_mode, ("auto", "fixed"))
         one_of("render config randomise", self.randomise, RANDOMISE)
         s(self, "randomise", str(self.randomise))  # a Randomise member is stored as its text
@@ -177,6 +195,8 @@ class RenderConfig:
         out = {}
         for f in fields(self):
             v = getattr(self, f.name)
+            if f.name == "device" and v == "cpu":
+                continue
             out[f.name] = list(v) if isinstance(v, tuple) else v
         return out
 

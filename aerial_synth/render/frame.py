@@ -1,7 +1,8 @@
 """``render_frame``: one camera view of a world -> buffers, visibility, factors and RGB.
 
-The buffers are always ray cast (:mod:`.buffers`); the backend named by
-``RenderConfig.backend`` (:mod:`.backends`) makes the RGB and the visibility from them."""
+The buffers are ray cast (:mod:`.buffers`) and the backend named by
+``RenderConfig.backend`` (:mod:`.backends`) makes the RGB and the visibility from them; a
+whole-frame backend (``warp``) casts the buffers itself, on ``RenderConfig.device``."""
 
 from __future__ import annotations
 
@@ -43,6 +44,9 @@ class Frame:
     camera: object
     amodal: AmodalMasks
     timings_s: dict = field(default_factory=dict)
+    #: a whole-frame backend's device arrays of the buffers ({} otherwise), for
+    #: :func:`aerial_synth.render.backends.warp.to_torch`
+    device_buffers: dict = field(default_factory=dict, repr=False)
 
     @property
     def height_px(self) -> int:
@@ -87,10 +91,16 @@ def render_frame(
     backend = backends.get(cfg.backend)
     t0 = time.perf_counter()
     factors = sample_factors(cfg, rng)
-    buf = cast_buffers(rayscene, camera)
-    t1 = time.perf_counter()
     vehicles = placement.vehicles if placement is not None else []
-    out = backend.render(rayscene, camera, buf, vehicles, factors, rng, cfg)
+    dev: dict = {}
+    if backend.whole_frame:  # its own buffers: every label from its instance buffer
+        buf, out, t_buf, dev = backend.render_whole(rayscene, camera, vehicles, factors, rng,
+                                                    cfg)
+        t1 = t0 + t_buf
+    else:
+        buf = cast_buffers(rayscene, camera)
+        t1 = time.perf_counter()
+        out = backend.render(rayscene, camera, buf, vehicles, factors, rng, cfg)
     t3 = time.perf_counter()
     t_vis = out.visibility_s
     return Frame(
@@ -105,4 +115,5 @@ def render_frame(
         timings_s={"buffers": t1 - t0, "visibility": t_vis, "rgb": t3 - t1 - (
             0.0 if out.overlapped else t_vis), "total": t3 - t0,
                    **{f"rgb_{k}": v for k, v in out.stages_s.items()}},
+        device_buffers=dev,
     )

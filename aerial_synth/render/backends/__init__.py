@@ -3,11 +3,15 @@
 In the spirit of trimesh's ``ray`` package: one small interface, several implementations,
 chosen by name. Every backend starts from the same :class:`~aerial_synth.render.buffers.Buffers`
 (the ray-cast instance / semantic / depth buffers) and returns the same :class:`Shaded`
-result, so labels and visibility never depend on the backend; only the RGB differs.
+result, so labels and visibility never depend on the backend; only the RGB differs; a
+whole-frame backend makes the buffers too (:meth:`RenderBackend.render_whole`).
 
 - ``raycast`` (default): :func:`aerial_synth.render.shading.shade` (shadows, AO, sky,
   reflections, sensor), visibility computed beside it in a second thread;
-- ``pyrender``: an EGL rasteriser for a quick RGB preview (optional dependency).
+- ``pyrender``: an EGL rasteriser for a quick RGB preview (optional dependency);
+- ``warp``: a *whole-frame* backend (:attr:`RenderBackend.whole_frame`): NVIDIA Warp casts
+  every ray, primary ones included, on CUDA or the CPU, so its labels come from its own
+  instance buffer (the ``[gpu]`` extra).
 
 Adding a backend is one module that defines ``BACKEND = MyBackend()`` plus one line in
 :data:`BUILTIN` (or :func:`register` at run time, as the tests do). This module imports
@@ -27,6 +31,7 @@ __all__ = ["BUILTIN", "RenderBackend", "Shaded", "get", "names", "register", "un
 BUILTIN: dict[str, str] = {
     "raycast": "aerial_synth.render.backends.raycast",
     "pyrender": "aerial_synth.render.backends.pyrender",
+    "warp": "aerial_synth.render.backends.warp",
 }
 
 

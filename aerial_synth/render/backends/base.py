@@ -40,12 +40,22 @@ class RenderBackend:
     name: str = ""
     #: one line for ``--help`` and docs
     description: str = ""
+    #: True for a backend that casts the frame's buffers itself (:meth:`render_whole`), so
+    #: its labels come from its own instance buffer; False: it shades the ray-cast
+    #: :class:`~aerial_synth.render.buffers.Buffers` it is given (:meth:`render`)
+    whole_frame: bool = False
 
-    def check(self) -> None:
-        """Raise :class:`~aerial_synth.errors.RenderError` when the backend cannot run here."""
+    def check(self, device: str = "cpu") -> None:
+        """Raise :class:`~aerial_synth.errors.RenderError` when the backend cannot run here
+        (on ``device``, ``RenderConfig.device``: ``cpu`` or ``cuda[:N]``)."""
 
     def render(self, rayscene, camera, buffers, vehicles, factors: dict, rng, config) -> Shaded:
         """RGB and visibility of one frame whose ``buffers`` were cast from ``rayscene``."""
+        raise NotImplementedError
+
+    def render_whole(self, rayscene, camera, vehicles, factors: dict, rng, config):
+        """A whole-frame backend's frame: (Buffers, :class:`Shaded`, seconds of the buffers,
+        {name: device array} of the buffers it keeps on its device, or {})."""
         raise NotImplementedError
 
     def __repr__(self) -> str:
