@@ -1,0 +1,168 @@
+"""The ``warp`` render backend on the CPU: the whole frame from its own ray casts, agreeing
+with the ``raycast`` backend within :data:`aerial_synth.render.agreement.TOLERANCES`.
+
+warp-lang is in the test lock (the ``[gpu]`` extra), so ``make test`` runs these; an
+environment without it skips this module, saying so (``-ra``)."""
+
+import sys
+
+import numpy as np
+import pytest
+
+pytest.importorskip("warp", reason="the [gpu] extra (warp-lang) is not installed; make test "
+                    "installs it from the test lock")
+
+from aerial_synth.camera import Camera, CameraConfig  # noqa: E402
+from aerial_synth.errors import ConfigError, RenderError  # noqa: E402
+from aerial_synth.render import RenderConfig, backends, frame, render_frame  # noqa: E402
+from aerial_synth.render.agreement import TOLERANCES, compare_frames, sweep  # noqa: E402
+from aerial_synth.render.backends import warp as wb  # noqa: E402
+from aerial_synth.scene.raycast import VEHICLES_ONLY, RayScene  # noqa: E402
+
+from .worlds import MIXED_SPECS, make_placement, make_scene, make_world  # noqa: E402
+
+
+def _cams(size=256):
+    cfg = CameraConfig(width_px=size, height_px=size, gsd_m=0.12)
+    return [Camera.look_at_ground(cfg, (1.0, 1.0, 0.0), yaw_deg=20.0, tilt_deg=0.0),
+            Camera.look_at_ground(cfg, (3.0, 0.0, 0.0), yaw_deg=-35.0, tilt_deg=14.0)]
+
+
+@pytest.fixture(scope="module")
+def mixed():
+    return make_world(MIXED_SPECS, crown_at=(8.5, -1.0))
+
+
+@pytest.mark.parametrize("preset", ["fast", "full"])
+def test_agrees_with_raycast_at_256px(mixed, preset):
+    rs, pl = mixed
+    total = None
+    for k, cam in enumerate(_cams()):
+        a = render_frame(rs, cam, pl, np.random.default_rng(k), RenderConfig.preset(preset))
+        b = render_frame(rs, cam, pl, np.random.default_rng(k),
+                         RenderConfig.preset(preset, backend="warp"))
+        got = compare_frames(a, b, cam, pl, f"mixed/{preset}/{k}")
+        if total is None:
+            total = got
+        else:
+            total.add(got)
+        # the same factors drawn (the metered exposure follows the pixels), the same vehicles
+        metered = ("exposure_gain", "tone_power")
+        assert {k: v for k, v in a.factors.items() if k not in metered} == {
+            k: v for k, v in b.factors.items() if k not in metered}
+        assert abs(a.factors["exposure_gain"] / b.factors["exposure_gain"] - 1) < 0.01
+        assert sorted(a.visibility) == sorted(b.visibility)
+    assert total.vehicles >= 10  # the test means something: most vehicles in view twice
+    assert total.failures() == [], total.summary()
+
+
+def test_labels_come_from_the_backends_own_buffers(mixed, monkeypatch):
+    rs, pl = mixed
+    cam = _cams(128)[1]
+
+    def no_raycast(*a, **k):
+        raise AssertionError("the warp backend must not use the ray-cast buffers")
+
+    monkeypatch.setattr(frame, "cast_buffers", no_raycast)
+    fr = render_frame(rs, cam, pl, np.random.default_rng(1),
+                      RenderConfig.preset("fast", backend="warp"))
+    ids, counts = np.unique(fr.instance[fr.instance > 0], return_counts=True)
+    assert len(ids) >= 4
+    for i, n in zip(ids.tolist(), counts.tolist()):
+        assert fr.visibility[i].visible_px == n
+    assert set(fr.device_buffers) == {"instance", "semantic", "depth"}
+    assert np.array_equal(fr.device_buffers["instance"].numpy(), fr.instance)
+    assert np.array_equal(fr.device_buffers["depth"].numpy(), fr.depth)
+    # semantic ids and depth are those of a hit: vehicles where the instance says so
+    assert np.all(fr.semantic[fr.instance > 0] == fr.semantic[fr.instance > 0][0])
+    assert np.all((fr.depth > 0) == (fr.semantic > 0))
+
+
+def test_secondary_rays_answer_as_the_rayscene(mixed):
+    rs, _ = mixed
+    ws = wb.scene_for(rs, "cpu")
+    rng = np.random.default_rng(3)
+    o = np.column_stack([rng.uniform(-20, 20, 4000), rng.uniform(-10, 10, 4000),
+                         rng.uniform(0.3, 30, 4000)])
+    d = rng.normal(size=(4000, 3))
+    d[:, 2] = -np.abs(d[:, 2]) - 0.2  # mostly downwards: most rays hit something
+    rays = np.hstack([o, d]).astype(np.float32)
+    for ign in ((), ("tree",), ("vehicle",), VEHICLES_ONLY):
+        a, b = rs.cast_rays(rays, ignore=ign), ws.cast_rays(rays, ignore=ign)
+        hit = a.face >= 0
+        assert 0.01 < hit.mean() < 1.0
+        assert np.mean(hit == (b.face >= 0)) > 0.999, ign
+        # the same face, or a tie between coplanar faces (a box's floor on the ground)
+        same = (a.face == b.face) | np.isclose(a.t, b.t, rtol=1e-5, atol=1e-5)
+        assert np.mean(same) > 0.999, ign
+        assert np.mean(a.face == b.face) > 0.99, ign
+        for tfar in (np.inf, 2.0):
+            occ_a = rs.test_occlusions(rays, ignore=ign, tfar=tfar)
+            occ_b = ws.test_occlusions(rays, ignore=ign, tfar=tfar)
+            assert np.mean(occ_a == occ_b) > 0.999, (ign, tfar)
+    assert ws.cast_rays(np.zeros((0, 6), np.float32)).face.shape == (0,)
+
+
+def test_vehicles_refit_in_place_when_their_triangles_are_the_same():
+    from aerial_synth.render.world import add_placement
+
+    scene = make_scene()
+    specs = [(1, 0.0, -2.0, 0.0, 4.5, 1.8, 1.5), (2, 8.0, 2.0, 3.0, 4.2, 1.8, 1.45)]
+    moved = [(i, x + 3.0, y, h + 0.2, ln, wd, ht) for i, x, y, h, ln, wd, ht in specs]
+    cam = _cams(128)[0]
+    cfg = RenderConfig.preset("fast", backend="warp")
+    before = dict(wb.STATS)
+    frames = []
+    for sp in (specs, moved, [specs[0]]):  # group 2: same triangles, moved; group 3: others
+        rs = RayScene(scene)
+        pl = make_placement(sp)
+        add_placement(rs, pl, simple_boxes=True)
+        fr = render_frame(rs, cam, pl, np.random.default_rng(0), cfg)
+        ref = render_frame(rs, cam, pl, np.random.default_rng(0), RenderConfig.preset("fast"))
+        assert np.mean(fr.instance == ref.instance) > 0.995
+        frames.append(fr)
+    assert wb.STATS["refit"] - before["refit"] == 1
+    assert wb.STATS["rebuild"] - before["rebuild"] >= 2
+    assert not np.array_equal(frames[0].instance, frames[1].instance)  # they did move
+    assert set(np.unique(frames[2].instance)) == {0, 1}
+
+
+def test_device_and_install_errors_are_one_line(monkeypatch):
+    import warp
+
+    with pytest.raises(ConfigError, match=r"expected cpu, cuda or cuda:N .*'gpu'"):
+        RenderConfig(backend="warp", device="gpu")
+    assert wb.resolve_device("cpu") == "cpu"
+    n = warp.get_cuda_device_count() if warp.is_cuda_available() else 0
+    if n == 0:
+        with pytest.raises(RenderError, match=r"^--device cuda: no CUDA device here"):
+            backends.get("warp").check("cuda")
+    with pytest.raises(RenderError, match=rf"^--device cuda:{n + 3}: no (such CUDA device|CUDA)"):
+        backends.get("warp").check(f"cuda:{n + 3}")
+    monkeypatch.setitem(sys.modules, "warp", None)  # as if the extra were not installed
+    monkeypatch.setattr(wb, "_READY", [])
+    with pytest.raises(RenderError, match=r"^--backend warp: NVIDIA Warp \(warp-lang\) is not "
+                       r"installed; install the \[gpu\] extra"):
+        backends.get("warp").check("cpu")
+
+
+def test_empty_scene_and_no_vehicles():
+    from aerial_synth.scene.model import Scene
+
+    cam = _cams(32)[0]
+    for rs in (RayScene(Scene("empty", [])), RayScene(make_scene())):
+        fr = render_frame(rs, cam, None, np.random.default_rng(0),
+                          RenderConfig.preset("fast", backend="warp"))
+        ref = render_frame(rs, cam, None, np.random.default_rng(0), RenderConfig.preset("fast"))
+        assert fr.visibility == {} and not fr.instance.any()
+        assert np.array_equal(fr.semantic, ref.semantic)
+
+
+@pytest.mark.slow
+def test_agreement_sweep_over_bundled_scenes():
+    """scenes x scenarios x both presets at 256 px (tools/warp_agreement.py prints it)."""
+    got = sweep(["city_park", "residential_eu", "highway"], ["jam", "parking", "sparse"],
+                frames=2)
+    assert got.vehicles >= 50
+    assert got.failures() == [], got.summary()
+    assert TOLERANCES["instance_equal"] >= 0.995 and TOLERANCES["boxes_matched"] >= 0.99
