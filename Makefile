@@ -64,7 +64,9 @@ $(VENV)/.installed: $(VENV)/.created pylock.toml pyproject.toml
 	$(UV) pip install -q --python $(PY) --no-deps --no-build-isolation -e .
 	touch $@
 
-# Runtime + test + pyrender extras from pylock.test.toml (the same versions as pylock.toml).
+# Runtime + test + pyrender + gpu extras from pylock.test.toml (the same versions as
+# pylock.toml). The gpu extra (warp-lang, ~150 MB wheel) is in the test lock so that make test
+# runs the warp-vs-raycast agreement tests on the CPU (tests/render/test_warp_backend.py).
 $(VENV)/.installed-test: $(VENV)/.installed pylock.test.toml
 	$(UV) pip install -q --python $(PY) -r pylock.test.toml
 	touch $@
@@ -72,9 +74,9 @@ $(VENV)/.installed-test: $(VENV)/.installed pylock.test.toml
 # Regenerate both locks from pyproject.toml's ranges (newest before LOCK_DATE). The runtime
 # lock is constrained by the test lock, so the two never disagree on a version.
 lock: $(VENV)/.created
-	$(UV) pip compile pyproject.toml --extra test --extra pyrender requirements/build.in \
+	$(UV) pip compile pyproject.toml --extra test --extra pyrender --extra gpu requirements/build.in \
 	  $(LOCK_ARGS) -o pylock.test.toml
-	$(UV) pip compile pyproject.toml --extra test --extra pyrender requirements/build.in \
+	$(UV) pip compile pyproject.toml --extra test --extra pyrender --extra gpu requirements/build.in \
 	  --python-version 3.11 --python-platform $(LOCK_PLATFORM) --exclude-newer $(LOCK_DATE) \
 	  --upgrade --quiet --no-header --no-annotate -o $(VENV)/lock-constraints.txt
 	$(UV) pip compile pyproject.toml requirements/build.in -c $(VENV)/lock-constraints.txt \
@@ -90,7 +92,7 @@ test-latest: sysdeps | pycheck
 	rm -rf $(LATEST)
 	$(PYTHON) -m venv $(LATEST)
 	$(LATEST)/bin/python -m pip install -q --disable-pip-version-check --require-hashes --no-deps -r requirements/uv.txt
-	$(LATEST)/bin/uv pip install -q --python $(LATEST)/bin/python --resolution highest --upgrade -e '.[test,pyrender]'
+	$(LATEST)/bin/uv pip install -q --python $(LATEST)/bin/python --resolution highest --upgrade -e '.[test,pyrender,gpu]'
 	@$(LATEST)/bin/uv pip freeze --python $(LATEST)/bin/python | grep -iE '^(numpy|scipy|shapely|open3d|trimesh|opencv-python-headless|numba|pyproj|osmium)==' | tr '\n' ' '; echo
 	@echo "== lock_exact tests (information: they hold only under the lock) =="
 	-$(LATEST)/bin/python -m pytest -q -p no:cacheprovider -m 'lock_exact and not slow' --no-header -rf 2>&1 | tail -n 15
