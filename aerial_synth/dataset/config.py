@@ -44,7 +44,7 @@ _OPTIONAL_FIELDS = ("bbox", "crs", "distractors", "tile_m", "margin_m", "gsd_ran
 CAMERA_KEYS = ("width_px", "height_px", "altitude_m", "gsd_m", "max_tilt_deg")
 #: manifest name -> ``render``'s field; each appears only when not RenderOptions' default
 #: (added after manifest version 1)
-RENDER_KEYS = {"render_preset": "preset", "randomise": "randomise"}
+RENDER_KEYS = {"render_preset": "preset", "randomise": "randomise", "backend": "backend"}
 
 
 @dataclass(frozen=True)

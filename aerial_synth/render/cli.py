@@ -28,13 +28,13 @@ from ..camera import (
     grid_poses,
     sample_pose_targeted,
 )
+from ..errors import AerialSynthError
 from ..io_utils import atomic_write_json, atomic_write_text, check_output_dir
 from ..scene.cli import add_scene_args, scene_from_args
 from ..scene.raycast import RayScene
 from ..validators import arg_choice, arg_float, arg_int
-from . import backends
 from .budget import check_frame_memory
-from .config import RANDOMISE, RENDER_PRESETS, Backend, RenderOptions
+from .config import RANDOMISE, RENDER_PRESETS, Backend, RenderOptions, device_spec
 
 __all__ = ["register", "add_camera_args", "camera_config_from_args", "add_render_options",
            "render_options_from_args", "run"]
@@ -104,11 +104,27 @@ def add_render_options(p) -> None:
     p.add_argument("--randomise", type=arg_choice("--randomise", RANDOMISE), default=d.randomise,
                    help="domain randomisation: textures = random material, sun and sky "
                    f"colours (Tobin et al. 2017), a style to mix with realistic frames ({d.randomise})")
+    p.add_argument("--backend", type=arg_choice("--backend", tuple(b.value for b in Backend)),
+                   default=d.backend, help="render backend: raycast (Open3D and numba on the "
+                   "CPU), warp (NVIDIA Warp on --device; every buffer and label from its own "
+                   "ray casts; the [gpu] extra) or pyrender (an RGB preview) "
+                   f"(docs/rendering.md) ({d.backend})")
+    p.add_argument("--device", type=_device_arg, default=d.device, metavar="cpu|cuda[:N]",
+                   help=f"where --backend warp runs ({d.device})")
+
+
+def _device_arg(text: str) -> str:
+    """argparse ``type=`` for ``--device``: its form (whether it exists is checked later)."""
+    try:
+        return device_spec(text)
+    except AerialSynthError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("--device: ")) from None
 
 
 def render_options_from_args(args) -> RenderOptions:
     """The :class:`~.config.RenderOptions` of the options :func:`add_render_options` added."""
-    return RenderOptions(preset=args.preset, randomise=args.randomise)
+    return RenderOptions(preset=args.preset, randomise=args.randomise, backend=args.backend,
+                         device=args.device)
 
 
 def register(sub) -> None:
@@ -141,8 +157,6 @@ def register(sub) -> None:
     p.add_argument("--depth-format", type=arg_choice("--depth-format", ("npy", "png")),
                    default="npy",
                    help="depth as float32 metres .npy or 16-bit centimetre PNG (npy)")
-    p.add_argument("--backend", type=arg_choice("--backend", tuple(b.value for b in Backend)),
-                   default="raycast", help="RGB backend (labels always come from ray casting)")
     add_render_options(p)
     p.add_argument("--distractors", type=arg_float("--distractors", 0.0, 1000.0), default=6.0,
                    metavar="PER_HA",
@@ -171,14 +185,15 @@ def run(args) -> int:
 
     # validate everything cheap before loading or writing anything
     cam_cfg = camera_config_from_args(args)
-    kw = {"backend": args.backend, "shadows": not args.no_shadows}
+    kw = {"shadows": not args.no_shadows}
     if args.jpeg_probability is not None:
         kw["jpeg_probability"] = args.jpeg_probability
-    rcfg = render_options_from_args(args).config(**kw)
+    opts = render_options_from_args(args)
+    rcfg = opts.config(**kw)
     check_frame_memory(cam_cfg.width_px, cam_cfg.height_px)  # before a 30 GB frame is OOM-killed
     _check_args(args)
     out = check_output_dir(args.out, "--out")
-    backends.get(args.backend).check()  # e.g. pyrender without EGL: said before any work
+    opts.check()  # e.g. pyrender without EGL, cuda without CUDA: said before any work
     t0 = time.perf_counter()
     scene = scene_from_args(args)
     grid = None

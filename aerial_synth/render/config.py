@@ -222,23 +222,37 @@ class RenderOptions:
 
     preset    : shading preset, a :class:`Preset` value (``"full"``, every realism factor)
     randomise : a :class:`Randomise` value (``"none"``: realistic)
+    backend   : a render backend's name (:mod:`.backends`; ``"raycast"``)
+    device    : where a device-capable backend runs: ``cpu``, ``cuda`` or ``cuda:N``
 
     Members of the enums are stored as their text. :meth:`config` is the
     :class:`RenderConfig` they name."""
 
     preset: str = Preset.FULL.value
     randomise: str = RenderConfig.randomise  # RenderConfig's own default ("none")
+    backend: str = RenderConfig.backend
+    device: str = RenderConfig.device
 
     def __post_init__(self) -> None:
         one_of("render preset", self.preset, RENDER_PRESETS)
         one_of("render randomise", self.randomise, RANDOMISE)
+        one_of("--backend", self.backend, backends.names())
         object.__setattr__(self, "preset", str(self.preset))
         object.__setattr__(self, "randomise", str(self.randomise))
+        object.__setattr__(self, "backend", str(self.backend))
+        object.__setattr__(self, "device", device_spec(self.device))
 
     def config(self, **overrides) -> RenderConfig:
-        """The :class:`RenderConfig` of this preset and randomise mode, with keyword
-        overrides (``backend``, ``shadows``, ...)."""
-        return RenderConfig.preset(self.preset, **{"randomise": self.randomise, **overrides})
+        """The :class:`RenderConfig` of this preset, randomise mode, backend and device, with
+        keyword overrides (``shadows``, ...)."""
+        return RenderConfig.preset(self.preset, **{"randomise": self.randomise,
+                                                   "backend": self.backend,
+                                                   "device": self.device, **overrides})
+
+    def check(self) -> None:
+        """RenderError (one line) when the backend cannot run here on the device (a missing
+        optional dependency, ``cuda`` without CUDA, a device index that does not exist)."""
+        backends.get(self.backend).check(self.device)
 
 
 def sample_factors(cfg: RenderConfig, rng: np.random.Generator) -> dict:
