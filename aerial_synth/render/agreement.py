@@ -14,7 +14,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Agreement", "TOLERANCES", "compare_frames", "sweep"]
+__all__ = ["Agreement", "SWEEP_PAIRS", "TOLERANCES", "compare_frames", "sweep"]
+
+#: the sweep's scenes x scenarios: each scenario on bundled scenes that have its roads or lots
+SWEEP_PAIRS = (("city_park", "jam"), ("city_park", "sparse"), ("residential_eu", "residential"),
+               ("residential_eu", "street-parking"), ("highway", "multilane"),
+               ("depot", "parking"))
 
 #: What "agree" means (the ``warp`` backend against ``raycast``, on the CPU):
 #: - boxes: >= 99 % of vehicles (in either frame) matched 1:1 at IoU >= 0.95;
@@ -127,11 +132,12 @@ def compare_frames(ref, other, camera, placement, label: str = "",
     return out
 
 
-def sweep(scenes, scenarios, presets=("fast", "full"), size_px: int = 256, frames: int = 2,
+def sweep(pairs, presets=("fast", "full"), size_px: int = 256, frames: int = 2,
           seed: int = 0, other: str = "warp", device: str = "cpu", gsd_m: float = 0.15,
           vehicles: int | None = None) -> Agreement:
-    """Render ``frames`` views of every scene x scenario x preset with ``raycast`` and with
-    ``other`` (same world, cameras and seeds) and sum :func:`compare_frames`."""
+    """Render ``frames`` views of every (scene, scenario) of ``pairs`` x preset with
+    ``raycast`` and with ``other`` (same world, cameras and seeds) and sum
+    :func:`compare_frames`."""
     from ..camera import CameraConfig, sample_pose_targeted
     from ..placement import place
     from ..scene.io import load_scene
@@ -142,7 +148,10 @@ def sweep(scenes, scenarios, presets=("fast", "full"), size_px: int = 256, frame
 
     total = Agreement()
     cam_cfg = CameraConfig(width_px=size_px, height_px=size_px, gsd_m=gsd_m)
-    for scene_name in scenes:
+    by_scene: dict[str, list[str]] = {}
+    for scene_name, scenario in pairs:
+        by_scene.setdefault(scene_name, []).append(scenario)
+    for scene_name, scenarios in by_scene.items():
         scene = load_scene(scene_name)
         rs = RayScene(scene)
         for scenario in scenarios:

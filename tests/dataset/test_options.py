@@ -45,7 +45,7 @@ def _choices(sub, command, option):
 def test_enums_are_what_the_cli_accepts():
     assert RENDER_PRESETS == ("full", "fast") == tuple(p.value for p in Preset)
     assert RANDOMISE == ("none", "textures") == tuple(r.value for r in Randomise)
-    assert tuple(b.value for b in Backend) == tuple(backends.BUILTIN) == ("raycast", "pyrender")
+    assert tuple(b.value for b in Backend) == tuple(backends.BUILTIN) == ("raycast", "pyrender", "warp")
     cfg = RenderConfig.preset(Preset.FAST, randomise=Randomise.TEXTURES, backend=Backend.RAYCAST)
     assert type(cfg.randomise) is str and cfg.randomise == "textures" and cfg.shadow_step == 4
     _, sub = _parser()

@@ -15,7 +15,7 @@ pytest.importorskip("warp", reason="the [gpu] extra (warp-lang) is not installed
 from aerial_synth.camera import Camera, CameraConfig  # noqa: E402
 from aerial_synth.errors import ConfigError, RenderError  # noqa: E402
 from aerial_synth.render import RenderConfig, backends, frame, render_frame  # noqa: E402
-from aerial_synth.render.agreement import TOLERANCES, compare_frames, sweep  # noqa: E402
+from aerial_synth.render.agreement import SWEEP_PAIRS, TOLERANCES, compare_frames, sweep  # noqa: E402
 from aerial_synth.render.backends import warp as wb  # noqa: E402
 from aerial_synth.scene.raycast import VEHICLES_ONLY, RayScene  # noqa: E402
 
@@ -161,8 +161,7 @@ def test_empty_scene_and_no_vehicles():
 @pytest.mark.slow
 def test_agreement_sweep_over_bundled_scenes():
     """scenes x scenarios x both presets at 256 px (tools/warp_agreement.py prints it)."""
-    got = sweep(["city_park", "residential_eu", "highway"], ["jam", "parking", "sparse"],
-                frames=2)
+    got = sweep(SWEEP_PAIRS, frames=2)
     assert got.vehicles >= 50
     assert got.failures() == [], got.summary()
     assert TOLERANCES["instance_equal"] >= 0.995 and TOLERANCES["boxes_matched"] >= 0.99
