@@ -299,7 +299,7 @@ class ImageWorker:
     @property
     def writer(self) -> "ImageWriter":
         if self._writer is None:
-            self._writer = ImageWriter()
+            self._writer = ImageWriter(threads=encode_threads(self.render_config))
         return self._writer
 
     def _writer_error(self) -> None:
@@ -433,10 +433,21 @@ def render_image(cfg: ExportConfig, out_dir, index: int) -> dict:
 # ------------------------------------------------------------------ writing
 
 
+def encode_threads(render_config) -> int:
+    """Writer threads for a worker that renders with ``render_config``: 1 on the CPU (the
+    export's processes already encode in parallel, one image each), up to 8 when frames
+    come from a device (``--device cuda``: one process renders faster than one core
+    encodes; PNG and JPEG encoding release the GIL, so threads encode in parallel)."""
+    if getattr(render_config, "device", "cpu") == "cpu":
+        return 1
+    return max(1, min(8, (os.cpu_count() or 1) - 1))
+
+
 class ImageWriter:
-    """One background thread that encodes and writes images, one at a time, in the order
-    they were submitted (PNG/JPEG encoding and file writes release the GIL, so the next
-    frame renders meanwhile).
+    """Background threads (``threads``, default one) that encode and write images; one
+    thread writes them in the order they were submitted, several in parallel (each image's
+    files are written atomically, its metadata last, whatever the order). PNG/JPEG encoding
+    and file writes release the GIL, so the next frame renders meanwhile.
 
     At most ``depth`` images wait in the queue (``submit`` blocks beyond that), so memory
     stays bounded. The first error raised while writing is kept and raised in the
@@ -445,13 +456,18 @@ class ImageWriter:
     metadata is written last (see :func:`write_image_files`), so an image whose write
     failed or was cut short is simply not done."""
 
-    def __init__(self, depth: int = 1):
-        self._q: queue.Queue = queue.Queue(maxsize=max(1, int(depth)))
+    def __init__(self, depth: int = 1, threads: int = 1):
+        n = max(1, int(threads))
+        self._q: queue.Queue = queue.Queue(maxsize=max(1, int(depth), n))
         self._error: BaseException | None = None  # to raise in the submitting thread
         self._failed = False  # a write failed: skip the queued images until drained
         self.written = 0
-        self._thread = threading.Thread(target=self._loop, name="aerial-synth-writer", daemon=True)
-        self._thread.start()
+        self._count = threading.Lock()
+        self._threads = [threading.Thread(target=self._loop, name=f"aerial-synth-writer-{k}",
+                                          daemon=True) for k in range(n)]
+        self._thread = self._threads[0]
+        for t in self._threads:
+            t.start()
 
     def _loop(self) -> None:
         while True:
@@ -463,11 +479,13 @@ class ImageWriter:
                 if not self._failed:
                     cfg, out, rec, rgb = job
                     _write_files(cfg, out, rec, encode_image(rgb, cfg.image_ext))
-                    self.written += 1
+                    with self._count:
+                        self.written += 1
             except BaseException as exc:  # kept for the submitting thread
-                self._failed = True
-                if self._error is None:
-                    self._error = exc
+                with self._count:
+                    self._failed = True
+                    if self._error is None:
+                        self._error = exc
             finally:
                 self._q.task_done()
 
@@ -480,7 +498,7 @@ class ImageWriter:
     def submit(self, cfg: ExportConfig, out: Path, record, rgb: np.ndarray) -> None:
         """Queue one image (its RGB pixels, which the caller no longer changes)."""
         self.raise_error()
-        if not self._thread.is_alive():
+        if not all(t.is_alive() for t in self._threads):
             raise ExportError("the image writer thread has stopped")
         # The queue counts the image as unfinished in the same step that queues it: a put
         # cut short (SIGTERM's SystemExit or Ctrl-C while the queue is full) counts nothing,
@@ -492,7 +510,7 @@ class ImageWriter:
         """Wait until every submitted image is written (or failed)."""
         done = self._q.all_tasks_done  # queue.Queue's condition for its unfinished_tasks
         with done:
-            while self._q.unfinished_tasks > 0 and self._thread.is_alive():
+            while self._q.unfinished_tasks > 0 and all(t.is_alive() for t in self._threads):
                 done.wait(0.5)
             if self._q.unfinished_tasks == 0:
                 self._failed = False  # the images after a failure were all skipped
@@ -503,8 +521,10 @@ class ImageWriter:
         try:
             self.drain()
         finally:
-            self._q.put(None)
-            self._thread.join()
+            for _ in self._threads:
+                self._q.put(None)
+            for t in self._threads:
+                t.join()
 
 
 def encode_image(rgb: np.ndarray, ext: str) -> bytes:
