@@ -165,3 +165,77 @@ def test_agreement_sweep_over_bundled_scenes():
     assert got.vehicles >= 50
     assert got.failures() == [], got.summary()
     assert TOLERANCES["instance_equal"] >= 0.995 and TOLERANCES["boxes_matched"] >= 0.99
+
+
+def _no_cuda() -> bool:
+    import warp
+
+    return not (warp.is_cuda_available() and warp.get_cuda_device_count() > 0)
+
+
+@pytest.mark.parametrize("command", ["render", "export"])
+@pytest.mark.parametrize("extra, needle", [
+    (["--backend", "warp", "--device", "gpu"], "expected cpu, cuda or cuda:n"),
+    (["--backend", "warp", "--device", "cuda:999"], "--device cuda:999: no "),
+    (["--backend", "vulkan"], "--backend"),
+])
+def test_cli_bad_device_exits_2_with_one_line(command, extra, needle, tmp_path, capsys):
+    from aerial_synth.cli import main
+
+    out = tmp_path / "out"
+    rc = main([command, "--scene", "city_park", "--out", str(out), *extra])
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert rc == 2 and len(lines) == 1 and needle in lines[0].lower(), err
+    assert "Traceback" not in err and not out.exists()
+
+
+@pytest.mark.skipif(not _no_cuda(), reason="this machine has CUDA: --device cuda is valid here")
+def test_cli_cuda_without_cuda_exits_2(tmp_path, capsys):
+    from aerial_synth.cli import main
+
+    out = tmp_path / "out"
+    rc = main(["export", "--scene", "city_park", "--out", str(out), "--backend", "warp",
+               "--device", "cuda"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and "\n" not in err and "--device cuda: no CUDA device here" in err, err
+    assert not out.exists()
+
+
+def test_cli_warp_without_the_extra_exits_2(tmp_path):
+    """A checkout without warp-lang: a 'warp' package that cannot be imported shadows it."""
+    import os
+    import subprocess
+
+    from ..helpers import REPO
+
+    fake = tmp_path / "site" / "warp"
+    fake.mkdir(parents=True)
+    (fake / "__init__.py").write_text("raise ImportError('no warp here')\n")
+    env = dict(os.environ, PYTHONPATH=f"{fake.parent}{os.pathsep}{REPO}")
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "aerial_synth.cli", "render", "--scene",
+                        "city_park", "--out", str(out), "--backend", "warp"],
+                       capture_output=True, text=True, timeout=120, env=env)
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert r.returncode == 2 and len(lines) == 1, r.stderr
+    assert "--backend warp: NVIDIA Warp (warp-lang) is not installed" in lines[0]
+    assert "[gpu]" in lines[0] and not out.exists()
+
+
+def test_export_with_warp_matches_its_own_rerun(tmp_path):
+    """export --backend warp: a small dataset, the same bytes on a rerun, labels present."""
+    from aerial_synth.cli import main
+
+    args = ["export", "--scene", "city_park", "--images", "2", "--width", "128", "--height",
+            "128", "--backend", "warp", "--workers", "1", "--no-progress", "--simple-vehicles"]
+    assert main([*args, "--out", str(tmp_path / "a")]) == 0
+    assert main([*args, "--out", str(tmp_path / "b")]) == 0
+    from ..helpers import tree_bytes
+
+    a, b = tree_bytes(tmp_path / "a"), tree_bytes(tmp_path / "b")
+    assert a == b and any(k.endswith(".png") for k in a)
+    import json
+
+    man = json.loads((tmp_path / "a" / "manifest.json").read_text())
+    assert man["parameters"]["backend"] == "warp"
