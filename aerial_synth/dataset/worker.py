@@ -463,8 +463,9 @@ class ImageWriter:
         self._failed = False  # a write failed: skip the queued images until drained
         self.written = 0
         self._count = threading.Lock()
-        self._threads = [threading.Thread(target=self._loop, name=f"aerial-synth-writer-{k}",
-                                          daemon=True) for k in range(n)]
+        self._threads = [threading.Thread(target=self._loop, daemon=True,
+                                          name="aerial-synth-writer" + (f"-{k}" if k else ""))
+                         for k in range(n)]
         self._thread = self._threads[0]
         for t in self._threads:
             t.start()
