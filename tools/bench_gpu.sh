@@ -67,7 +67,7 @@ try:
 except (OSError, ValueError):
     print("no warp.json: see warp.log"); sys.exit(0)
 w = r["warp"]
-print(f"device {r['device']} ({r['device_name']}), {r['size_px']} px, warp {r['warp']}")
+print(f"device {r['device']} ({r['device_name']}), {r['size_px']} px, warp {r['warp_version']}")
 for k in ("buffers", "fast", "full"):
     if k in w:
         print(f"  {k:8s} {w[k]['images_per_s']:9.1f} images/s ({w[k]['images']} frames)")

@@ -57,7 +57,9 @@ def _rate(fn, items) -> dict:
             "images_per_s": round(len(items) / dt, 2)}
 
 
-def bench_render(rs, pl, cams, backend: str, device: str) -> dict:
+def bench_render(rs, pl, cams, backend: str, device: str, keep: list | None = None) -> dict:
+    """Images/s of buffers only (warp), the fast and the full preset; ``keep`` receives the
+    full preset's RGB frames."""
     from aerial_synth.render import RenderConfig, render_frame
     from aerial_synth.render.backends import warp as wb
 
@@ -67,19 +69,22 @@ def bench_render(rs, pl, cams, backend: str, device: str) -> dict:
         out["buffers"] = _rate(lambda c: ws.primary(c, host=False), cams)
     for preset in ("fast", "full"):
         cfg = RenderConfig.preset(preset, backend=backend, device=device)
-        out[preset] = _rate(lambda c, cfg=cfg: render_frame(rs, c, pl, np.random.default_rng(0),
-                                                            cfg), cams)
+
+        def one(c, cfg=cfg, preset=preset):
+            fr = render_frame(rs, c, pl, np.random.default_rng(0), cfg)
+            if keep is not None and preset == "full" and len(keep) < 4:
+                keep.append(fr.rgb)
+
+        out[preset] = _rate(one, cams)
     return out
 
 
-def bench_encode(size: int, n: int, max_threads: int) -> dict:
+def bench_encode(imgs: list, n: int, max_threads: int) -> dict:
+    """Images/s of the export's encoders (PNG, JPEG) on 1..max_threads threads, over
+    rendered frames ``imgs``."""
     from aerial_synth.dataset.worker import encode_image
 
-    rng = np.random.default_rng(0)
-    # a smooth image with noise, like a rendered frame (random bytes would not deflate)
-    base = np.linspace(0, 200, size * size * 3).reshape(size, size, 3)
-    imgs = [np.clip(base + rng.normal(0, 6, base.shape), 0, 255).astype(np.uint8)
-            for _ in range(4)]
+    size = int(imgs[0].shape[1])
     out = {}
     for ext in ("png", "jpg"):
         encode_image(imgs[0], ext)  # warm (numba)
@@ -88,7 +93,7 @@ def bench_encode(size: int, n: int, max_threads: int) -> dict:
                 continue
             with ThreadPoolExecutor(k) as ex:
                 t = time.perf_counter()
-                list(ex.map(lambda i, e=ext: encode_image(imgs[i % 4], e), range(n)))
+                list(ex.map(lambda i, e=ext: encode_image(imgs[i % len(imgs)], e), range(n)))
                 dt = time.perf_counter() - t
             out[f"{ext}_threads_{k}"] = round(n / dt, 1)
     return {"images_per_s": out, "size_px": size}
@@ -160,7 +165,7 @@ def main(argv=None) -> int:
     device = wb.resolve_device(a.device)
     wp = wb.warp_module()
     out = {"device": device, "device_name": str(wp.get_device(device).name),
-           "warp": wp.__version__, "numpy": np.__version__, "size_px": a.size,
+           "warp_version": wp.__version__, "numpy": np.__version__, "size_px": a.size,
            "cpu_count": os.cpu_count(), "numba_threads": None}
     try:
         import numba
@@ -170,13 +175,14 @@ def main(argv=None) -> int:
         pass
     scene, rs, pl = _world(a.scene, a.scenario, 0)
     cams = _cameras(scene, pl, a.size, a.frames, 0)
-    out["warp"] = bench_render(rs, pl, cams, "warp", device)
+    frames: list = []
+    out["warp"] = bench_render(rs, pl, cams, "warp", device, keep=frames)
     if a.raycast:
         out["raycast"] = bench_render(rs, pl, cams, "raycast", "cpu")
     out["vehicle_mesh"] = bench_refit(rs, device)
     out["vehicle_mesh_updates"] = dict(wb.STATS)
     if a.encode:
-        out["encode"] = bench_encode(a.size, a.encode, max(1, min(8, os.cpu_count() or 1)))
+        out["encode"] = bench_encode(frames, a.encode, max(1, min(8, os.cpu_count() or 1)))
     if a.export:
         out["export"] = {ext: bench_export(a.scene, a.scenario, a.size, a.export, device, ext,
                                            a.export_workers) for ext in ("png", "jpg")}
