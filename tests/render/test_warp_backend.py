@@ -239,3 +239,18 @@ def test_export_with_warp_matches_its_own_rerun(tmp_path):
 
     man = json.loads((tmp_path / "a" / "manifest.json").read_text())
     assert man["parameters"]["backend"] == "warp"
+
+
+def test_a_warp_scene_lives_as_long_as_its_rayscene():
+    import gc
+    import weakref
+
+    rs, pl = make_world([(1, 0.0, 0.0, 0.0, 4.5, 1.8, 1.5)])
+    cam = _cams(32)[0]
+    render_frame(rs, cam, pl, np.random.default_rng(0), RenderConfig.preset("fast", backend="warp"))
+    ws = wb.scene_for(rs, "cpu")
+    assert wb.scene_for(rs, "cpu") is ws and wb.scene_for(ws, "cpu") is ws
+    ref = weakref.ref(rs)
+    del rs, ws
+    gc.collect()
+    assert ref() is None  # no cache of the backend keeps a placement group's RayScene alive

@@ -134,7 +134,7 @@ class PyrenderBackend(RenderBackend):
     name = "pyrender"
     description = "EGL rasteriser preview: per-face albedo under the sun (optional dependency)"
 
-    def check(self) -> None:
+    def check(self, device: str = "cpu") -> None:
         check_available()
 
     def render(self, rayscene, camera, buffers, vehicles, factors, rng, config) -> Shaded:

@@ -146,7 +146,6 @@ class _SceneMeshes:
 
 
 _SHARED: dict[tuple[int, str], tuple] = {}  # (id(scene), device) -> (weakref(scene), meshes)
-_SCENES: dict[tuple[int, str], tuple] = {}  # (id(rayscene), device) -> (weakref, WarpScene)
 
 
 def _shared(rayscene, device: str) -> _SceneMeshes:
@@ -161,16 +160,17 @@ def _shared(rayscene, device: str) -> _SceneMeshes:
 
 
 def scene_for(rayscene, device: str = "cpu") -> "WarpScene":
-    """The :class:`WarpScene` of ``rayscene`` on ``device`` (made once per RayScene)."""
+    """The :class:`WarpScene` of ``rayscene`` on ``device``, made once per RayScene and kept
+    on it (it lives as long as the RayScene, which it refers to weakly)."""
     dev = resolve_device(device)
+    if isinstance(rayscene, WarpScene):
+        rayscene = rayscene._rs_ref()  # the RayScene behind a WarpScene
     with _LOCK:
-        key = (id(rayscene), dev)
-        got = _SCENES.get(key)
-        if got is None or got[0]() is not rayscene:
-            for k in [k for k, v in _SCENES.items() if v[0]() is None]:
-                del _SCENES[k]
-            got = _SCENES[key] = (weakref.ref(rayscene), WarpScene(rayscene, dev))
-        return got[1]
+        mine = rayscene.__dict__.setdefault("_warp_scenes", {})
+        got = mine.get(dev)
+        if got is None:
+            got = mine[dev] = WarpScene(rayscene, dev)
+        return got
 
 
 class WarpScene:
@@ -179,7 +179,8 @@ class WarpScene:
     :meth:`primary` (the frame buffers). Every other attribute is the wrapped RayScene's."""
 
     def __init__(self, rayscene, device: str):
-        self._rs = rayscene
+        self._rs = weakref.proxy(rayscene)  # the RayScene keeps its WarpScenes (scene_for)
+        self._rs_ref = weakref.ref(rayscene)
         self.device = device
         self._meshes = _shared(rayscene, device)
         self._veh_src = None
