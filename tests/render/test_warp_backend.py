@@ -254,3 +254,22 @@ def test_a_warp_scene_lives_as_long_as_its_rayscene():
     del rs, ws
     gc.collect()
     assert ref() is None  # no cache of the backend keeps a placement group's RayScene alive
+
+
+def test_frames_go_to_torch_without_a_copy(mixed):
+    torch = pytest.importorskip("torch", reason="torch is not installed (the [train] extra)")
+    rs, pl = mixed
+    fr = render_frame(rs, _cams(64)[0], pl, np.random.default_rng(0),
+                      RenderConfig.preset("fast", backend="warp"))
+    t = wb.to_torch(fr)
+    assert set(t) == {"instance", "semantic", "depth", "rgb"}
+    assert t["instance"].dtype == torch.uint32 and t["depth"].dtype == torch.float32
+    assert np.array_equal(t["depth"].numpy(), fr.depth)
+    assert np.array_equal(t["semantic"].numpy(), fr.semantic)
+    # the same memory as Warp's array: a write through torch shows in Warp's array
+    t["depth"][0, 0] = -7.0
+    assert fr.device_buffers["depth"].numpy()[0, 0] == -7.0
+    assert t["rgb"].data_ptr() == fr.rgb.__array_interface__["data"][0]
+    with pytest.raises(RenderError, match="to_torch: expected a frame rendered by --backend warp"):
+        wb.to_torch(render_frame(rs, _cams(32)[0], pl, np.random.default_rng(0),
+                                 RenderConfig.preset("fast")))
