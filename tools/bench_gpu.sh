@@ -8,8 +8,9 @@
 #   tools/bench_gpu.sh              # on the GPU machine: --device cuda
 #   DEVICE=cpu FRAMES=3 EXPORT=3 tools/bench_gpu.sh    # the dry run on a CPU
 #
-# Uses .venv when it exists (make install-test builds it from the test lock, warp-lang
-# included); otherwise builds it first. Results: $OUT (default out/bench_gpu/), one JSON
+# Uses .venv when it exists and imports warp (make install-test builds it from the test
+# lock, warp-lang included); otherwise builds it first, which needs the package registry
+# (or a pip mirror). Results: $OUT (default out/bench_gpu/), one JSON
 # per part plus nvidia-smi.csv and summary.txt.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -17,6 +18,8 @@ DEVICE=${DEVICE:-cuda}
 SIZE=${SIZE:-640}
 FRAMES=${FRAMES:-300}
 EXPORT=${EXPORT:-300}
+EXPORT_WORKERS=${EXPORT_WORKERS:-1,8}  # one export per count: 1 process, then 8 sharing the GPU
+RAYCAST=${RAYCAST:---raycast}          # the CPU backend beside it ("" to skip)
 OUT=${OUT:-out/bench_gpu}
 BUDGET_S=${BUDGET_S:-540}  # the whole script stops here whatever is left (10 min limit)
 PY=.venv/bin/python
@@ -41,7 +44,8 @@ fi
 
 # 1. buffers only, fast, full; refit vs rebuild; encoders; export with encoding
 timeout "$(left)" "$PY" tools/bench_warp.py --device "$DEVICE" --size "$SIZE" \
-  --frames "$FRAMES" --export "$EXPORT" --encode 200 --json "$OUT/warp.json" \
+  --frames "$FRAMES" --export "$EXPORT" --export-workers "$EXPORT_WORKERS" $RAYCAST \
+  --encode 200 --json "$OUT/warp.json" \
   > "$OUT/warp.log" 2>&1 || echo "bench_warp.py stopped (status $?): see $OUT/warp.log"
 
 # 2. the stream feeding an Ultralytics training (only where the stream and the training
@@ -68,11 +72,13 @@ except (OSError, ValueError):
     print("no warp.json: see warp.log"); sys.exit(0)
 w = r["warp"]
 print(f"device {r['device']} ({r['device_name']}), {r['size_px']} px, warp {r['warp_version']}")
-for k in ("buffers", "fast", "full"):
-    if k in w:
-        print(f"  {k:8s} {w[k]['images_per_s']:9.1f} images/s ({w[k]['images']} frames)")
-for ext, e in r.get("export", {}).items():
-    print(f"  export {ext}: {e['images_per_s']:.1f} images/s ({e['images']} images, {e['seconds']} s)")
+for name in ("warp", "raycast"):
+    for k in ("buffers", "fast", "full"):
+        if k in r.get(name, {}):
+            e = r[name][k]
+            print(f"  {name:7s} {k:8s} {e['images_per_s']:9.1f} images/s ({e['images']} frames)")
+for key, e in r.get("export", {}).items():
+    print(f"  export {key}: {e['images_per_s']:.1f} images/s ({e['images']} images, {e['seconds']} s)")
 print("  encoders (images/s):", r.get("encode", {}).get("images_per_s"))
 print("  vehicle mesh:", r.get("vehicle_mesh"))
 p = out / "nvidia-smi.csv"

@@ -154,7 +154,8 @@ def main(argv=None) -> int:
     ap.add_argument("--raycast", action="store_true", help="the raycast backend too")
     ap.add_argument("--export", type=int, default=0, metavar="N",
                     help="also export N images with --backend warp (0: skip)")
-    ap.add_argument("--export-workers", type=int, default=1)
+    ap.add_argument("--export-workers", default="1", metavar="K[,K...]",
+                    help="export worker processes, one export per count (1)")
     ap.add_argument("--encode", type=int, default=40, metavar="N",
                     help="images per encoder measurement (0: skip)")
     ap.add_argument("--json", default=None)
@@ -184,8 +185,9 @@ def main(argv=None) -> int:
     if a.encode:
         out["encode"] = bench_encode(frames, a.encode, max(1, min(8, os.cpu_count() or 1)))
     if a.export:
-        out["export"] = {ext: bench_export(a.scene, a.scenario, a.size, a.export, device, ext,
-                                           a.export_workers) for ext in ("png", "jpg")}
+        out["export"] = {f"{ext}_workers_{k}": bench_export(a.scene, a.scenario, a.size,
+                                                             a.export, device, ext, int(k))
+                         for k in a.export_workers.split(",") for ext in ("png", "jpg")}
     text = json.dumps(out, indent=1)
     print(text)
     if a.json:
