@@ -322,6 +322,7 @@ class WarpScene:
                           float(np.float32(K[0, 2])), float(np.float32(K[1, 2])), w, label, inst],
                   outputs=[out[k] for k in ("rays", "face", "t", "normal", "uv", "instance",
                                             "semantic", "depth")], device=dev)
+        self.last_primary = out
         self.device_buffers = {"instance": out["instance"].reshape((h, w)),
                                "semantic": out["semantic"].reshape((h, w)),
                                "depth": out["depth"].reshape((h, w))}
@@ -358,6 +359,21 @@ def to_torch(frame_or_scene) -> dict:
     return out
 
 
+#: where the warp backend shades: "auto" (on the device for a CUDA device, with the numba
+#: stages on the host's cores for the CPU, where they are parallel and Warp's are not),
+#: "device" (always Warp kernels: the tests compare them with the numba stages on the CPU)
+#: or "host" (always the numba stages)
+SHADE = "auto"
+
+
+def _on_device(device: str, factors: dict) -> bool:
+    from ._warp_device import supported
+
+    if SHADE == "host" or (SHADE == "auto" and device == "cpu"):
+        return False
+    return supported(factors)
+
+
 class WarpBackend(RenderBackend):
     name = "warp"
     description = ("NVIDIA Warp on CUDA or the CPU ([gpu] extra): every buffer, label and "
@@ -372,10 +388,27 @@ class WarpBackend(RenderBackend):
         from this backend's own instance buffer."""
         t0 = time.perf_counter()
         ws = scene_for(rayscene, getattr(config, "device", "cpu"))
-        buf = ws.primary(camera)
+        if not _on_device(ws.device, factors):
+            buf = ws.primary(camera)
+            t_buf = time.perf_counter() - t0
+            shaded = self._shade(ws, camera, buf, vehicles, factors, rng)
+            return buf, shaded, t_buf, ws.device_buffers
+        from ..buffers import Buffers
+        from ..visibility import compute_visibility
+        from ._warp_device import shade_on_device
+
+        ws.primary(camera, host=False)
         t_buf = time.perf_counter() - t0
-        shaded = self._shade(ws, camera, buf, vehicles, factors, rng)
-        return buf, shaded, t_buf, ws.device_buffers
+        stages: dict = {}
+        rgb, depth = shade_on_device(ws, camera, ws.last_primary, factors, stages)
+        h, w = camera.height_px, camera.width_px
+        dev = ws.device_buffers
+        inst, sem = dev["instance"].numpy(), dev["semantic"].numpy()
+        depth = dev["depth"].numpy() if depth is None else depth
+        buf = Buffers(h, w, inst, sem, depth, None, None, None, None)
+        t = time.perf_counter()
+        vis, amodal = compute_visibility(ws, camera, inst, vehicles, depth=depth)
+        return buf, Shaded(rgb, vis, amodal, time.perf_counter() - t, stages_s=stages), t_buf, dev
 
     def render(self, rayscene, camera, buffers, vehicles, factors, rng, config) -> Shaded:
         ws = scene_for(rayscene, getattr(config, "device", "cpu"))
