@@ -137,8 +137,8 @@ def export_dataset(
     check_entry_point()
     if workers is not None:
         workers = v.integer("--workers", workers, 1, error=ExportError)
-    cfg.render.check()  # --backend warp without its extra, --device cuda without CUDA
     plan = plan_output(cfg, out_dir, resume, force)
+    cfg.render.check()  # --backend warp without its extra, --device cuda without CUDA
     eng = engines.choose(workers, dask, engine)
     eng.check()  # a bad or unreachable --dask is reported before the slow checks
     _check_frame_memory(cfg, eng.local_processes)

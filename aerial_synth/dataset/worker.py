@@ -434,10 +434,9 @@ def render_image(cfg: ExportConfig, out_dir, index: int) -> dict:
 
 
 def encode_threads(render_config) -> int:
-    """Writer threads for a worker that renders with ``render_config``: 1 on the CPU (the
-    export's processes already encode in parallel, one image each), up to 8 when frames
-    come from a device (``--device cuda``: one process renders faster than one core
-    encodes; PNG and JPEG encoding release the GIL, so threads encode in parallel)."""
+    """Writer threads for a worker rendering with ``render_config``: 1 on the CPU (the
+    export's processes encode in parallel already), up to 8 on a device (``--device cuda``:
+    one process renders faster than one core encodes; the encoders release the GIL)."""
     if getattr(render_config, "device", "cpu") == "cpu":
         return 1
     return max(1, min(8, (os.cpu_count() or 1) - 1))
