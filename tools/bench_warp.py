@@ -158,16 +158,21 @@ def main(argv=None) -> int:
                     help="export worker processes, one export per count (1)")
     ap.add_argument("--encode", type=int, default=40, metavar="N",
                     help="images per encoder measurement (0: skip)")
+    ap.add_argument("--shade", choices=("auto", "host", "device"), default="auto",
+                    help="warp's per-pixel stages: numba on the host or Warp kernels (auto: "
+                    "Warp kernels on CUDA, numba on the CPU)")
     ap.add_argument("--json", default=None)
     a = ap.parse_args(argv)
 
     from aerial_synth.render.backends import warp as wb
 
+    wb.SHADE = a.shade
+
     device = wb.resolve_device(a.device)
     wp = wb.warp_module()
     out = {"device": device, "device_name": str(wp.get_device(device).name),
            "warp_version": wp.__version__, "numpy": np.__version__, "size_px": a.size,
-           "cpu_count": os.cpu_count(), "numba_threads": None}
+           "cpu_count": os.cpu_count(), "numba_threads": None, "shade": a.shade}
     try:
         import numba
 

@@ -2,7 +2,7 @@
 scenarios x both presets, the figures of :func:`aerial_synth.render.agreement.sweep` and the
 tolerances they are held to (tests/render/test_warp_backend.py runs the same sweep, slow).
 
-    .venv/bin/python tools/warp_agreement.py [--frames 2] [--size 256] [--json out.json]
+    .venv/bin/python tools/warp_agreement.py [--frames 2] [--size 256] [--shade device]
 """
 
 from __future__ import annotations
@@ -23,12 +23,19 @@ def main(argv=None) -> int:
     ap.add_argument("--frames", type=int, default=2)
     ap.add_argument("--size", type=int, default=256)
     ap.add_argument("--device", default="cpu")
+    ap.add_argument("--shade", choices=("auto", "host", "device"), default="auto",
+                    help="the warp backend's per-pixel stages: numba on the host or its own "
+                    "Warp kernels (auto: device kernels on CUDA only)")
     ap.add_argument("--json", default=None)
     a = ap.parse_args(argv)
+    from aerial_synth.render.backends import warp as wb
+
+    wb.SHADE = a.shade
     t = time.perf_counter()
     got = sweep(SWEEP_PAIRS, frames=a.frames, size_px=a.size, device=a.device)
     s = got.summary()
     s["seconds"] = round(time.perf_counter() - t, 1)
+    s["shade"] = a.shade
     s["tolerances"] = TOLERANCES
     s["failures"] = got.failures()
     for r in got.rows:

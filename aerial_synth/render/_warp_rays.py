@@ -55,9 +55,12 @@ def surface(h: int, w: int, rays: wp.array2d(dtype=float), t: wp.array(dtype=flo
             face: wp.array(dtype=wp.int64), normal: wp.array2d(dtype=float),
             semantic: wp.array(dtype=wp.uint8), depth: wp.array(dtype=float),
             face_mat: wp.array(dtype=wp.int32), tiles: wp.array3d(dtype=float), textured: int,
-            light: wp.vec3, foliage_id: int, step: int, ndl_out: wp.array(dtype=float),
-            own_out: wp.array(dtype=wp.uint8)):
-    """:func:`._kernels.surface` (``nearest`` off)."""
+            light: wp.vec3, foliage_id: int, step: int, nearest: int,
+            ndl_out: wp.array(dtype=float), own_out: wp.array(dtype=wp.uint8),
+            src_out: wp.array(dtype=wp.uint8)):
+    """:func:`._kernels.surface`; with ``nearest`` a pixel facing the sun that differs from
+    its block's first pixel copies the first corner sample on its surface (``src_out``)
+    and casts its own ray only when there is none."""
     i = wp.tid()
     r = i // w
     c = i - r * w
@@ -68,9 +71,9 @@ def surface(h: int, w: int, rays: wp.array2d(dtype=float), t: wp.array(dtype=flo
         return
     ndl = normal[i, 0] * light[0] + normal[i, 1] * light[1] + normal[i, 2] * light[2]
     if textured != 0 and face_mat[f] == foliage_id:
-        q = tex_coords(rays, t, i)
-        ty = int(q[1] * 10.0) & 255
-        tx = int(q[0] * 10.0) & 255
+        tq = tex_coords(rays, t, i)
+        ty = int(tq[1] * 10.0) & 255
+        tx = int(tq[0] * 10.0) & 255
         k2 = ((ty << 8) | tx) + 12345
         k2 = k2 & 0xFFFF
         ndl += 0.45 * (tiles[1, ty, tx] * light[0] + tiles[1, k2 >> 8, k2 & 255] * light[1])
@@ -88,7 +91,38 @@ def surface(h: int, w: int, rays: wp.array2d(dtype=float), t: wp.array(dtype=flo
             j = rb * w + cb
             own = ndl > 0.0 and (semantic[i] != semantic[j]
                                  or wp.abs(depth[i] - depth[j]) > 0.2)
+            if nearest != 0 and ndl > 0.0:
+                q = int(0)
+                if own:
+                    q = shadow_source(i, rb, cb, step, h, w, face, semantic, depth)
+                    own = q < 0
+                src_out[i] = wp.uint8(wp.max(q, 0))
     own_out[i] = wp.where(own, wp.uint8(1), wp.uint8(0))
+
+
+@wp.func
+def shadow_source(i: int, r0: int, c0: int, step: int, h: int, w: int,
+                  face: wp.array(dtype=wp.int64), semantic: wp.array(dtype=wp.uint8),
+                  depth: wp.array(dtype=float)):
+    """:func:`._kernels._shadow_source`: the first corner sample of pixel i's cell on its
+    surface (0-3), -1 when none is."""
+    for q in range(4):
+        rr = r0 + wp.where(q >= 2, step, 0)
+        cc = c0 + wp.where(q % 2 == 1, step, 0)
+        if rr >= h or cc >= w:
+            continue
+        j = rr * w + cc
+        if face[j] >= wp.int64(0) and semantic[j] == semantic[i] and (
+                wp.abs(depth[i] - depth[j]) <= 0.2):
+            return q
+    return -1
+
+
+@wp.func
+def corner_index(r: int, c: int, w: int, step: int, q: int):
+    """Flat index of corner sample q of the step x step cell of pixel (r, c)."""
+    return ((r // step) * step + wp.where(q >= 2, step, 0)) * w + (c // step) * step + wp.where(
+        q % 2 == 1, step, 0)
 
 
 @wp.kernel
@@ -131,16 +165,21 @@ def shadow(rays: wp.array2d(dtype=float), t: wp.array(dtype=float),
 
 
 @wp.kernel
-def spread_shadow(w: int, step: int, own: wp.array(dtype=wp.uint8),
-                  ndl: wp.array(dtype=float), lit: wp.array(dtype=float)):
-    """:func:`._kernels.spread_shadow` after its scatter: a pixel without its own ray that
-    faces the sun copies its block's first pixel (never written here: no race)."""
+def spread_shadow(w: int, step: int, nearest: int, own: wp.array(dtype=wp.uint8),
+                  ndl: wp.array(dtype=float), src: wp.array(dtype=wp.uint8),
+                  lit: wp.array(dtype=float)):
+    """:func:`._kernels.spread_shadow` (``nearest``: :func:`._kernels.spread_shadow_nearest`)
+    after its scatter: a pixel without its own ray that faces the sun copies its block's
+    first pixel (or the corner ``src``); corners are never written here: no race."""
     i = wp.tid()
     if own[i] != wp.uint8(0) or ndl[i] <= 0.0:
         return
     r = i // w
     c = i - r * w
-    lit[i] = lit[((r // step) * step) * w + (c // step) * step]
+    q = int(0)
+    if nearest != 0:
+        q = int(src[i])
+    lit[i] = lit[corner_index(r, c, w, step, q)]
 
 
 @wp.func

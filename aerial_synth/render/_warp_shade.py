@@ -295,6 +295,7 @@ class Light:
     lit_step: int
     has_ao: int
     has_refl: int
+    nearest: int
     wear_ids: wp.vec3i
 
 
@@ -319,10 +320,11 @@ def compose(  # size: the one fused per-pixel pass, as _kernels.compose
         h: int, w: int, rays: wp.array2d(dtype=float), t: wp.array(dtype=float),
             face: wp.array(dtype=wp.int64), normal: wp.array2d(dtype=float),
             ndl: wp.array(dtype=float), lit: wp.array(dtype=float),
-            own: wp.array(dtype=wp.uint8), ao: wp.array(dtype=float),
+            own: wp.array(dtype=wp.uint8), src: wp.array(dtype=wp.uint8),
+            ao: wp.array(dtype=float),
             refl: wp.array2d(dtype=float), tiles: wp.array3d(dtype=float), tb: Tables,
             lt: Light, out: wp.array2d(dtype=float)):
-    """:func:`._kernels.compose` (``nearest`` off): linear radiance per pixel."""
+    """:func:`._kernels.compose`: linear radiance per pixel."""
     i = wp.tid()
     r = i // w
     c = i - r * w
@@ -409,7 +411,12 @@ def compose(  # size: the one fused per-pixel pass, as _kernels.compose
             if lt.lit_step == 0 or own[i] != wp.uint8(0):
                 li = lit[i]
             elif ndl[i] > 0.0:
-                li = lit[((r // lt.lit_step) * lt.lit_step) * w + (c // lt.lit_step) * lt.lit_step]
+                qc = int(0)
+                if lt.nearest != 0:
+                    qc = int(src[i])
+                s_ = lt.lit_step
+                li = lit[((r // s_) * s_ + wp.where(qc >= 2, s_, 0)) * w + (c // s_) * s_
+                         + wp.where(qc % 2 == 1, s_, 0)]
         occ = float(1.0)
         if lt.has_ao != 0:
             occ = ao[i]

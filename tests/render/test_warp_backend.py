@@ -68,7 +68,8 @@ def test_agrees_with_raycast_at_256px(mixed, preset, shade_where):
     {"wet_probability": 1.0, "wet": (0.6, 1.0)},  # wet roads: mirror rays, puddles
     {"overcast_probability": 1.0, "grayscale_probability": 1.0},  # soft shadows, panchromatic
     {"randomise": "textures", "exposure_mode": "fixed", "haze": (0.2, 0.3)},
-    {"shadow_edges": "nearest", "texture": False, "jpeg_probability": 0.0},  # host fallback
+    {"shadow_edges": "nearest", "texture": False, "soft_shadows": False},  # the fast preset's
+    {"shadow_edges": "nearest", "overcast_probability": 1.0, "shadow_step": 3},  # blurred
 ])
 def test_device_shading_covers_every_factor(mixed, overrides, monkeypatch):
     from aerial_synth.render.backends import _warp_device
@@ -91,8 +92,7 @@ def test_device_shading_covers_every_factor(mixed, overrides, monkeypatch):
         assert a.rgb.std() > 3  # an image, not a flat field
     assert total.failures() == [], total.summary()
     assert total.rgb_mean_abs < 0.1  # the same model: almost every pixel identical
-    # the device kernels ran, but for the option they do not have (host fallback)
-    assert len(calls) == (0 if overrides.get("shadow_edges") == "nearest" else 2)
+    assert len(calls) == 2  # the device kernels ran
 
 
 def test_labels_come_from_the_backends_own_buffers(mixed, monkeypatch):
@@ -198,8 +198,9 @@ def test_empty_scene_and_no_vehicles():
 
 
 @pytest.mark.slow
-def test_agreement_sweep_over_bundled_scenes():
-    """scenes x scenarios x both presets at 256 px (tools/warp_agreement.py prints it)."""
+def test_agreement_sweep_over_bundled_scenes(shade_where):
+    """scenes x scenarios x both presets at 256 px, the per-pixel stages on the host and on
+    the device (tools/warp_agreement.py prints it)."""
     got = sweep(SWEEP_PAIRS, frames=2)
     assert got.vehicles >= 50
     assert got.failures() == [], got.summary()
@@ -312,3 +313,27 @@ def test_frames_go_to_torch_without_a_copy(mixed):
     with pytest.raises(RenderError, match="to_torch: expected a frame rendered by --backend warp"):
         wb.to_torch(render_frame(rs, _cams(32)[0], pl, np.random.default_rng(0),
                                  RenderConfig.preset("fast")))
+
+
+def test_device_shading_follows_vehicle_changes_in_one_rayscene(monkeypatch):
+    """Vehicles replaced in the same RayScene (render --placement-per-image): the device
+    tables (materials, albedo) follow, so the new vehicles are shaded with their own."""
+    from aerial_synth.render.world import add_placement
+
+    monkeypatch.setattr(wb, "SHADE", "device")
+    rs, pl = make_world([(1, 0.0, -2.0, 0.0, 4.5, 1.8, 1.5)])
+    cam = _cams(96)[0]
+    cfg = RenderConfig.preset("fast", backend="warp", jpeg_probability=0.0)
+    render_frame(rs, cam, pl, np.random.default_rng(0), cfg)
+    pl2 = make_placement([(5, 2.0, 1.0, 0.5, 9.0, 2.5, 3.2), (6, -6.0, -2.0, 0.0, 4.2, 1.8, 1.4)])
+    rs.clear_vehicles()
+    add_placement(rs, pl2, simple_boxes=True)
+    b = render_frame(rs, cam, pl2, np.random.default_rng(1), cfg)
+    a = render_frame(rs, cam, pl2, np.random.default_rng(1), RenderConfig.preset(
+        "fast", jpeg_probability=0.0))
+    assert set(np.unique(b.instance)) == {0, 5, 6}
+    tabs = wb.scene_for(rs, "cpu").__dict__["_shade_tables"]
+    assert tabs["face_mat"].shape[0] == len(rs.face_material)  # the new vehicles' faces
+    assert np.array_equal(tabs["face_alb"].numpy(), rs.face_albedo)
+    got = compare_frames(a, b, cam, pl2)
+    assert got.failures() == [] and got.rgb_mean_abs < 0.05, got.summary()

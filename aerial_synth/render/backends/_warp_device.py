@@ -6,9 +6,7 @@ which is how the tests compare it with the numba stages).
 What stays on the host: solving the auto exposure (from a 1/16 subsample of the metered
 luma, as the numba path does), the sensor (OpenCV's 8-bit blur, the noise kernel) and the
 optional JPEG artefacts; the frame's 8-bit RGB comes back to the host once, after the
-tone curve. Options the device path does not have
-(``shadow_edges="nearest"``) make :func:`supported` False, and the backend shades on the
-host instead.
+tone curve.
 """
 
 from __future__ import annotations
@@ -20,15 +18,9 @@ import numpy as np
 
 from .. import shading as S
 
-__all__ = ["shade_on_device", "supported"]
+__all__ = ["shade_on_device"]
 
 _CONST: dict = {}  # (device, name) -> uploaded constant tables and noise tiles
-
-
-def supported(factors: dict) -> bool:
-    """Whether :func:`shade_on_device` has every option ``factors`` asks for."""
-    step = max(1, int(factors.get("shadow_step", 2)))
-    return not (factors.get("shadow_edges", "cast") == "nearest" and step > 1)
 
 
 def _k():
@@ -73,10 +65,9 @@ def _scene_tables(ws, wp):
     device (made once per vehicle set)."""
     from ..smooth import corner_normals
 
-    key = ("shade_tables", id(ws._veh_src))
-    got = ws.__dict__.get("_shade_tables")
-    if got is not None and got[0] == key:
-        return got[1]
+    got = ws.__dict__.get("_shade_tables")  # dropped when the vehicles change
+    if got is not None:
+        return got
     dev = ws.device
     fm = np.ascontiguousarray(ws.face_material, np.int32)
     fa = np.ascontiguousarray(ws.face_albedo, np.float32).reshape(-1, 3)
@@ -93,7 +84,7 @@ def _scene_tables(ws, wp):
         "corners": _up(wp, dev, corners if len(corners) else np.zeros((1, 3, 3), np.float32),
                        wp.float32),
     }
-    ws.__dict__["_shade_tables"] = (key, tabs)
+    ws.__dict__["_shade_tables"] = tabs
     return tabs
 
 
@@ -110,6 +101,7 @@ class _Frame:
         self.h, self.w = camera.height_px, camera.width_px
         self.n = self.h * self.w
         self.step = max(1, int(factors.get("shadow_step", 2)))
+        self.nearest = factors.get("shadow_edges", "cast") == "nearest" and self.step > 1
         self.pseed = int(factors.get("pixel_seed", 0))
         self.oc = float(factors["overcast"])
         self.L64 = S.sun_direction(factors["sun_azimuth_deg"], factors["sun_elevation_deg"])
@@ -118,8 +110,10 @@ class _Frame:
         self.tseed = int(factors["texture_seed"]) if self.textured else 0
         self.tiles = _const(wp, self.dev, f"tiles{self.tseed}",
                             lambda: _up(wp, self.dev, S._noise_tiles(self.tseed), wp.float32))
+        # (static id, has static, face map, vehicles id, has vehicles); first, as it brings
+        # the vehicles (and so the tables) up to date
+        self.meshes = ws._meshes_for(())
         self.tabs = _scene_tables(ws, wp)
-        self.meshes = ws._meshes_for(())  # static id, has static, face map, vehicles, has
         self.timings = timings
         self.tick = time.perf_counter()
         self.depth_h = None
@@ -141,14 +135,16 @@ class _Frame:
                                                self.tabs["corners"]], [d["normal"]])
         ndl = wp.empty(self.n, dtype=wp.float32, device=self.dev)
         own = wp.empty(self.n, dtype=wp.uint8, device=self.dev)
+        src = wp.zeros(self.n if self.nearest else 1, dtype=wp.uint8, device=self.dev)
         self.launch(R.surface, self.n, [self.h, self.w, d["rays"], d["t"], d["face"], d["normal"],
                                         d["semantic"], d["depth"], self.tabs["face_mat"],
                                         self.tiles, int(self.textured), self.Lv,
-                                        int(S._FOLIAGE), self.step], [ndl, own])
+                                        int(S._FOLIAGE), self.step, int(self.nearest)],
+                    [ndl, own, src])
         self.mark("surface")
-        return ndl, own
+        return ndl, own, src
 
-    def shadows(self, ndl, own):
+    def shadows(self, ndl, own, src):
         """(lit (n,), lit_step): ``shading._shadow_pass`` on the device."""
         wp, d, R, f = self.wp, self.d, self.R, self.f
         lit = wp.ones(self.n, dtype=wp.float32, device=self.dev)
@@ -168,7 +164,8 @@ class _Frame:
         if sig <= 0 and S._SPREAD_IN_COMPOSE:
             lit_step = self.step
         elif self.step > 1:
-            self.launch(R.spread_shadow, self.n, [self.w, self.step, own, ndl], [lit])
+            self.launch(R.spread_shadow, self.n, [self.w, self.step, int(self.nearest), own,
+                                                  ndl, src], [lit])
         if sig > 0:
             lit = _blur(wp, R, self.dev, lit.reshape((self.h, self.w)), self.h, self.w,
                         sig).reshape((self.n,))
@@ -225,7 +222,7 @@ class _Frame:
         self.mark("wet_reflections")
         return refl, True
 
-    def compose(self, ndl, own, lit, lit_step, ao):
+    def compose(self, ndl, own, src, lit, lit_step, ao):
         """Linear radiance (n, 3) float32: ``_kernels.compose`` as :func:`.._warp_shade.compose`."""
         wp, d, K, f = self.wp, self.d, self.K, self.f
         light = S._light(f, self.oc)
@@ -256,11 +253,12 @@ class _Frame:
         lt.textured, lt.has_lit = int(self.textured), int(bool(f.get("shadows", True)))
         lt.lit_step, lt.has_ao, lt.has_refl = int(lit_step), int(bool(f.get(
             "ambient_occlusion"))), int(has_refl)
+        lt.nearest = int(self.nearest)
         lt.wear_ids = wp.vec3i(*[int(x) for x in S._WEAR_IDS])
         lin = wp.empty((self.n, 3), dtype=wp.float32, device=self.dev)
         self.launch(K.compose, self.n, [self.h, self.w, d["rays"], d["t"], d["face"],
-                                        d["normal"], ndl, lit, own, ao, refl, self.tiles, tb,
-                                        lt], [lin])
+                                        d["normal"], ndl, lit, own, src, ao, refl, self.tiles,
+                                        tb, lt], [lin])
         self.mark("compose")
         return lin
 
@@ -271,10 +269,10 @@ def shade_on_device(ws, camera, d: dict, factors: dict, timings: dict | None = N
     semantic, depth) are on ``ws.device``; adds the metered ``exposure_gain`` and
     ``tone_power`` to ``factors``, as ``shading.shade`` does."""
     fr = _Frame(ws, camera, d, factors, timings)
-    ndl, own = fr.surface()
-    lit, lit_step = fr.shadows(ndl, own)
+    ndl, own, src = fr.surface()
+    lit, lit_step = fr.shadows(ndl, own, src)
     ao = fr.ambient_occlusion()
-    lin = fr.compose(ndl, own, lit, lit_step, ao)
+    lin = fr.compose(ndl, own, src, lit, lit_step, ao)
     rgb = _camera(fr.wp, fr.K, fr.R, fr.dev, lin, factors, fr.h, fr.w)
     out = np.ascontiguousarray(rgb.numpy().reshape(fr.h, fr.w, 3))
     fr.mark("tone")

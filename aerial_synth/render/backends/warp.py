@@ -205,6 +205,7 @@ class WarpScene:
             self._veh_src = src
             self._tables = None
             self.__dict__["_render_box_cache"] = {}
+            self.__dict__.pop("_shade_tables", None)  # _warp_device's per-group tables
         owner = sm.veh_owner
         if owner is not None and owner[0]() is self and owner[1] is src:
             return sm.veh_mesh
@@ -366,12 +367,8 @@ def to_torch(frame_or_scene) -> dict:
 SHADE = "auto"
 
 
-def _on_device(device: str, factors: dict) -> bool:
-    from ._warp_device import supported
-
-    if SHADE == "host" or (SHADE == "auto" and device == "cpu"):
-        return False
-    return supported(factors)
+def _on_device(device: str) -> bool:
+    return SHADE == "device" or (SHADE == "auto" and device != "cpu")
 
 
 class WarpBackend(RenderBackend):
@@ -388,7 +385,7 @@ class WarpBackend(RenderBackend):
         from this backend's own instance buffer."""
         t0 = time.perf_counter()
         ws = scene_for(rayscene, getattr(config, "device", "cpu"))
-        if not _on_device(ws.device, factors):
+        if not _on_device(ws.device):
             buf = ws.primary(camera)
             t_buf = time.perf_counter() - t0
             shaded = self._shade(ws, camera, buf, vehicles, factors, rng)
