@@ -7,15 +7,15 @@ masks) comes from its own instance buffer, and it answers every secondary ray of
 shading model (sun and sun-disk shadow rays, the crown-gap test, ambient occlusion, wet-road
 mirror rays) and of the amodal masks with Warp kernels (:mod:`.._warp_kernels`).
 
-The shading model is the raycast backend's: the frame goes through
-:func:`~aerial_synth.render.shading.shade` and
-:func:`~aerial_synth.render.visibility.compute_visibility` with a :class:`WarpScene` in place
-of the RayScene. A WarpScene *is* a RayScene to them: it answers ``cast_rays`` and
-``test_occlusions`` with Warp and hands every other attribute (per-face tables, vehicle
-meshes and bounds) to the RayScene it wraps. The per-pixel stages between the ray casts
-(surface, compose, tone, sensor) are the shared numba kernels on the host, so the same
-influence factors give the same image model; tests/render/test_warp_backend.py states how
-closely the two backends agree.
+The shading model is the raycast backend's, in one of two forms (:data:`SHADE`): on a CUDA
+device :func:`._warp_device.shade_on_device`, every per-pixel stage as a Warp kernel; on
+the CPU :func:`~aerial_synth.render.shading.shade` itself, its numba stages on the host's
+cores. Either way :func:`~aerial_synth.render.visibility.compute_visibility` and ``shade``
+see a :class:`WarpScene` in place of the RayScene. A WarpScene *is* a RayScene to them: it
+answers ``cast_rays`` and ``test_occlusions`` with Warp and hands every other attribute
+(per-face tables, vehicle meshes and bounds) to the RayScene it wraps. The same influence
+factors give the same image model; tests/render/test_warp_backend.py states how closely
+the backends (and the two forms) agree.
 
 Geometry is uploaded once: the static scene's meshes (one per ignore-set, BVH built once)
 are kept per scene and device across placement groups; the vehicles go in one mesh per
