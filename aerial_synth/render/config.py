@@ -16,7 +16,7 @@ from enum import StrEnum
 
 import numpy as np
 
-from ..errors import ConfigError
+from ..errors import ConfigError, RenderError
 from ..scene.model import MATERIALS
 from ..validators import boolean, in_range, integer, known_keys, one_of, probability
 from . import backends
@@ -251,8 +251,13 @@ class RenderOptions:
 
     def check(self) -> None:
         """RenderError (one line) when the backend cannot run here on the device (a missing
-        optional dependency, ``cuda`` without CUDA, a device index that does not exist)."""
-        backends.get(self.backend).check(self.device)
+        optional dependency, ``cuda`` without CUDA, a device index that does not exist, a
+        device for a backend that runs on the CPU only)."""
+        b = backends.get(self.backend)
+        if self.device != "cpu" and not b.devices:
+            raise RenderError(f"--device {self.device}: --backend {self.backend} runs on the "
+                              "CPU only; --backend warp runs on a device")
+        b.check(self.device)
 
 
 def sample_factors(cfg: RenderConfig, rng: np.random.Generator) -> dict:

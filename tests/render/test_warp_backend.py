@@ -218,6 +218,7 @@ def _no_cuda() -> bool:
     (["--backend", "warp", "--device", "gpu"], "expected cpu, cuda or cuda:n"),
     (["--backend", "warp", "--device", "cuda:999"], "--device cuda:999: no "),
     (["--backend", "vulkan"], "--backend"),
+    (["--device", "cuda"], "--backend raycast runs on the cpu only"),
 ])
 def test_cli_bad_device_exits_2_with_one_line(command, extra, needle, tmp_path, capsys):
     from aerial_synth.cli import main

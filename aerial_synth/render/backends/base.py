@@ -44,6 +44,8 @@ class RenderBackend:
     #: its labels come from its own instance buffer; False: it shades the ray-cast
     #: :class:`~aerial_synth.render.buffers.Buffers` it is given (:meth:`render`)
     whole_frame: bool = False
+    #: True for a backend that runs on ``--device`` (cpu or cuda[:N]); False: the CPU only
+    devices: bool = False
 
     def check(self, device: str = "cpu") -> None:
         """Raise :class:`~aerial_synth.errors.RenderError` when the backend cannot run here

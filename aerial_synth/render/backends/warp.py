@@ -376,6 +376,7 @@ class WarpBackend(RenderBackend):
     description = ("NVIDIA Warp on CUDA or the CPU ([gpu] extra): every buffer, label and "
                    "ray of the raycast backend's shading model")
     whole_frame = True
+    devices = True
 
     def check(self, device: str = "cpu") -> None:
         resolve_device(device)
