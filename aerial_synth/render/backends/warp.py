@@ -19,8 +19,9 @@ the backends (and the two forms) agree.
 
 Geometry is uploaded once: the static scene's meshes (one per ignore-set, BVH built once)
 are kept per scene and device across placement groups; the vehicles go in one mesh per
-placement group, refitted when the next group has the same triangles (a vehicle moved) and
-rebuilt otherwise (:data:`STATS` counts both; ``tools/bench_warp.py`` times them).
+placement group (a RayScene), refitted when the same RayScene's vehicles move (the same
+triangles) and rebuilt otherwise (:data:`STATS` counts both; ``tools/bench_warp.py`` times
+them).
 """
 
 from __future__ import annotations
@@ -194,8 +195,11 @@ class WarpScene:
 
     # -------------------------------------------------------------- geometry upload
     def _vehicle_mesh(self):
-        """(mesh or None) holding this RayScene's vehicles now: the shared slot is refitted
-        (same triangles, moved) or rebuilt (other triangles) when it holds something else."""
+        """(mesh or None) holding this RayScene's vehicles now. The shared slot is refitted
+        when this RayScene's vehicles moved (the same triangles) and rebuilt otherwise, also
+        for a new RayScene (an export's next placement group) whatever its triangles: a
+        refitted BVH may break an exact tie between two faces otherwise than a new one,
+        and an image must not depend on which worker rendered the group before it."""
         wp = warp_module()
         rs = self._rs
         rs.refresh()
@@ -214,7 +218,7 @@ class WarpScene:
         t0 = time.perf_counter()
         if not len(faces):
             sm.veh_mesh, sm.veh_faces = None, None
-        elif (sm.veh_mesh is not None and sm.veh_faces is not None
+        elif (owner is not None and owner[0]() is self and sm.veh_mesh is not None
               and sm.veh_faces.shape == faces.shape and np.array_equal(sm.veh_faces, faces)):
             sm.veh_mesh.points.assign(wp.array(verts, dtype=wp.vec3, device=self.device))
             sm.veh_mesh.refit()
