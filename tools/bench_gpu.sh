@@ -48,14 +48,16 @@ timeout "$(left)" "$PY" tools/bench_warp.py --device "$DEVICE" --size "$SIZE" \
   --encode 200 --json "$OUT/warp.json" \
   > "$OUT/warp.log" 2>&1 || echo "bench_warp.py stopped (status $?): see $OUT/warp.log"
 
-# 2. the stream feeding an Ultralytics training (only where the stream and the training
-#    stack exist in this checkout)
-if "$PY" -c 'import aerial_synth.stream, ultralytics' 2>/dev/null && [ "$(left)" -gt 60 ]; then
-  timeout "$(( $(left) - 10 ))" "$PY" -m aerial_synth.stream --bench --backend warp \
-    --device "$DEVICE" --size "$SIZE" > "$OUT/stream.log" 2>&1 \
+# 2. the stream feeding an Ultralytics training, GPU utilisation sampled above: run by the
+#    stream's own benchmark, tools/bench_stream.py (the stream issue's; it takes --backend,
+#    --device, --size and --seconds), where this checkout has it and Ultralytics is installed
+if [ -f tools/bench_stream.py ] && "$PY" -c 'import ultralytics' 2>/dev/null \
+    && [ "$(left)" -gt 90 ]; then
+  timeout "$(( $(left) - 15 ))" "$PY" tools/bench_stream.py --backend warp --device "$DEVICE" \
+    --size "$SIZE" --seconds "$(( $(left) - 60 ))" > "$OUT/stream.log" 2>&1 \
     || echo "stream benchmark stopped (status $?): see $OUT/stream.log"
 else
-  echo "stream: skipped (no aerial_synth.stream with Ultralytics in this checkout, or no time left)" \
+  echo "stream: skipped (no tools/bench_stream.py with Ultralytics in this checkout, or no time left)" \
     | tee "$OUT/stream.log"
 fi
 
