@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from ._warp_shade import _GOLDEN, _INV24, _TWO_PI, bil, mix64, occluded_any, tex_coords
+from ._warp_shade import GOLDEN, INV24, TWO_PI, bil, mix64, occluded_any, tex_coords
 
 __all__ = ["smooth_normals", "surface", "shadow", "spread_shadow", "blur_rows", "blur_cols",
            "ao_blocks", "dilate_blocks", "ao_cast", "spread_ao", "reflect_blocks",
@@ -140,12 +140,12 @@ def shadow(rays: wp.array2d(dtype=float), t: wp.array(dtype=float),
     a = float(0.0)
     b = float(0.0)
     if soft != 0:
-        z = mix64(seed + wp.uint64(i + 1) * _GOLDEN)
-        u1 = float(wp.float64(z >> wp.uint64(40)) * wp.float64(_INV24))
-        u2 = float(wp.float64((z >> wp.uint64(16)) & wp.uint64(0xFFFFFF)) * wp.float64(_INV24))
+        z = mix64(seed + wp.uint64(i + 1) * GOLDEN)
+        u1 = float(wp.float64(z >> wp.uint64(40)) * wp.float64(INV24))
+        u2 = float(wp.float64((z >> wp.uint64(16)) & wp.uint64(0xFFFFFF)) * wp.float64(INV24))
         rr = wp.sqrt(u1)
-        a = rr * wp.cos(_TWO_PI * u2)
-        b = rr * wp.sin(_TWO_PI * u2)
+        a = rr * wp.cos(TWO_PI * u2)
+        b = rr * wp.sin(TWO_PI * u2)
     ti = t[i]
     o = wp.vec3(rays[i, 0] + ti * rays[i, 3] + peel * normal[i, 0],
                 rays[i, 1] + ti * rays[i, 4] + peel * normal[i, 1],
@@ -312,13 +312,13 @@ def ao_cast(h: int, w: int, step: int, bw: int, rays: wp.array2d(dtype=float),
     ti = t[i]
     o = wp.vec3(rays[i, 0] + ti * rays[i, 3] + peel * nx, rays[i, 1] + ti * rays[i, 4] + peel * ny,
                 rays[i, 2] + ti * rays[i, 5] + peel * nz)
-    z = mix64(seed + wp.uint64(b + 1) * _GOLDEN)
-    rot = float(wp.float64(z >> wp.uint64(40)) * wp.float64(_INV24))
+    z = mix64(seed + wp.uint64(b + 1) * GOLDEN)
+    rot = float(wp.float64(z >> wp.uint64(40)) * wp.float64(INV24))
     blocked = int(0)
     for d in range(n_dirs):
-        z2 = mix64(z + wp.uint64(d + 1) * _GOLDEN)
-        u1 = float((wp.float64(z2 >> wp.uint64(40)) + wp.float64(0.5)) * wp.float64(_INV24))
-        phi = _TWO_PI * ((float(d) + rot) / float(n_dirs))
+        z2 = mix64(z + wp.uint64(d + 1) * GOLDEN)
+        u1 = float((wp.float64(z2 >> wp.uint64(40)) + wp.float64(0.5)) * wp.float64(INV24))
+        phi = TWO_PI * ((float(d) + rot) / float(n_dirs))
         sr = wp.sqrt(u1)
         cz = wp.sqrt(1.0 - u1)
         a = sr * wp.cos(phi)

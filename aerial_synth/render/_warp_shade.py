@@ -18,11 +18,12 @@ from __future__ import annotations
 
 import warp as wp
 
-__all__ = ["compose", "luma", "tone", "grayscale", "Light", "Tables"]
+__all__ = ["compose", "luma", "tone", "grayscale", "Light", "Tables", "GOLDEN", "INV24",
+           "TWO_PI", "bil", "mix64", "occluded_any", "tex_coords"]
 
-_GOLDEN = wp.constant(wp.uint64(0x9E3779B97F4A7C15))
-_INV24 = wp.constant(1.0 / 16777216.0)
-_TWO_PI = wp.constant(6.2831854820251465)  # np.float32(2 pi)
+GOLDEN = wp.constant(wp.uint64(0x9E3779B97F4A7C15))
+INV24 = wp.constant(1.0 / 16777216.0)
+TWO_PI = wp.constant(6.2831854820251465)  # np.float32(2 pi)
 
 KIND_GRAVEL = wp.constant(1)
 KIND_TILES = wp.constant(2)
@@ -50,7 +51,7 @@ def hash01(a: wp.int64, b: wp.int64, seed: wp.uint64):
     za = wp.uint64(a & wp.int64(0xFFFFFFFF)) * wp.uint64(0x9E3779B97F4A7C15)
     zb = wp.uint64(b & wp.int64(0xFFFFFFFF)) * wp.uint64(0xC2B2AE3D27D4EB4F)
     z = mix64(za ^ zb ^ seed)
-    return float(wp.float64(z >> wp.uint64(40)) * wp.float64(_INV24))
+    return float(wp.float64(z >> wp.uint64(40)) * wp.float64(INV24))
 
 
 @wp.func

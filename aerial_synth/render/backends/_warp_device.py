@@ -92,9 +92,9 @@ class _Frame:
     """One frame's shading state on the device (what ``shading.shade`` keeps in locals)."""
 
     def __init__(self, ws, camera, d: dict, factors: dict, timings):
-        from .warp import warp_module
+        import warp as wp  # initialised by the backend (.warp.warp_module) before it calls
 
-        self.wp = wp = warp_module()
+        self.wp = wp
         self.K, self.R = _k()
         self.ws, self.camera, self.d, self.f = ws, camera, d, factors
         self.dev = ws.device
