@@ -41,7 +41,8 @@ from . import ultra
 from .config import Sim2RealConfig, Sim2RealError, SyntheticSet, inspect_synthetic
 from .real import RealImage, load_scaled, merge_tiles, plan_image, read_real, tiles_of
 
-__all__ = ["REPORT_FORMAT", "check_inputs", "run_sim2real", "write_task1", "prepare_training_set"]
+__all__ = ["REPORT_FORMAT", "check_inputs", "run_sim2real", "write_task1", "prepare_training_set",
+           "predict_plans"]
 
 REPORT_FORMAT = "aerial-synth-sim2real"
 AGNOSTIC = "vehicle"
@@ -148,13 +149,13 @@ def write_task1(folder: Path, names: list[str], xy: np.ndarray, scores: np.ndarr
     return out
 
 
-def _predict_arm(predictor, plans: list[RealImage], cfg: Sim2RealConfig):
+def predict_plans(predictor, plans: list[RealImage], batch: int, merge_iou: float):
     """Per real image: merged (xy original px, scores, classes)."""
     out = []
     for r in plans:
         img = load_scaled(r)
-        per_tile = predictor(tiles_of(img, r), batch=cfg.batch)
-        out.append(merge_tiles(r, per_tile, cfg.merge_iou))
+        per_tile = predictor(tiles_of(img, r), batch=batch)
+        out.append(merge_tiles(r, per_tile, merge_iou))
     return out
 
 
@@ -191,7 +192,7 @@ def _run(cfg, tmp: Path, sets, gsds, items, plans, opts, device, device_name) ->
         by_scale = {}
         for k, scale in enumerate(cfg.real_scale):  # the first is the headline
             pred_dir = arm_dir / ("predictions" if k == 0 else f"predictions_{scale}")
-            merged = _predict_arm(predictor, plans[_target(cfg, gsds, a.name, scale)], cfg)
+            merged = predict_plans(predictor, plans[_target(cfg, gsds, a.name, scale)], cfg.batch, cfg.merge_iou)
             img_names = [n for n, (_, sc, _) in zip(names, merged) for _ in range(len(sc))]
             xy = np.concatenate([m[0] for m in merged] or [np.zeros((0, 4, 2))])
             sc = np.concatenate([m[1] for m in merged] or [np.zeros(0)])
