@@ -2,7 +2,8 @@
 reads: one DOTA-layout group per dataset (``images/``, ``labelTxt/`` with a ``gsd:`` header
 where the GSD is known), vehicle boxes only. This is how the development set of docs/gsd.md
 and docs/sim2real.md is made from ``../shared/reference/real_samples`` (Minsk drone frames in
-DOTA layout, VEDAI tiles, DOTA8 crops in YOLO-OBB)::
+DOTA layout, VEDAI tiles, DOTA8 crops in YOLO-OBB, UCAS-AOD Google Earth cars in DOTA layout
+with per-image gsd: headers)::
 
     python tools/make_dev_set.py ../shared/reference/real_samples .s2r/real --gsd vedai=0.25
 
@@ -12,7 +13,9 @@ gives the GSD of a group whose labels carry none (VEDAI's 12.5 cm tiles resample
 are 0.25 m); groups without one get no ``gsd:`` header (``sim2real --real-gsd`` then
 decides). Images are copied byte for byte. OUT is built in a temporary sibling and renamed
 into place at the end; an existing OUT is refused unless ``--force``. Prints the images and
-vehicles per group.
+vehicles per group, and the sim2real plan keys its known sources need (:data:`SCORING`:
+UCAS-AOD labels cars only, so large-vehicle predictions there are dropped, and ignores 20 px
+of border).
 """
 
 from __future__ import annotations
@@ -33,6 +36,23 @@ from aerial_synth.formats import dota  # noqa: E402
 from aerial_synth.io_utils import check_output_dir, is_inside, replace_dir  # noqa: E402
 
 VEHICLES = ("small-vehicle", "large-vehicle")
+#: how sim2real must score a known source (printed as plan keys when its group is present):
+#: UCAS-AOD labels cars only (its trucks are no false positives) and cars cut by the border only
+#: in part (README.txt there); the Minsk drone frames leave cars at the edge unlabelled
+SCORING = {"ucas_aod": {"ignore_border": 20, "ignore_classes": ["large-vehicle"]},
+           "minsk_uav": {"ignore_border": 40}}
+
+
+def plan_keys(groups) -> str:
+    """The sim2real plan keys (YAML flow style) for the known sources among ``groups``."""
+    border = {g: SCORING[g]["ignore_border"] for g in sorted(groups) if "ignore_border" in SCORING.get(g, {})}
+    classes = {g: SCORING[g]["ignore_classes"] for g in sorted(groups) if "ignore_classes" in SCORING.get(g, {})}
+    parts = []
+    if border:
+        parts.append("ignore_border: {" + ", ".join(f"{g}: {v}" for g, v in border.items()) + "}")
+    if classes:
+        parts.append("ignore_classes: {" + ", ".join(f"{g}: [{', '.join(v)}]" for g, v in classes.items()) + "}")
+    return "\n".join(parts)
 
 
 def build(src: Path, out: Path, gsd: dict[str, float], classes=VEHICLES) -> dict[str, list[int]]:
@@ -108,6 +128,9 @@ def main(argv=None) -> int:
         print(f"{group}: {n_img} images, {n_veh} vehicles")
     print(f"total: {sum(c[0] for c in counts.values())} images, "
           f"{sum(c[1] for c in counts.values())} vehicles -> {a.out}")
+    keys = plan_keys(counts)
+    if keys:
+        print("sim2real plan keys for this collection (docs/sim2real.md):\n" + keys)
     return 0
 
 

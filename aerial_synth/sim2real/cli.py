@@ -106,6 +106,9 @@ def _register_score(sub) -> None:
                    help="real truth classes kept (small-vehicle,large-vehicle)")
     s.add_argument("--ignore-border", action="append", default=[], metavar="PX|GROUP=PX",
                    help="ignore truth and predictions centred within PX of the border")
+    s.add_argument("--ignore-classes", action="append", default=[], metavar="GROUP=CLASS[,CLASS]",
+                   help="drop predictions of these classes on GROUP's images (a set labelled with "
+                   "cars only: ucas_aod=large-vehicle); repeatable")
     s.add_argument("--iou-type", type=arg_choice("--iou-type", ("obb", "hbb", "auto")), default="auto",
                    metavar="obb|hbb|auto", help="(auto)")
     s.add_argument("--group", default=None, metavar="REGEX", help="groups by REGEX (default: sub-folders)")

@@ -73,7 +73,19 @@ def _score(args) -> int:
                        real_scale=parse_real_scale(args.real_scale), iou_type=args.iou_type,
                        ignore_border=parse_ignore_border(args.ignore_border), group=args.group,
                        conf=args.conf, merge_iou=args.merge_iou, batch=args.batch,
-                       contact_images=args.contact_images, force=args.force)
+                       contact_images=args.contact_images, force=args.force,
+                       ignore_classes=_ignore_classes(args.ignore_classes))
     print(score_summary_text(report))
     print(f"report: {args.out}/summary.txt, report.json, pr*.png, contact_*.png")
     return 0
+
+
+def _ignore_classes(values) -> dict[str, tuple[str, ...]]:
+    out: dict[str, tuple[str, ...]] = {}
+    for text in values:
+        g, sep, cl = str(text).partition("=")
+        classes = tuple(c.strip() for c in cl.split(",") if c.strip())
+        if not sep or not g.strip() or not classes:
+            raise Sim2RealError(f"--ignore-classes: expected GROUP=CLASS[,CLASS], got {text!r}")
+        out[g.strip()] = out.get(g.strip(), ()) + classes
+    return out

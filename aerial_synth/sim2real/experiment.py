@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from ..evaluate.ap import Detections
 from ..evaluate.evaluation import read_task1_folder
 from ..evaluate.scoring import ScoringOptions, image_groups, score
 from ..io_utils import (
@@ -40,7 +41,7 @@ from .plan import ARM_KINDS, Plan, check_export_arms, load_plan
 from .real import plan_image, read_real
 from .runs import auto_parallel, predict_real, run_all, share_out
 
-__all__ = ["run_plan", "run_score", "PLAN_MARKER", "CONFIDENCE_METHOD"]
+__all__ = ["run_plan", "run_score", "drop_classes", "PLAN_MARKER", "CONFIDENCE_METHOD"]
 
 PLAN_MARKER = "plan.json"
 CONFIDENCE_METHOD = (f"paired bootstrap over real images and seeds ({BOOTSTRAP} replicates, "
@@ -58,13 +59,14 @@ def _check_out(out: Path, inputs) -> Path:
     return out
 
 
-def _real_checks(cfg: Sim2RealConfig, items) -> None:
-    """Refusals that need only the real set: groups named by ignore_border, GSD headers
-    where an arm scale is asked for."""
+def _real_checks(cfg: Sim2RealConfig, items, ignore_classes=None) -> None:
+    """Refusals that need only the real set: groups named by ignore_border and
+    ignore_classes, GSD headers where an arm scale is asked for."""
     groups = sorted(set(image_groups(items, cfg.group)))
-    for k in cfg.ignore_border:
-        if k is not None and k not in groups:
-            raise Sim2RealError(f"ignore_border: no group {k!r} in the real set (groups: {', '.join(groups)})")
+    for opt, keys in (("ignore_border", cfg.ignore_border), ("ignore_classes", ignore_classes or {})):
+        for k in keys:
+            if k is not None and k not in groups:
+                raise Sim2RealError(f"{opt}: no group {k!r} in the real set (groups: {', '.join(groups)})")
     if "arm" in cfg.real_scale:
         for it in items:
             plan_image(it, 1.0, cfg.real_gsd, cfg.tile, cfg.overlap)
@@ -86,7 +88,7 @@ def check_plan(plan_path, out, device: str) -> tuple[Plan, Path, list]:
     try:
         items = read_real(plan.real, plan.configs[plan.baseline].real_classes)
         for a in plan.arms:
-            _real_checks(plan.configs[a.name], items)
+            _real_checks(plan.configs[a.name], items, plan.ignore_classes)
             if ARM_KINDS[a.kind].writes or a.gsd is not None or "arm" not in plan.configs[a.name].real_scale:
                 continue
             gs = {inspect_synthetic(d, "").gsd_m for d in a.spec}
@@ -160,9 +162,21 @@ def run_plan(plan_path, out, *, parallel="auto", device: str = "auto", export_wo
     return report
 
 
-def _score_run(items, folder: Path, opts) -> tuple:
+def drop_classes(items, dets: Detections, ignore_classes: dict, group_regex=None) -> Detections:
+    """``dets`` without the predictions of ``ignore_classes[group]`` on that group's images
+    (a real set labelled with cars only: its trucks are not false positives)."""
+    if not ignore_classes or not len(dets):
+        return dets
+    groups = image_groups(items, group_regex)
+    img = np.asarray(dets.image, np.int64)
+    keep = np.array([c not in ignore_classes.get(groups[i], ()) for i, c in zip(img, dets.classes)], bool)
+    return Detections(img[keep], [c for c, k in zip(dets.classes, keep) if k], np.asarray(dets.scores)[keep],
+                      np.asarray(dets.polygons_xy_px).reshape(-1, 4, 2)[keep])
+
+
+def _score_run(items, folder: Path, opts, ignore_classes=None) -> tuple:
     names = {g.name: i for i, g in enumerate(items)}
-    dets = read_task1_folder(folder, names)
+    dets = drop_classes(items, read_task1_folder(folder, names), ignore_classes, opts[0].group)
     agn = score(items, dets, opts[0])
     return dets, agn, rep.arm_real_figures(agn, score(items, dets, opts[1]))
 
@@ -183,7 +197,8 @@ def _plan_report(plan, out, items, built, arm_info, specs, results, gpu, par, de
     scored = {}  # arm -> [(dets, agn, figs) per seed]
     for s, r in zip(specs, results):
         scored.setdefault(s["arm"], []).append(
-            _score_run(items, Path(s["run_dir"]) / r["predictions"][base_cfg.real_scale[0]], opts))
+            _score_run(items, Path(s["run_dir"]) / r["predictions"][base_cfg.real_scale[0]], opts,
+                       plan.ignore_classes))
     groups = image_groups(items, base_cfg.group)
     gnames = sorted(set(groups))
     base = [rep.agnostic(x[1]) for x in scored[plan.baseline]]
@@ -237,7 +252,8 @@ def _plan_report(plan, out, items, built, arm_info, specs, results, gpu, par, de
         "confidence": {"method": CONFIDENCE_METHOD, "level": INTERVAL, "replicates": BOOTSTRAP,
                        "spread": "sample standard deviation over seeds (ddof 1)"},
         "real": _real_summary(base_cfg, items, {}, opts[0]),
-        "scoring": dict(opts[0].to_dict(), metric="voc07", iou_threshold=0.5),
+        "scoring": dict(opts[0].to_dict(), metric="voc07", iou_threshold=0.5,
+                        ignore_classes_by_group={g: list(c) for g, c in plan.ignore_classes.items()}),
         "arms": arms, "files": {},
     }
     curves = {k: v[1] for k, v in by_arm.items()}
@@ -253,7 +269,7 @@ def _plan_report(plan, out, items, built, arm_info, specs, results, gpu, par, de
 
 def run_score(weights: list, real, out, *, device: str = "auto", real_gsd=None, real_classes=None,
               real_scale=("arm",), iou_type="auto", ignore_border=None, group=None, conf=0.001,
-              merge_iou=0.3, batch=8, contact_images=6, force=False) -> dict:
+              merge_iou=0.3, batch=8, contact_images=6, force=False, ignore_classes=None) -> dict:
     """Predict and score ``real`` with kept weights (no training): the same tiling (the
     weights' image size, GSD and tiles, kept in the file), merge, scoring and report layout
     as a run. One "arm" per weights file."""
@@ -295,7 +311,7 @@ def run_score(weights: list, real, out, *, device: str = "auto", real_gsd=None, 
                                 f"use --real-scale native")
     items = read_real(Path(real), cfgs[0].real_classes)
     for c in cfgs:
-        _real_checks(c, items)
+        _real_checks(c, items, ignore_classes)
     dev, dev_name = ultra.resolve_device(device)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)).resolve()
@@ -309,7 +325,8 @@ def run_score(weights: list, real, out, *, device: str = "auto", real_gsd=None, 
             _log(f"{n}: predicting {len(items)} real images with {w}")
             preds = predict_real(w, real_d, {sc: (c.gsd if sc == "arm" else None) for sc in c.real_scale},
                                  tmp / "arms" / n, dev, list(m.get("classes") or []) or ["small-vehicle"])
-            by_scale = {sc: _score_run(items, tmp / "arms" / n / rel, opts) for sc, rel in preds.items()}
+            by_scale = {sc: _score_run(items, tmp / "arms" / n / rel, opts, ignore_classes)
+                        for sc, rel in preds.items()}
             dets, agn, figs = by_scale[c.real_scale[0]]
             by_arm[n] = (dets, agn)
             arms.append({"name": n, "weights": str(w), "meta": m, "gsd_m": m.get("gsd_m"),
@@ -326,7 +343,8 @@ def run_score(weights: list, real, out, *, device: str = "auto", real_gsd=None, 
                   "versions": dict(aerial_synth=__version__, python=sys.version.split()[0], **ultra.versions()),
                   "device": {"requested": device, "used": dev, "name": dev_name},
                   "real": _real_summary(cfgs[0], items, {}, opts[0]),
-                  "scoring": dict(opts[0].to_dict(), metric="voc07", iou_threshold=0.5),
+                  "scoring": dict(opts[0].to_dict(), metric="voc07", iou_threshold=0.5,
+                                  ignore_classes_by_group={g: list(c) for g, c in (ignore_classes or {}).items()}),
                   "arms": arms, "files": {}}
         curves = {k: v[1] for k, v in by_arm.items()}
         sheets = {k: (v[0], rep.best_f1_threshold(rep.agnostic(v[1]))) for k, v in by_arm.items()}

@@ -34,8 +34,8 @@ __all__ = ["TrainSpec", "PlanArm", "Plan", "ArmKind", "Built", "ARM_KINDS", "arm
            "PLAN_KEYS", "TRAIN_KEYS", "REAL_KEYS", "EXPORT_SET_BY_SIM2REAL"]
 
 #: the real-set options of a plan (as today's flags, ``-`` written ``_``)
-REAL_KEYS = ("real_gsd", "real_classes", "real_scale", "iou_type", "ignore_border", "group", "tile",
-             "overlap", "conf", "merge_iou", "contact_images")
+REAL_KEYS = ("real_gsd", "real_classes", "real_scale", "iou_type", "ignore_border", "ignore_classes",
+             "group", "tile", "overlap", "conf", "merge_iou", "contact_images")
 PLAN_KEYS = ("real", "baseline", "seeds", "train", "arms") + REAL_KEYS
 #: ``train:`` keys (plan-wide, or per arm to override). ``workers`` and ``threads`` are per run
 #: (data-loader processes, torch CPU threads); left out, they are shared out among the runs.
@@ -110,6 +110,11 @@ class Plan:
     #: one validated Sim2RealConfig per arm (real-set options and training, no out)
     configs: dict = field(default_factory=dict)
     raw: dict = field(default_factory=dict)
+
+    @property
+    def ignore_classes(self) -> dict[str, tuple[str, ...]]:
+        """{group: prediction classes dropped on its images} (a set labelled with cars only)."""
+        return {g: tuple(c) for g, c in (self.raw.get("ignore_classes") or {}).items()}
 
     def arm(self, name: str) -> PlanArm:
         return next(a for a in self.arms if a.name == name)
@@ -223,6 +228,13 @@ def _real_options(data: dict, where: str) -> dict:
                 out[k] = parse_ignore_border(vals)
             except AerialSynthError as exc:
                 raise Sim2RealError(f"{w}: {exc}") from None
+        elif k == "ignore_classes":
+            if not isinstance(v, dict) or not all(
+                    isinstance(g, str) and isinstance(c, list) and c and all(isinstance(x, str) and x for x in c)
+                    for g, c in v.items()):
+                raise Sim2RealError(f"{w}: expected a mapping GROUP: [CLASS, ...] (predictions of those "
+                                    f"classes dropped on that group's images), got {v!r}")
+            continue  # not a Sim2RealConfig field: read by Plan.ignore_classes
         elif k == "real_classes":
             if v == "all":
                 out[k] = None

@@ -78,6 +78,24 @@ def test_collection_becomes_dota_with_vehicles_and_gsd(tmp_path):
     assert r.returncode == 0 and tree_bytes(out) == tree_bytes(tmp_path / "dev2")
 
 
+def test_known_sources_print_their_scoring_keys(tmp_path):
+    """A ucas_aod group (cars only, part-labelled border cars) gets its plan keys printed."""
+    src = tmp_path / "src"
+    _image(src / "ucas_aod" / "images" / "u.png")
+    (src / "ucas_aod" / "labelTxt").mkdir(parents=True)
+    (src / "ucas_aod" / "labelTxt" / "u.txt").write_text("gsd:0.08\n10 10 50 10 50 30 10 30 small-vehicle 0\n")
+    _image(src / "other" / "images" / "o.png")
+    (src / "other" / "labelTxt").mkdir(parents=True)
+    (src / "other" / "labelTxt" / "o.txt").write_text("gsd:0.1\n10 10 50 10 50 30 10 30 small-vehicle 0\n")
+    r = _run(src, tmp_path / "dev")
+    assert r.returncode == 0, r.stderr
+    assert "ucas_aod: 1 images, 1 vehicles" in r.stdout
+    assert "ignore_border: {ucas_aod: 20}" in r.stdout
+    assert "ignore_classes: {ucas_aod: [large-vehicle]}" in r.stdout
+    r = _run(tmp_path / "dev", tmp_path / "dev3")  # a collection made by the tool, made again
+    assert r.returncode == 0 and "ignore_classes" in r.stdout
+
+
 @pytest.mark.parametrize("args, msg", [
     (("--gsd", "vedai"), "--gsd: expected GROUP=M"),
     (("--gsd", "vedai=-1"), "--gsd: expected GROUP=M"),

@@ -103,6 +103,8 @@ def test_baseline_defaults_to_the_first_arm_and_real_options_are_keys(folder):
     (("A: {synthetic: s1}", "A: {export: {out: x}}"), "arm A: export: 'out' is set by sim2real"),
     (("A: {synthetic: s1}", "A: {export: {simple_vehicles: 3}}"), "simple_vehicles: expected true or false"),
     (("{epochs: 1,", "{epochs: 1, minutes: 3,"), "expected --minutes or --epochs, not both"),
+    (("seeds: [0, 1]", "seeds: [0, 1]\nignore_classes: {r: large-vehicle}"), "ignore_classes: expected a mapping"),
+    (("seeds: [0, 1]", "seeds: [0, 1]\nignore_classes: {ucas: [large-vehicle]}"), "ignore_classes: no group 'ucas'"),
     (("imgsz: 128", "imgsz: 100"), "--imgsz: expected a multiple of 32"),
     (("seeds: [0, 1]", "seeds: [0, 1]\nignore_border: {nogroup: 4}"), "no group 'nogroup'"),
 ])
@@ -324,3 +326,16 @@ def test_sim2real_without_plan_or_sets(tmp_path, capsys, extra_present):
 def test_plan_errors_are_sim2real_errors(folder):
     with pytest.raises(Sim2RealError, match="baseline"):
         load_plan(_write(folder, GOOD.replace("baseline: A", "baseline: Q")))
+
+
+def test_drop_classes_only_on_the_named_group():
+    from aerial_synth.sim2real.experiment import drop_classes
+
+    gt = [ImageLabels(f"{g}/im", np.zeros((0, 4, 2)), [], np.zeros(0, bool), None, None, size_wh=(10, 10),
+                      extra={"group": g}) for g in ("ucas", "minsk")]
+    d = Detections(np.array([0, 0, 1, 1]), ["large-vehicle", "small-vehicle", "large-vehicle", "small-vehicle"],
+                   np.array([0.9, 0.8, 0.7, 0.6]), np.zeros((4, 4, 2)))
+    kept = drop_classes(gt, d, {"ucas": ("large-vehicle",)})
+    assert kept.classes == ["small-vehicle", "large-vehicle", "small-vehicle"]
+    assert kept.image.tolist() == [0, 1, 1] and kept.scores.tolist() == [0.8, 0.7, 0.6]
+    assert drop_classes(gt, d, {}) is d
