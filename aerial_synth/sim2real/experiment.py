@@ -34,7 +34,7 @@ from ..io_utils import (
 )
 from . import report as rep
 from . import ultra
-from .confidence import BOOTSTRAP, INTERVAL, paired_difference, spread
+from .confidence import BOOTSTRAP, INTERVAL, differences, spread
 from .config import Sim2RealConfig, Sim2RealError, inspect_synthetic
 from .pipeline import AGNOSTIC, REPORT_FORMAT, _log, _real_summary, _write_figures
 from .plan import ARM_KINDS, Plan, check_export_arms, load_plan
@@ -199,9 +199,11 @@ def _plan_report(plan, out, items, built, arm_info, specs, results, gpu, par, de
         scored.setdefault(s["arm"], []).append(
             _score_run(items, Path(s["run_dir"]) / r["predictions"][base_cfg.real_scale[0]], opts,
                        plan.ignore_classes))
-    groups = image_groups(items, base_cfg.group)
-    gnames = sorted(set(groups))
-    base = [rep.agnostic(x[1]) for x in scored[plan.baseline]]
+    groups = np.array(image_groups(items, base_cfg.group))
+    gnames = sorted(set(groups.tolist()))
+    agn = {a: [rep.agnostic(x[1]) for x in v] for a, v in scored.items()}
+    vs = differences(agn, plan.baseline)
+    vs_group = {g: differences(agn, plan.baseline, np.nonzero(groups == g)[0]) for g in gnames} if len(gnames) > 1 else {}
     arms = []
     by_arm = {}
     for a in plan.arms:
@@ -229,13 +231,9 @@ def _plan_report(plan, out, items, built, arm_info, specs, results, gpu, par, de
             "peak_gpu_mib": max((r["peak_gpu_mib"] for _, r in rs if r["peak_gpu_mib"] is not None), default=None),
         }
         entry.update(_arm_stats(figs))
-        agn = [rep.agnostic(x[1]) for x in scored[a.name]]
         if a.name != plan.baseline:
-            garr = np.array(groups)
-            entry["vs_baseline"] = paired_difference(agn, base).to_dict()
-            entry["vs_baseline_per_group"] = (
-                {g: paired_difference(agn, base, np.nonzero(garr == g)[0]).to_dict() for g in gnames}
-                if len(gnames) > 1 else {})
+            entry["vs_baseline"] = vs[a.name].to_dict()
+            entry["vs_baseline_per_group"] = {g: v[a.name].to_dict() for g, v in vs_group.items()}
         arms.append(entry)
         by_arm[a.name] = scored[a.name][0]
     report = {

@@ -339,3 +339,24 @@ def test_drop_classes_only_on_the_named_group():
     assert kept.classes == ["small-vehicle", "large-vehicle", "small-vehicle"]
     assert kept.image.tolist() == [0, 1, 1] and kept.scores.tolist() == [0.8, 0.7, 0.6]
     assert drop_classes(gt, d, {}) is d
+
+
+def test_weighted_ap_is_the_ap_of_the_resampled_set():
+    """Image weights = images drawn that often: the AP of a set built from the drawn images
+    (each copy with its detections) equals weighted_ap with those weights."""
+    rng = np.random.default_rng(7)
+    gt = _truth(10)
+    d = _dets(gt, rng, 0.6, 3)
+    c = _agn(gt, d)
+    for _ in range(5):
+        drawn = rng.integers(0, len(gt), len(gt))
+        w = np.bincount(drawn, minlength=len(gt)).astype(float)
+        gt2, img, sc, xy = [], [], [], []
+        for k, i in enumerate(drawn):
+            gt2.append(gt[i])
+            m = d.image == i
+            img += [k] * int(m.sum())
+            sc += d.scores[m].tolist()
+            xy.append(d.polygons_xy_px[m])
+        ref = _agn(gt2, Detections(np.array(img), ["car"] * len(img), np.array(sc), np.concatenate(xy)))
+        assert weighted_ap(c, w[None])[0] == pytest.approx(ref.ap, abs=1e-12)
