@@ -20,13 +20,15 @@ def _classes(text: str):
 
 def run_command(args) -> int:
     """``aerial-synth sim2real`` once its options are parsed (sim2real/cli.py)."""
+    if args.plan is not None and args.sim2real_action is None:
+        if args.out is None:
+            raise Sim2RealError("sim2real: missing required --out DIR")
+        return _plan(args)  # the plan is checked first: a plan can be checked without torch
     require_train_extra()  # first: without the extra nothing else matters
     if args.sim2real_action == "score":
         return _score(args)
     if args.out is None:
         raise Sim2RealError("sim2real: missing required --out DIR")
-    if args.plan is not None:
-        return _plan(args)
     if not args.synthetic or args.real is None:
         raise Sim2RealError("sim2real: expected --plan PLAN.yaml, or --synthetic DIR and --real DIR")
     classes = _classes(args.real_classes)

@@ -78,8 +78,8 @@ def _options(cfg: Sim2RealConfig) -> tuple[ScoringOptions, ScoringOptions]:
 
 
 def check_plan(plan_path, out, device: str) -> tuple[Plan, Path, list]:
-    """Every refusal of a plan, before anything is written: (plan, out, real items)."""
-    ultra.require_train_extra()
+    """Every refusal of a plan, before anything is written: (plan, out, real items). The
+    [train] extra is asked for last, so a plan can be checked where torch is not installed."""
     plan = load_plan(plan_path, device=device, out=Path(out))
     where = f"--plan {plan.path}"
     inputs = [("real", plan.real)] + [(f"arm {a.name}", d) for a in plan.arms
@@ -100,6 +100,7 @@ def check_plan(plan_path, out, device: str) -> tuple[Plan, Path, list]:
         msg = str(exc)
         raise Sim2RealError(msg if msg.startswith("--plan") else f"{where}: {msg}") from None
     check_export_arms(plan)
+    ultra.require_train_extra()
     return plan, out, items
 
 

@@ -133,6 +133,20 @@ def test_not_a_plan(folder, capsys, extra_present):
     assert rc == 2 and "no such file" in capsys.readouterr().err and not out.exists()
 
 
+def test_a_plan_is_checked_without_the_train_extra(folder):
+    """Without Ultralytics a bad plan still gets its own line; a good one the install hint."""
+    def run(text):
+        plan = _write(folder, text)
+        code = ("import sys; sys.modules['ultralytics'] = None; from aerial_synth.cli import main; "
+                f"sys.exit(main(['sim2real', '--plan', {str(plan)!r}, '--out', {str(folder / 'out')!r}]))")
+        r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=REPO)
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+        assert not (folder / "out").exists()
+        return r.stderr
+    assert "baseline 'Z' is not an arm" in run(GOOD.replace("baseline: A", "baseline: Z"))
+    assert "pip install 'aerial-synth[train]'" in run(GOOD)
+
+
 def test_plan_with_one_off_flags_is_refused(folder, capsys, extra_present):
     msg = _refused(capsys, folder, GOOD, "--epochs", "3")
     assert "--epochs comes from the plan" in msg
