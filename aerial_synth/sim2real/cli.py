@@ -3,9 +3,14 @@ extra the command prints one line (what to install) and exits with status 2."""
 
 from __future__ import annotations
 
+from ..cli import Parser, one_line_usage_error
+from ..dataset.cli import config_from_args
+from ..dataset.cli import register as register_export
 from ..validators import arg_choice, arg_float, arg_int
+from .config import Sim2RealError
+from .plan import EXPORT_SET_BY_SIM2REAL
 
-__all__ = ["register"]
+__all__ = ["register", "export_parser", "export_argv", "export_config"]
 
 
 def register(sub) -> None:
@@ -124,4 +129,63 @@ def _register_score(sub) -> None:
 def _cmd_sim2real(args) -> int:
     from .command import run_command  # lazy: the sim2real pipeline and scorer, not for --help
 
-    return run_command(args)
+    return run_command(args, export_config)
+
+
+# -- export arms of a plan: the export command's own options, checks and messages -------------------
+
+def export_parser():
+    """The ``export`` command's own parser, raising its one line instead of exiting."""
+    class Raising(Parser):
+        def error(self, message):
+            raise Sim2RealError(one_line_usage_error("aerial-synth export", message))
+
+    top = Raising(prog="aerial-synth")
+    sub = top.add_subparsers(dest="command", parser_class=Raising)
+    register_export(sub)
+    return sub.choices["export"]
+
+
+def export_argv(arm: str, value) -> list[str]:
+    """The plan's ``export:`` mapping as ``export`` options (``scene_mix`` -> ``--scene-mix``;
+    true: a flag; false: left out; a list: a comma list). ``format`` gains ``yolo-obb``."""
+    if not isinstance(value, dict):
+        raise Sim2RealError(f"arm {arm}: export: expected a mapping of export options, got {value!r}")
+    p = export_parser()
+    opts = p._option_string_actions
+    argv = []
+    fmt = None
+    for k, v in value.items():
+        opt = "--" + str(k).replace("_", "-")
+        if str(k) in EXPORT_SET_BY_SIM2REAL:
+            raise Sim2RealError(f"arm {arm}: export: {k!r} is set by sim2real (exports go into the "
+                                f"report folder, with --export-workers processes)")
+        if opt not in opts or opt in ("--help", "-h"):
+            raise Sim2RealError(f"arm {arm}: export: unknown option {k!r} (the export command's long "
+                                f"options, '-' written '_'; see aerial-synth export --help)")
+        flag = opts[opt].nargs == 0
+        if flag:
+            if not isinstance(v, bool):
+                raise Sim2RealError(f"arm {arm}: export: {k}: expected true or false, got {v!r}")
+            if v:
+                argv.append(opt)
+            continue
+        if isinstance(v, bool) or v is None or isinstance(v, dict):
+            raise Sim2RealError(f"arm {arm}: export: {k}: expected a value, got {v!r}")
+        text = ",".join(map(str, v)) if isinstance(v, list) else str(v)
+        if k == "format":
+            fmt = text
+            continue
+        argv += [opt, text]
+    names = [f.strip() for f in (fmt or "yolo-obb").split(",") if f.strip()]
+    if "yolo-obb" not in names:
+        names.append("yolo-obb")
+    return argv + ["--format", ",".join(names)]
+
+
+def export_config(arm: str, value):
+    """A plan's ``export:`` mapping -> the ExportConfig the ``export`` command would build
+    from the same options (its parser's and ExportConfig's checks and messages)."""
+    args = export_parser().parse_args(export_argv(arm, value) + ["--out", "unused"])
+    return config_from_args(args)
+

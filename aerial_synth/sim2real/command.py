@@ -18,12 +18,13 @@ def _classes(text: str):
     return None if text == "all" else tuple(c.strip() for c in text.split(",") if c.strip())
 
 
-def run_command(args) -> int:
-    """``aerial-synth sim2real`` once its options are parsed (sim2real/cli.py)."""
+def run_command(args, export_config=None) -> int:
+    """``aerial-synth sim2real`` once its options are parsed (sim2real/cli.py, which gives
+    ``export_config``: a plan's export options -> ExportConfig, by the export's parser)."""
     if args.plan is not None and args.sim2real_action is None:
         if args.out is None:
             raise Sim2RealError("sim2real: missing required --out DIR")
-        return _plan(args)  # the plan is checked first: a plan can be checked without torch
+        return _plan(args, export_config)  # the plan is checked first: a plan can be checked without torch
     require_train_extra()  # first: without the extra nothing else matters
     if args.sim2real_action == "score":
         return _score(args)
@@ -49,7 +50,7 @@ def run_command(args) -> int:
     return 0
 
 
-def _plan(args) -> int:
+def _plan(args, export_config) -> int:
     import os
 
     from .experiment import run_plan
@@ -61,7 +62,8 @@ def _plan(args) -> int:
     from .runs import cores
 
     report = run_plan(args.plan, Path(args.out), parallel=args.parallel, device=args.device,
-                      export_workers=args.export_workers or cores() or os.cpu_count() or 1)
+                      export_workers=args.export_workers or cores() or os.cpu_count() or 1,
+                      export_config=export_config)
     print(plan_summary_text(report))
     print(f"report: {args.out}/summary.txt, report.json, pr*.png, contact_*.png; weights: runs/*/seed*/weights.pt")
     return 0

@@ -36,7 +36,7 @@ from . import report as rep
 from . import ultra
 from .confidence import BOOTSTRAP, INTERVAL, differences, spread
 from .config import Sim2RealConfig, Sim2RealError, inspect_synthetic
-from .pipeline import AGNOSTIC, REPORT_FORMAT, _log, _real_summary, _write_figures
+from .pipeline import AGNOSTIC, REPORT_FORMAT, log, real_summary, write_figures
 from .plan import ARM_KINDS, Plan, check_export_arms, load_plan
 from .real import plan_image, read_real
 from .runs import auto_parallel, predict_real, run_all, share_out
@@ -77,10 +77,10 @@ def _options(cfg: Sim2RealConfig) -> tuple[ScoringOptions, ScoringOptions]:
     return agn, ScoringOptions(None, agn.iou_type, agn.ignore_border, agn.group)
 
 
-def check_plan(plan_path, out, device: str) -> tuple[Plan, Path, list]:
+def check_plan(plan_path, out, device: str, export_config=None) -> tuple[Plan, Path, list]:
     """Every refusal of a plan, before anything is written: (plan, out, real items). The
     [train] extra is asked for last, so a plan can be checked where torch is not installed."""
-    plan = load_plan(plan_path, device=device, out=Path(out))
+    plan = load_plan(plan_path, device=device, out=Path(out), export_config=export_config)
     where = f"--plan {plan.path}"
     inputs = [("real", plan.real)] + [(f"arm {a.name}", d) for a in plan.arms
                                       if not ARM_KINDS[a.kind].writes for d in a.spec]
@@ -113,9 +113,11 @@ def _arm_gsd(a, sets) -> float:
     return float(g.pop())
 
 
-def run_plan(plan_path, out, *, parallel="auto", device: str = "auto", export_workers: int = 1) -> dict:
-    """Run a plan into ``out`` (see the module's docstring); returns report.json's content."""
-    plan, out, items = check_plan(plan_path, out, device)
+def run_plan(plan_path, out, *, parallel="auto", device: str = "auto", export_workers: int = 1,
+             export_config=None) -> dict:
+    """Run a plan into ``out`` (see the module's docstring); returns report.json's content.
+    ``export_config``: as :func:`~.plan.load_plan` takes it (the CLI gives the export's)."""
+    plan, out, items = check_plan(plan_path, out, device, export_config)
     dev, dev_name = ultra.resolve_device(device)
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_json(out / PLAN_MARKER, {"plan": str(plan.path), "content": plan.raw})
@@ -123,14 +125,14 @@ def run_plan(plan_path, out, *, parallel="auto", device: str = "auto", export_wo
     for a in plan.arms:  # the arms' data, here (export arms with K processes)
         kind = ARM_KINDS[a.kind]
         if kind.writes:
-            _log(f"arm {a.name}: {a.kind} into {out / 'exports' / a.name} ({export_workers} processes)")
+            log(f"arm {a.name}: {a.kind} into {out / 'exports' / a.name} ({export_workers} processes)")
         b = kind.build(a.spec, out / "exports" / a.name, export_workers)
         sets = [inspect_synthetic(d, f"arm {a.name}: ") for d in b.dirs]
         built[a.name] = (b, sets)
         arm_info[a.name] = {"gsd_m": _arm_gsd(a, sets) if "arm" in plan.configs[a.name].real_scale or a.gsd
                             else (sets[0].gsd_m if sets[0].gsd_m else None)}
         if kind.writes:
-            _log(f"arm {a.name}: " + ("reused (same manifest)" if b.reused else f"{b.seconds:.1f} s"))
+            log(f"arm {a.name}: " + ("reused (same manifest)" if b.reused else f"{b.seconds:.1f} s"))
     n_runs = len(plan.arms) * len(plan.seeds)
     if parallel == "auto":
         n_par, rule = auto_parallel(n_runs, dev, [a.train for a in plan.arms])
@@ -152,9 +154,9 @@ def run_plan(plan_path, out, *, parallel="auto", device: str = "auto", export_wo
                 "epochs": cfg.epochs, "minutes": cfg.minutes, "imgsz": cfg.imgsz, "batch": cfg.batch,
                 "device": dev, "workers": workers, "threads": threads, "gsd_m": gsd, "plan": str(plan.path),
                 "real": real, "targets": {sc: (gsd if sc == "arm" else None) for sc in cfg.real_scale}})
-    _log(f"{n_runs} runs, {n_par} at once ({rule}) on {dev_name}")
+    log(f"{n_runs} runs, {n_par} at once ({rule}) on {dev_name}")
     t0 = time.perf_counter()
-    results, gpu = run_all(specs, n_par, dev, _log)
+    results, gpu = run_all(specs, n_par, dev, log)
     wall = time.perf_counter() - t0
     report = _plan_report(plan, out, items, built, arm_info, specs, results, gpu,
                           {"requested": str(parallel), "runs_at_once": n_par, "rule": rule,
@@ -250,14 +252,14 @@ def _plan_report(plan, out, items, built, arm_info, specs, results, gpu, par, de
         "device": device, "parallel": par, "gpu_utilisation": gpu,
         "confidence": {"method": CONFIDENCE_METHOD, "level": INTERVAL, "replicates": BOOTSTRAP,
                        "spread": "sample standard deviation over seeds (ddof 1)"},
-        "real": _real_summary(base_cfg, items, {}, opts[0]),
+        "real": real_summary(base_cfg, items, {}, opts[0]),
         "scoring": dict(opts[0].to_dict(), metric="voc07", iou_threshold=0.5,
                         ignore_classes_by_group={g: list(c) for g, c in plan.ignore_classes.items()}),
         "arms": arms, "files": {},
     }
     curves = {k: v[1] for k, v in by_arm.items()}
     sheets = {k: (v[0], rep.best_f1_threshold(rep.agnostic(v[1]))) for k, v in by_arm.items()}
-    report["files"] = _write_figures(out, report, curves, sheets, items, base_cfg.contact_images)
+    report["files"] = write_figures(out, report, curves, sheets, items, base_cfg.contact_images)
     report["files"].update(summary="summary.txt", report="report.json")
     atomic_write_text(out / "summary.txt", rep.plan_summary_text(report) + "\n")
     atomic_write_json(out / "report.json", report)
@@ -321,7 +323,7 @@ def run_score(weights: list, real, out, *, device: str = "auto", real_gsd=None, 
             real_d = {"dir": str(real), "classes": None if c.real_classes is None else list(c.real_classes),
                       "real_gsd": c.real_gsd, "tile": c.tile, "overlap": c.overlap, "imgsz": c.imgsz,
                       "conf": c.conf, "merge_iou": c.merge_iou, "batch": c.batch}
-            _log(f"{n}: predicting {len(items)} real images with {w}")
+            log(f"{n}: predicting {len(items)} real images with {w}")
             preds = predict_real(w, real_d, {sc: (c.gsd if sc == "arm" else None) for sc in c.real_scale},
                                  tmp / "arms" / n, dev, list(m.get("classes") or []) or ["small-vehicle"])
             by_scale = {sc: _score_run(items, tmp / "arms" / n / rel, opts, ignore_classes)
@@ -341,13 +343,13 @@ def run_score(weights: list, real, out, *, device: str = "auto", real_gsd=None, 
                                  "real_classes": None if cfgs[0].real_classes is None else list(cfgs[0].real_classes)},
                   "versions": dict(aerial_synth=__version__, python=sys.version.split()[0], **ultra.versions()),
                   "device": {"requested": device, "used": dev, "name": dev_name},
-                  "real": _real_summary(cfgs[0], items, {}, opts[0]),
+                  "real": real_summary(cfgs[0], items, {}, opts[0]),
                   "scoring": dict(opts[0].to_dict(), metric="voc07", iou_threshold=0.5,
                                   ignore_classes_by_group={g: list(c) for g, c in (ignore_classes or {}).items()}),
                   "arms": arms, "files": {}}
         curves = {k: v[1] for k, v in by_arm.items()}
         sheets = {k: (v[0], rep.best_f1_threshold(rep.agnostic(v[1]))) for k, v in by_arm.items()}
-        report["files"] = _write_figures(tmp, report, curves, sheets, items, contact_images)
+        report["files"] = write_figures(tmp, report, curves, sheets, items, contact_images)
         report["files"].update(summary="summary.txt", report="report.json")
         atomic_write_text(tmp / "summary.txt", rep.score_summary_text(report) + "\n")
         atomic_write_json(tmp / "report.json", report)

@@ -14,7 +14,7 @@ Every check runs in :func:`load_plan`, before anything is written; a refusal is 
 :class:`~.config.Sim2RealError` line naming the plan and the key.
 
 **Arm kinds** (:data:`ARM_KINDS`): an arm holds exactly one kind key. A kind is two small
-functions: ``check(arm, value, plan_dir) -> spec`` (validate, write nothing) and
+functions: ``check(arm, value, ctx: PlanContext) -> spec`` (validate, write nothing) and
 ``build(spec, folder, workers) -> Built`` (make or find the YOLO-OBB folders where the run
 happens). ``synthetic`` (existing folders) and ``export`` (generated where sim2real runs,
 reused by manifest) are registered here; a new kind is one :func:`arm_kind` registration.
@@ -30,7 +30,7 @@ from pathlib import Path
 from ..errors import AerialSynthError
 from .config import Arm, Sim2RealConfig, Sim2RealError, inspect_synthetic
 
-__all__ = ["TrainSpec", "PlanArm", "Plan", "ArmKind", "Built", "ARM_KINDS", "arm_kind", "load_plan",
+__all__ = ["TrainSpec", "PlanArm", "Plan", "PlanContext", "ArmKind", "Built", "ARM_KINDS", "arm_kind", "load_plan",
            "PLAN_KEYS", "TRAIN_KEYS", "REAL_KEYS", "EXPORT_SET_BY_SIM2REAL"]
 
 #: the real-set options of a plan (as today's flags, ``-`` written ``_``)
@@ -40,10 +40,6 @@ PLAN_KEYS = ("real", "baseline", "seeds", "train", "arms") + REAL_KEYS
 #: ``train:`` keys (plan-wide, or per arm to override). ``workers`` and ``threads`` are per run
 #: (data-loader processes, torch CPU threads); left out, they are shared out among the runs.
 TRAIN_KEYS = ("model", "weights", "minutes", "epochs", "imgsz", "batch", "workers", "threads")
-#: ``export:`` options that sim2real sets itself
-EXPORT_SET_BY_SIM2REAL = ("out", "resume", "force", "workers", "dask", "no_progress")
-
-
 @dataclass(frozen=True)
 class TrainSpec:
     model: str = "yolo11n-obb.yaml"
@@ -67,9 +63,19 @@ class Built:
 
 
 @dataclass(frozen=True)
+class PlanContext:
+    """What an arm kind's ``check`` may use: the plan's folder (relative paths) and the
+    ``export`` command's options -> ExportConfig (given by the command layer, which owns
+    that parser: :func:`aerial_synth.sim2real.cli.export_config`)."""
+
+    plan_dir: Path
+    export_config: Callable[[str, dict], object] | None = None
+
+
+@dataclass(frozen=True)
 class ArmKind:
     name: str
-    check: Callable[[str, object, Path], object]
+    check: Callable[[str, object, PlanContext], object]
     build: Callable[[object, Path, int], Built]
     #: True when ``build`` writes into the report folder (its folder is ``exports/<arm>``)
     writes: bool = False
@@ -267,8 +273,9 @@ def _real_options(data: dict, where: str) -> dict:
     return out
 
 
-def load_plan(path, *, device: str = "auto", out: Path | None = None) -> Plan:
-    """Read and check a plan (see the module's docstring). Writes nothing."""
+def load_plan(path, *, device: str = "auto", out: Path | None = None, export_config=None) -> Plan:
+    """Read and check a plan (see the module's docstring). Writes nothing. ``export_config``:
+    ``(arm, options) -> ExportConfig`` for export arms (:func:`aerial_synth.sim2real.cli.export_config`)."""
     path = Path(path)
     data = _read_yaml(path)
     where = f"--plan {path}"
@@ -296,12 +303,12 @@ def load_plan(path, *, device: str = "auto", out: Path | None = None) -> Plan:
     if baseline not in arms_raw:
         raise Sim2RealError(f"{where}: baseline {baseline!r} is not an arm (arms: "
                             f"{', '.join(map(str, arms_raw))})")
-    from .config import _NAME
+    from .config import ARM_NAME
 
     arms, configs = [], {}
     for name, spec in arms_raw.items():
         aw = f"{where}: arm {name}"
-        if not isinstance(name, str) or not _NAME.match(name):
+        if not isinstance(name, str) or not ARM_NAME.match(name):
             raise Sim2RealError(f"{where}: arm name {name!r}: expected letters, digits, _ . - "
                                 f"(not starting with _ . -)")
         if not isinstance(spec, dict):
@@ -324,11 +331,15 @@ def load_plan(path, *, device: str = "auto", out: Path | None = None) -> Plan:
             raise Sim2RealError(f"{aw}: {exc}") from None
         kind = kinds[0]
         try:
-            checked = ARM_KINDS[kind].check(name, spec[kind], plan_dir)
+            checked = ARM_KINDS[kind].check(name, spec[kind], PlanContext(plan_dir, export_config))
         except Sim2RealError as exc:
             raise Sim2RealError(f"{where}: {exc}") from None
         arms.append(PlanArm(name, kind, checked, spec[kind], train, gsd))
     return Plan(path, real, baseline, tuple(seeds), tuple(arms), configs, data)
+
+
+#: ``export:`` options that sim2real sets itself
+EXPORT_SET_BY_SIM2REAL = ("out", "resume", "force", "workers", "dask", "no_progress")
 
 
 # -- the arm kinds ----------------------------------------------------------------------------------
@@ -337,11 +348,11 @@ def load_plan(path, *, device: str = "auto", out: Path | None = None) -> Plan:
 def _synthetic_kind():
     """``synthetic: DIR`` or ``[DIR, ...]``: existing exports / YOLO-OBB folders."""
 
-    def check(arm, value, plan_dir):
+    def check(arm, value, ctx):
         vals = value if isinstance(value, list) else [value]
         if not vals:
             raise Sim2RealError(f"arm {arm}: synthetic: expected a folder or a list of folders, got []")
-        dirs = tuple(_path(plan_dir, v, f"arm {arm}: synthetic") for v in vals)
+        dirs = tuple(_path(ctx.plan_dir, v, f"arm {arm}: synthetic") for v in vals)
         for d in dirs:
             inspect_synthetic(d, f"arm {arm}: synthetic ")
         return dirs
@@ -352,86 +363,31 @@ def _synthetic_kind():
     return check, build
 
 
-def export_parser():
-    """The ``export`` command's own parser, raising its one line instead of exiting."""
-    import argparse
-
-    from ..cli import Parser, one_line_usage_error
-    from ..dataset.cli import register
-
-    class Raising(Parser):
-        def error(self, message):
-            raise Sim2RealError(one_line_usage_error("aerial-synth export", message))
-
-    top = Raising(prog="aerial-synth")
-    sub = top.add_subparsers(dest="command", parser_class=Raising)
-    register(sub)
-    p = sub.choices["export"]
-    assert isinstance(p, argparse.ArgumentParser)
-    return p
-
-
-def export_argv(arm: str, value) -> list[str]:
-    """The plan's ``export:`` mapping as ``export`` options (``scene_mix`` -> ``--scene-mix``;
-    true: a flag; false: left out; a list: a comma list). ``format`` gains ``yolo-obb``."""
-    if not isinstance(value, dict):
-        raise Sim2RealError(f"arm {arm}: export: expected a mapping of export options, got {value!r}")
-    p = export_parser()
-    opts = p._option_string_actions
-    argv = []
-    fmt = None
-    for k, v in value.items():
-        opt = "--" + str(k).replace("_", "-")
-        if str(k) in EXPORT_SET_BY_SIM2REAL:
-            raise Sim2RealError(f"arm {arm}: export: {k!r} is set by sim2real (exports go into the "
-                                f"report folder, with --export-workers processes)")
-        if opt not in opts or opt in ("--help", "-h"):
-            raise Sim2RealError(f"arm {arm}: export: unknown option {k!r} (the export command's long "
-                                f"options, '-' written '_'; see aerial-synth export --help)")
-        flag = opts[opt].nargs == 0
-        if flag:
-            if not isinstance(v, bool):
-                raise Sim2RealError(f"arm {arm}: export: {k}: expected true or false, got {v!r}")
-            if v:
-                argv.append(opt)
-            continue
-        if isinstance(v, bool) or v is None or isinstance(v, dict):
-            raise Sim2RealError(f"arm {arm}: export: {k}: expected a value, got {v!r}")
-        text = ",".join(map(str, v)) if isinstance(v, list) else str(v)
-        if k == "format":
-            fmt = text
-            continue
-        argv += [opt, text]
-    names = [f.strip() for f in (fmt or "yolo-obb").split(",") if f.strip()]
-    if "yolo-obb" not in names:
-        names.append("yolo-obb")
-    return argv + ["--format", ",".join(names)]
-
-
 @arm_kind("export", writes=True)
 def _export_kind():
     """``export: {OPTION: VALUE, ...}``: generated where sim2real runs, into
     ``OUT/exports/<arm>``, with --export-workers processes; a complete export there whose
     manifest holds the same parameters is reused."""
 
-    def check(arm, value, plan_dir):
-        from ..dataset.cli import config_from_args
-
-        argv = export_argv(arm, value) + ["--out", str(plan_dir / ".unused")]
+    def check(arm, value, ctx):
+        if ctx.export_config is None:
+            raise Sim2RealError(f"arm {arm}: export: no export parser given to load_plan "
+                                f"(aerial_synth.sim2real.cli.export_config)")
         try:
-            args = export_parser().parse_args(argv)
-            cfg = config_from_args(args)
+            return ctx.export_config(arm, value)
         except AerialSynthError as exc:
-            raise Sim2RealError(f"arm {arm}: export: {' '.join(str(exc).split())}") from None
-        return cfg
+            msg = " ".join(str(exc).split())
+            raise Sim2RealError(msg if msg.startswith(f"arm {arm}: ") else f"arm {arm}: export: {msg}") from None
 
     def build(cfg, folder, workers):
+        import json
+
         from ..dataset.export import export_dataset
         from ..dataset.manifest import read_manifest
-        from ..dataset.output import _param_diff
 
         m = read_manifest(folder)
-        if m is not None and m.get("status") == "complete" and not _param_diff(m.get("parameters"), cfg.to_dict()):
+        same = m is not None and m.get("parameters") == json.loads(json.dumps(cfg.to_dict()))
+        if same and m.get("status") == "complete":
             return Built((folder,), 0.0, True, cfg.images)
         t0 = time.perf_counter()
         export_dataset(cfg, folder, workers=workers, resume=True, force=True, progress=False)

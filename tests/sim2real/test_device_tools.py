@@ -49,6 +49,7 @@ def test_slim_wheel_installs_without_the_dropped_parts(tmp_path):
 def test_committed_plans_parse(name, tmp_path):
     """Every key of the committed plans is known and their export options are the export's;
     the real set (.s2r/real, made by tools/make_dev_set.py) is replaced by a stand-in."""
+    from aerial_synth.sim2real.cli import export_config
     from aerial_synth.sim2real.plan import load_plan
 
     from .conftest import box, write_real
@@ -57,7 +58,7 @@ def test_committed_plans_parse(name, tmp_path):
     write_real(tmp_path / "real" / "minsk_uav", "a", [box(10, 10, 30, 20)])
     plan = tmp_path / name
     plan.write_text(text.replace("real: ../../.s2r/real", f"real: {tmp_path / 'real'}"))
-    p = load_plan(plan)
+    p = load_plan(plan, export_config=export_config)
     assert p.baseline == "A" and len(p.seeds) >= 2 and all(a.kind == "export" for a in p.arms)
     if name == "why_mix_lost.yaml":
         assert [a.name for a in p.arms] == list("ABCDEF") and len(p.seeds) >= 3

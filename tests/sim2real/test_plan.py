@@ -17,9 +17,11 @@ from aerial_synth.evaluate.scoring import ScoringOptions, score
 from aerial_synth.sim2real import plan as plan_mod
 from aerial_synth.sim2real import report as rep
 from aerial_synth.sim2real import runs, ultra
+from aerial_synth.sim2real.cli import export_argv, export_config
 from aerial_synth.sim2real.confidence import paired_difference, spread, weighted_ap
 from aerial_synth.sim2real.config import Sim2RealError
-from aerial_synth.sim2real.plan import Built, arm_kind, load_plan
+from aerial_synth.sim2real.plan import Built, PlanContext, arm_kind
+from aerial_synth.sim2real.plan import load_plan as _load_plan
 
 from ..helpers import REPO
 from .conftest import box, write_real, write_synthetic
@@ -48,6 +50,10 @@ arms:
   A: {synthetic: s1}
   B: {synthetic: [s2], train: {minutes: 2}}
 """
+
+
+def load_plan(path):
+    return _load_plan(path, export_config=export_config)  # the export parser, as the CLI gives it
 
 
 def _write(folder: Path, text: str) -> Path:
@@ -166,11 +172,11 @@ def test_out_must_be_new_or_a_plan_folder(folder, capsys, extra_present):
 
 def test_export_arm_options_map_to_the_export_command(folder):
     """'-' written '_', true a flag, false left out, a list a comma list; yolo-obb added."""
-    argv = plan_mod.export_argv("A", {"scene_mix": "default", "gsd": "0.05:0.3", "simple_vehicles": True,
+    argv = export_argv("A", {"scene_mix": "default", "gsd": "0.05:0.3", "simple_vehicles": True,
                                       "box_fit": "contour", "distractors": 0, "format": ["dota"]})
     assert argv == ["--scene-mix", "default", "--gsd", "0.05:0.3", "--simple-vehicles", "--box-fit", "contour",
                     "--distractors", "0", "--format", "dota,yolo-obb"]
-    assert "--simple-vehicles" not in plan_mod.export_argv("A", {"simple_vehicles": False})
+    assert "--simple-vehicles" not in export_argv("A", {"simple_vehicles": False})
     p = load_plan(_write(folder, GOOD.replace("A: {synthetic: s1}",
                                               "A: {export: {scene_mix: default, gsd: '0.05:0.3', images: 7}}")))
     cfg = p.arm("A").spec
@@ -185,9 +191,9 @@ def test_a_new_arm_kind_is_one_registration(folder, monkeypatch):
 
     @arm_kind("toy")
     def _toy():
-        def check(arm, value, plan_dir):
+        def check(arm, value, ctx):
             seen.append((arm, value))
-            return plan_dir / value
+            return ctx.plan_dir / value
 
         return check, lambda spec, folder, workers: Built((spec,))
 
@@ -204,14 +210,15 @@ def test_export_arm_is_reused_by_its_manifest(tmp_path):
     scene = write_crossing_obj(tmp_path / "tiny.obj", 20)
     opts = {"scene": scene, "images": 2, "size": 64, "simple_vehicles": True, "vehicles": 2}
     kind = plan_mod.ARM_KINDS["export"]
-    cfg = kind.check("A", opts, tmp_path)
+    ctx = PlanContext(tmp_path, export_config)
+    cfg = kind.check("A", opts, ctx)
     b1 = kind.build(cfg, tmp_path / "exp", 1)
     assert not b1.reused and (tmp_path / "exp" / "yolo-obb" / "data.yaml").is_file()
     stamp = (tmp_path / "exp" / "manifest.json").stat().st_mtime_ns
-    b2 = kind.build(kind.check("A", opts, tmp_path), tmp_path / "exp", 1)
+    b2 = kind.build(kind.check("A", opts, ctx), tmp_path / "exp", 1)
     assert b2.reused and b2.seconds == 0.0
     assert (tmp_path / "exp" / "manifest.json").stat().st_mtime_ns == stamp
-    b3 = kind.build(kind.check("A", dict(opts, images=3), tmp_path), tmp_path / "exp", 1)
+    b3 = kind.build(kind.check("A", dict(opts, images=3), ctx), tmp_path / "exp", 1)
     assert not b3.reused and len(list((tmp_path / "exp" / "yolo-obb" / "images").rglob("*.png"))) == 3
 
 
