@@ -25,8 +25,9 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-#: packages the GPU machine lacks, pinned where the project pins them
-PACKAGES = ("shapely==2.2.0", "trimesh", "open3d-cpu==0.20.0", "isal", "pycocotools",
+#: packages the GPU machine lacks, pinned where the project pins them (pycocotools, for COCO
+#: labels only, is left out: plan arms export YOLO-OBB)
+PACKAGES = ("shapely==2.2.0", "trimesh", "open3d-cpu==0.20.0", "isal",
             "ultralytics==8.4.190", "ultralytics-thop==2.2.3")
 PLATFORMS = ("manylinux_2_35_x86_64", "manylinux_2_31_x86_64", "manylinux_2_28_x86_64",
              "manylinux_2_27_x86_64", "manylinux_2_17_x86_64", "manylinux2014_x86_64")

@@ -55,8 +55,10 @@ def plan_keys(groups) -> str:
     return "\n".join(parts)
 
 
-def build(src: Path, out: Path, gsd: dict[str, float], classes=VEHICLES) -> dict[str, list[int]]:
-    """Write the collection into ``out`` (a new folder); returns {group: [images, vehicles]}."""
+def build(src: Path, out: Path, gsd: dict[str, float], classes=VEHICLES, jpeg: int | None = None) -> dict[str, list[int]]:
+    """Write the collection into ``out`` (a new folder); returns {group: [images, vehicles]}.
+    ``jpeg``: lossless images (PNG, TIFF, BMP) re-encoded as JPEG of that quality, to carry the
+    set to a GPU machine within its 64 MiB (JPEG files are still copied byte for byte)."""
     layout, items = read_dataset(src, option="SRC")
     if layout != "collection":
         raise SystemExit(f"SRC {src}: expected a folder of datasets (one sub-folder each), "
@@ -73,7 +75,17 @@ def build(src: Path, out: Path, gsd: dict[str, float], classes=VEHICLES) -> dict
         it.keep_classes(classes)
         g = it.gsd_m if it.gsd_m is not None else gsd.get(group)
         (out / group / "images").mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(it.image_path, out / group / "images" / (stem + it.image_path.suffix.lower()))
+        suffix = it.image_path.suffix.lower()
+        if jpeg is not None and suffix not in (".jpg", ".jpeg"):
+            import cv2  # only for --jpeg
+
+            img = cv2.imread(str(it.image_path), cv2.IMREAD_COLOR)
+            ok, data = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, int(jpeg)]) if img is not None else (False, None)
+            if not ok:
+                raise SystemExit(f"{it.image_path}: cannot decode or re-encode it as JPEG")
+            (out / group / "images" / (stem + ".jpg")).write_bytes(data.tobytes())
+        else:
+            shutil.copyfile(it.image_path, out / group / "images" / (stem + suffix))
         lines = dota.to_lines(dota.from_labels(it), g, it.image_source or group)
         if g is None:
             lines = [ln for ln in lines if not ln.startswith("gsd:")]
@@ -92,6 +104,9 @@ def main(argv=None) -> int:
     ap.add_argument("out", type=Path)
     ap.add_argument("--gsd", action="append", default=[], metavar="GROUP=M",
                     help="GSD of a group whose labels carry none (repeatable)")
+    ap.add_argument("--jpeg", type=int, default=None, metavar="Q",
+                    help="re-encode lossless images as JPEG of quality Q (1-100): the set then fits "
+                    "a GPU machine's 64 MiB carry (tools/sim2real_device.sh); default: copies")
     ap.add_argument("--force", action="store_true", help="replace an existing OUT")
     a = ap.parse_args(argv)
     gsd = {}
@@ -104,6 +119,8 @@ def main(argv=None) -> int:
             ok = False
         if not ok:
             ap.error(f"--gsd: expected GROUP=M with M a finite number > 0, got {text!r}")
+    if a.jpeg is not None and not 1 <= a.jpeg <= 100:
+        ap.error(f"--jpeg: expected a quality 1-100, got {a.jpeg}")
     try:
         check_output_dir(a.out, "OUT")  # a folder, or a new path below writable folders
     except AerialSynthError as e:
@@ -115,7 +132,7 @@ def main(argv=None) -> int:
     a.out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{a.out.name}.", suffix=".tmp", dir=a.out.parent))
     try:
-        counts = build(a.src, tmp, gsd)
+        counts = build(a.src, tmp, gsd, jpeg=a.jpeg)
         replace_dir(tmp, a.out)
     except AerialSynthError as e:  # a bad source folder or label file: one line
         shutil.rmtree(tmp, ignore_errors=True)

@@ -96,6 +96,21 @@ def test_known_sources_print_their_scoring_keys(tmp_path):
     assert r.returncode == 0 and "ignore_classes" in r.stdout
 
 
+def test_jpeg_reencodes_lossless_images_only(tmp_path):
+    src = _source(tmp_path / "src")
+    r = _run(src, tmp_path / "dev", "--gsd", "vedai=0.25", "--jpeg", "90")
+    assert r.returncode == 0, r.stderr
+    assert sorted(p.name for p in (tmp_path / "dev" / "uav" / "images").iterdir()) == ["a.jpg"]
+    a = cv2.imread(str(tmp_path / "dev" / "uav" / "images" / "a.jpg"))
+    ref = cv2.imread(str(src / "uav" / "images" / "a.png"))
+    assert a.shape == ref.shape and np.abs(a.astype(int) - ref).mean() < 3
+    assert (tmp_path / "dev" / "yolo" / "images" / "b.jpg").read_bytes() == \
+        (src / "yolo" / "images" / "train" / "b.jpg").read_bytes()  # a JPEG stays as it is
+    layout, items = read_dataset(tmp_path / "dev")
+    assert {it.name for it in items} == {"uav/a", "yolo/b", "vedai/00000001"}
+    assert _run(src, tmp_path / "dev2", "--jpeg", "0").returncode == 2 and not (tmp_path / "dev2").exists()
+
+
 @pytest.mark.parametrize("args, msg", [
     (("--gsd", "vedai"), "--gsd: expected GROUP=M"),
     (("--gsd", "vedai=-1"), "--gsd: expected GROUP=M"),
