@@ -244,6 +244,13 @@ class ClassResult:
     recall: np.ndarray
     precision: np.ndarray
     scores: np.ndarray
+    #: per detection in score order: its image index, true / false positive (an ignored
+    #: difficult match is neither); per image: its non-difficult truth boxes. What a
+    #: bootstrap over images needs to recompute the curve (sim2real/confidence.py).
+    det_image: np.ndarray | None = None
+    det_tp: np.ndarray | None = None
+    det_fp: np.ndarray | None = None
+    npos_by_image: np.ndarray | None = None
 
     def to_dict(self, max_points: int = 500) -> dict:
         n = len(self.recall)
@@ -412,7 +419,8 @@ def evaluate(gt, detections: Detections, *, iou_threshold: float = 0.5, metric: 
                 ap = all_point_ap(rec, prec)
             per_t[t][name] = ClassResult(
                 name, t, ap, npos, int(np.count_nonzero(is_c & gt_diff)), len(sel),
-                int(tp.sum()), int(fp.sum()), int((hit & diff).sum()), rec, prec, scores[sel])
+                int(tp.sum()), int(fp.sum()), int((hit & diff).sum()), rec, prec, scores[sel],
+                det_img[sel], tp, fp, np.bincount(gt_img[is_c & ~gt_diff], minlength=len(gt)))
     ap_cls: dict[str, float | None] = {}
     for name in names:
         vals = [per_t[t][name].ap for t in thresholds]

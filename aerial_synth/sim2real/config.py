@@ -26,7 +26,7 @@ DEFAULT_MODEL = "yolo11n-obb.yaml"
 #: every image's GSD); "native" predicts them at their own pixels (no GSD needed): what a
 #: detector meets when nobody rescales for it, and what a GSD range is meant to cover
 REAL_SCALES = ("arm", "native")
-_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+ARM_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
 
 class Sim2RealError(EvaluationError):
@@ -42,12 +42,12 @@ class Arm:
 def parse_arm(text: str) -> Arm:
     """``DIR`` or ``NAME=DIR[,DIR...]``."""
     name, sep, rest = str(text).partition("=")
-    if sep and _NAME.match(name.strip()) and rest.strip():
+    if sep and ARM_NAME.match(name.strip()) and rest.strip():
         dirs = tuple(Path(d.strip()) for d in rest.split(",") if d.strip())
         return Arm(name.strip(), dirs)
     p = Path(text)
     nm = p.resolve().name if str(text).strip() else ""
-    if not nm or not _NAME.match(nm):
+    if not nm or not ARM_NAME.match(nm):
         raise Sim2RealError(f"--synthetic: expected DIR or NAME=DIR[,DIR] (NAME of letters, digits, "
                             f"_ . -), got {text!r}")
     return Arm(nm, (p,))

@@ -41,13 +41,14 @@ from . import ultra
 from .config import Sim2RealConfig, Sim2RealError, SyntheticSet, inspect_synthetic
 from .real import RealImage, load_scaled, merge_tiles, plan_image, read_real, tiles_of
 
-__all__ = ["REPORT_FORMAT", "check_inputs", "run_sim2real", "write_task1", "prepare_training_set"]
+__all__ = ["REPORT_FORMAT", "log", "real_summary", "write_figures", "check_inputs", "run_sim2real", "write_task1", "prepare_training_set",
+           "predict_plans"]
 
 REPORT_FORMAT = "aerial-synth-sim2real"
 AGNOSTIC = "vehicle"
 
 
-def _log(msg: str) -> None:
+def log(msg: str) -> None:
     print(f"sim2real: {msg}", file=sys.stderr, flush=True)
 
 
@@ -148,13 +149,13 @@ def write_task1(folder: Path, names: list[str], xy: np.ndarray, scores: np.ndarr
     return out
 
 
-def _predict_arm(predictor, plans: list[RealImage], cfg: Sim2RealConfig):
+def predict_plans(predictor, plans: list[RealImage], batch: int, merge_iou: float):
     """Per real image: merged (xy original px, scores, classes)."""
     out = []
     for r in plans:
         img = load_scaled(r)
-        per_tile = predictor(tiles_of(img, r), batch=cfg.batch)
-        out.append(merge_tiles(r, per_tile, cfg.merge_iou))
+        per_tile = predictor(tiles_of(img, r), batch=batch)
+        out.append(merge_tiles(r, per_tile, merge_iou))
     return out
 
 
@@ -180,18 +181,18 @@ def _run(cfg, tmp: Path, sets, gsds, items, plans, opts, device, device_name) ->
     for a in cfg.arms:
         arm_dir = tmp / "arms" / a.name
         data_yaml, n_train, n_val, val_is_train = prepare_training_set(arm_dir / "data", sets[a.name])
-        _log(f"arm {a.name}: training on {n_train} images ({device_name}, "
+        log(f"arm {a.name}: training on {n_train} images ({device_name}, "
              + (f"{cfg.minutes:g} min" if cfg.minutes is not None else f"{cfg.epochs} epochs") + ")")
         tr = ultra.train(data_yaml, arm_dir / "train", model=cfg.model, weights=cfg.weights,
                          epochs=cfg.epochs, minutes=cfg.minutes, imgsz=cfg.imgsz, device=device,
                          seed=cfg.seed, batch=cfg.batch, workers=cfg.workers)
-        _log(f"arm {a.name}: {tr.epochs} epochs in {tr.seconds:.0f} s; predicting {len(items)} real images")
+        log(f"arm {a.name}: {tr.epochs} epochs in {tr.seconds:.0f} s; predicting {len(items)} real images")
         predictor = ultra.Predictor(tr.weights, imgsz=cfg.imgsz, device=device, conf=cfg.conf)
         shutil.rmtree(arm_dir / "data", ignore_errors=True)  # the mirror (links) is not output
         by_scale = {}
         for k, scale in enumerate(cfg.real_scale):  # the first is the headline
             pred_dir = arm_dir / ("predictions" if k == 0 else f"predictions_{scale}")
-            merged = _predict_arm(predictor, plans[_target(cfg, gsds, a.name, scale)], cfg)
+            merged = predict_plans(predictor, plans[_target(cfg, gsds, a.name, scale)], cfg.batch, cfg.merge_iou)
             img_names = [n for n, (_, sc, _) in zip(names, merged) for _ in range(len(sc))]
             xy = np.concatenate([m[0] for m in merged] or [np.zeros((0, 4, 2))])
             sc = np.concatenate([m[1] for m in merged] or [np.zeros(0)])
@@ -225,7 +226,7 @@ def _run(cfg, tmp: Path, sets, gsds, items, plans, opts, device, device_name) ->
             "contact_sheet_score_threshold": round(thr, 6),
             "predictions": str(pred_dir.relative_to(tmp)), "weights": str(weights_rel),
         })
-        _log(f"arm {a.name}: real AP50 {figs['ap50']}, recall {figs['recall']}")
+        log(f"arm {a.name}: real AP50 {figs['ap50']}, recall {figs['recall']}")
     report = {
         "format": REPORT_FORMAT, "version": 1,
         "parameters": {
@@ -238,14 +239,14 @@ def _run(cfg, tmp: Path, sets, gsds, items, plans, opts, device, device_name) ->
         },
         "versions": dict(aerial_synth=__version__, python=sys.version.split()[0], **ultra.versions()),
         "device": {"requested": cfg.device, "used": device, "name": device_name},
-        "real": _real_summary(cfg, items, plans, opts),
+        "real": real_summary(cfg, items, plans, opts),
         "scoring": dict(opts.to_dict(), metric="voc07", iou_threshold=0.5,
                         iou_type_by_group=dict(next(iter(curves.values())).iou_type) if curves else {},
                         ignore_border_px_by_group=dict(next(iter(curves.values())).border_px) if curves else {}),
         "arms": arms,
         "files": {},
     }
-    files = _write_figures(tmp, report, curves, sheets, items, cfg.contact_images, pr_curves)
+    files = write_figures(tmp, report, curves, sheets, items, cfg.contact_images, pr_curves)
     files["summary"] = "summary.txt"
     files["report"] = "report.json"
     report["files"] = files
@@ -263,7 +264,7 @@ def _subset_dets(dets: Detections, chosen: list[int]) -> Detections:
                       np.asarray(dets.polygons_xy_px).reshape(-1, 4, 2)[m])
 
 
-def _real_summary(cfg, items, plans, opts) -> dict:
+def real_summary(cfg, items, plans, opts) -> dict:
     groups = image_groups(items, opts.group)
     by_group: dict[str, dict] = {}
     for g, k in zip(items, groups):
@@ -280,7 +281,7 @@ def _real_summary(cfg, items, plans, opts) -> dict:
     }
 
 
-def _write_figures(tmp: Path, report, curves, sheets, items, contact_images: int, pr_curves=None) -> dict:
+def write_figures(tmp: Path, report, curves, sheets, items, contact_images: int, pr_curves=None) -> dict:
     """PR charts (``pr_curves``: {label: ScoreResult}, every arm at every --real-scale; default
     ``curves``) and one contact sheet per arm (``curves``/``sheets``: the headline scale)."""
     import cv2

@@ -9,7 +9,7 @@ from ..evaluate.ap import pairwise_iou
 from ..evaluate.plots import grid, line_chart
 from ..evaluate.scoring import ScoreResult, hbb_hull
 
-__all__ = ["agnostic", "arm_real_figures", "summary_text", "pr_chart", "best_f1_threshold",
+__all__ = ["agnostic", "arm_real_figures", "summary_text", "plan_summary_text", "score_summary_text", "pr_chart", "best_f1_threshold",
            "contact_sheet", "REPORT_FIELDS", "ARM_FIELDS"]
 
 #: top-level fields of report.json (the smoke test checks each)
@@ -84,6 +84,82 @@ def summary_text(report: dict) -> str:
                 pg = r["real"]["per_group"][g]
                 row += f" {_f(pg['ap50']) + '/' + _f(pg['recall'], 2):>14}"
             lines.append(row)
+    return "\n".join(lines)
+
+
+def _ms(d: dict) -> str:
+    """mean +- sd over seeds."""
+    return "-" if d.get("mean") is None else f"{d['mean']:.3f} ± {d['sd']:.3f}"
+
+
+def _interval(v: dict | None) -> str:
+    if not v or v.get("diff") is None:
+        return "(baseline)" if v is None else "-"
+    if v.get("lo") is None:
+        return f"{v['diff']:+.3f}"
+    return f"{v['diff']:+.3f} [{v['lo']:+.3f}, {v['hi']:+.3f}]"
+
+
+def plan_summary_text(report: dict) -> str:
+    """The table a person reads first: per arm AP50 mean +- sd over seeds, the paired
+    difference with the baseline and its 95 % interval, "no difference" when it holds 0."""
+    p, d, par = report["plan"], report["device"], report["parallel"]
+    real = report["real"]
+    lines = [f"aerial-synth sim2real --plan {p['path']}: {len(report['arms'])} arms x {len(p['seeds'])} seeds "
+             f"({', '.join(map(str, p['seeds']))}), baseline {p['baseline']}",
+             f"real set {real['dir']} ({real['images']} images, {real['vehicles']} vehicles); device {d['name']} "
+             f"({d['used']}); {par['runs_at_once']} runs at once ({par['rule']}), {par['wall_seconds']:.0f} s",
+             f"real AP50: class-agnostic, VOC07, IoU > 0.5, mean ± sd over seeds; vs {p['baseline']}: "
+             f"difference of the means [{report['confidence']['level']:.0%} interval: "
+             f"{report['confidence']['method']}]", ""]
+    head = (f"{'arm':<10} {'kind':<9} {'train img':>9} {'export s':>8} {'img/s':>7} {'epochs':>6} "
+            f"{'AP50':>15} {'vs ' + p['baseline'][:8]:>27}  verdict")
+    lines += [head, "-" * len(head)]
+    for a in report["arms"]:
+        vs = a.get("vs_baseline")
+        ep = sorted({r["epochs"] for r in a["runs"]})
+        exp = ("-" if a["export_seconds"] is None else "reused" if a["export_reused"]
+               else f"{a['export_seconds']:.0f}")
+        lines.append(
+            f"{a['name'][:10]:<10} {a['kind'][:9]:<9} {a['training_images']:>9} {exp:>8} "
+            f"{_f(a['images_per_s']['mean'], 1):>7} {'/'.join(map(str, ep)):>6} {_ms(a['ap50']):>15} "
+            f"{_interval(vs):>27}  {'' if vs is None else vs['verdict']}")
+    groups = list(report["arms"][0]["per_group"]) if report["arms"] else []
+    if len(groups) > 1:
+        lines += ["", "per group, AP50 mean ± sd (vs baseline: difference [interval] verdict):"]
+        for g in groups:
+            lines.append(f"  {g}:")
+            for a in report["arms"]:
+                vs = (a.get("vs_baseline_per_group") or {}).get(g)
+                lines.append(f"    {a['name'][:10]:<10} {_ms(a['per_group'][g]):>15}"
+                             + ("" if vs is None else f"  {_interval(vs)}  {vs['verdict']}"))
+    classes = sorted({c for a in report["arms"] for c in a["per_class"]})
+    if classes:
+        lines += ["", "per class (not merged), AP50 mean ± sd:",
+                  f"  {'arm':<10}" + "".join(f" {c[:16]:>16}" for c in classes)]
+        for a in report["arms"]:
+            lines.append(f"  {a['name'][:10]:<10}" + "".join(
+                f" {_ms(a['per_class'].get(c, {})):>16}" for c in classes))
+    gpu = report.get("gpu_utilisation")
+    if gpu:
+        lines += ["", f"GPU busy (nvidia-smi, every {gpu['every_s']:g} s, {gpu['n']} samples): mean "
+                  f"{_f(gpu['utilisation_mean_pct'], 0)} %, memory used up to {gpu['memory_used_max_mib']} MiB; "
+                  "peak per run: " + ", ".join(f"{a['name']} {a['peak_gpu_mib']} MiB" for a in report["arms"])]
+    return "\n".join(lines)
+
+
+def score_summary_text(report: dict) -> str:
+    """``sim2real score``: one row per weights file."""
+    d, real = report["device"], report["real"]
+    lines = [f"aerial-synth sim2real score: {len(report['arms'])} weights file(s) on {real['dir']} "
+             f"({real['images']} images, {real['vehicles']} vehicles); device {d['name']} ({d['used']})",
+             "real AP50: class-agnostic, VOC07, IoU > 0.5", ""]
+    groups = list(report["arms"][0]["real"]["per_group"]) if report["arms"] else []
+    head = f"{'weights':<24} {'gsd m':>6} {'real AP50':>9} {'recall':>6}" + "".join(f" {g[:14]:>14}" for g in groups)
+    lines += [head, "-" * len(head)]
+    for a in report["arms"]:
+        lines.append(f"{a['name'][:24]:<24} {_f(a['gsd_m'], 3):>6} {_f(a['real_ap50']):>9} {_f(a['real_recall']):>6}"
+                     + "".join(f" {_f(a['real']['per_group'][g]['ap50']):>14}" for g in groups))
     return "\n".join(lines)
 
 

@@ -78,6 +78,39 @@ def test_collection_becomes_dota_with_vehicles_and_gsd(tmp_path):
     assert r.returncode == 0 and tree_bytes(out) == tree_bytes(tmp_path / "dev2")
 
 
+def test_known_sources_print_their_scoring_keys(tmp_path):
+    """A ucas_aod group (cars only, part-labelled border cars) gets its plan keys printed."""
+    src = tmp_path / "src"
+    _image(src / "ucas_aod" / "images" / "u.png")
+    (src / "ucas_aod" / "labelTxt").mkdir(parents=True)
+    (src / "ucas_aod" / "labelTxt" / "u.txt").write_text("gsd:0.08\n10 10 50 10 50 30 10 30 small-vehicle 0\n")
+    _image(src / "other" / "images" / "o.png")
+    (src / "other" / "labelTxt").mkdir(parents=True)
+    (src / "other" / "labelTxt" / "o.txt").write_text("gsd:0.1\n10 10 50 10 50 30 10 30 small-vehicle 0\n")
+    r = _run(src, tmp_path / "dev")
+    assert r.returncode == 0, r.stderr
+    assert "ucas_aod: 1 images, 1 vehicles" in r.stdout
+    assert "ignore_border: {ucas_aod: 20}" in r.stdout
+    assert "ignore_classes: {ucas_aod: [large-vehicle]}" in r.stdout
+    r = _run(tmp_path / "dev", tmp_path / "dev3")  # a collection made by the tool, made again
+    assert r.returncode == 0 and "ignore_classes" in r.stdout
+
+
+def test_jpeg_reencodes_lossless_images_only(tmp_path):
+    src = _source(tmp_path / "src")
+    r = _run(src, tmp_path / "dev", "--gsd", "vedai=0.25", "--jpeg", "90")
+    assert r.returncode == 0, r.stderr
+    assert sorted(p.name for p in (tmp_path / "dev" / "uav" / "images").iterdir()) == ["a.jpg"]
+    a = cv2.imread(str(tmp_path / "dev" / "uav" / "images" / "a.jpg"))
+    ref = cv2.imread(str(src / "uav" / "images" / "a.png"))
+    assert a.shape == ref.shape and np.abs(a.astype(int) - ref).mean() < 3
+    assert (tmp_path / "dev" / "yolo" / "images" / "b.jpg").read_bytes() == \
+        (src / "yolo" / "images" / "train" / "b.jpg").read_bytes()  # a JPEG stays as it is
+    layout, items = read_dataset(tmp_path / "dev")
+    assert {it.name for it in items} == {"uav/a", "yolo/b", "vedai/00000001"}
+    assert _run(src, tmp_path / "dev2", "--jpeg", "0").returncode == 2 and not (tmp_path / "dev2").exists()
+
+
 @pytest.mark.parametrize("args, msg", [
     (("--gsd", "vedai"), "--gsd: expected GROUP=M"),
     (("--gsd", "vedai=-1"), "--gsd: expected GROUP=M"),
