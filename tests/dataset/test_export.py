@@ -104,13 +104,13 @@ def test_coco_masks_decode_to_instance_masks(exported, tiny_scene):
 
     cfg = _cfg(tiny_scene)
     w = ImageWorker.for_config(cfg, out)
-    w._ensure_group(0)
+    grp = w.renderer.group(0)
     from aerial_synth.camera import sample_pose_targeted
     from aerial_synth.render import RenderConfig, render_frame
 
     cam_ss, render_ss = np.random.SeedSequence([3, 0]).spawn(2)
-    cam = sample_pose_targeted(cfg.camera_config(), w._placement, np.random.default_rng(cam_ss))
-    fr = render_frame(w._rayscene, cam, w._placement, np.random.default_rng(render_ss), RenderConfig())
+    cam = sample_pose_targeted(cfg.camera_config(), grp.placement, np.random.default_rng(cam_ss))
+    fr = render_frame(grp.rayscene, cam, grp.placement, np.random.default_rng(render_ss), RenderConfig())
     img_id = 1
     anns = c.loadAnns(c.getAnnIds(imgIds=[img_id]))
     assert anns
@@ -667,7 +667,7 @@ def test_meta_records_our_warnings_not_a_library_s(tiny_scene, tmp_path, monkeyp
     killed-and-resumed export differed from a clean one). Our own warnings stay."""
     import warnings
 
-    import aerial_synth.dataset.worker as worker_module
+    import aerial_synth.dataset.sample as worker_module
     from aerial_synth.placement.traffic import PlacementWarning
 
     real = worker_module.place
