@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..annotate.boxes import BoxConfig
-from ..camera import CameraConfig, sample_pose_targeted
+from ..camera import CameraConfig, grid_poses, sample_pose_targeted
 from ..render.config import RenderConfig
 from .config import ExportConfig
 from .gsd import GSD_STREAM, GsdRange, scene_cap_m
@@ -104,16 +104,20 @@ class CameraPlan:
     """How image ``i``'s camera is drawn.
 
     kind   : "fixed" (``camera`` for every image), "gsd" or "altitude" (a range: each image
-             draws its nadir GSD, the lens fixed; :mod:`aerial_synth.dataset.gsd`)
+             draws its nadir GSD, the lens fixed; :mod:`aerial_synth.dataset.gsd`), or "grid"
+             (survey tiles over the bounds, image ``i`` the ``i % n``-th: ``render --sampler grid``)
     seed   : the dataset seed
     camera : the fixed camera, or the range's base camera (size, tilt, altitude or GSD)
     range  : the range's lens and GSD bounds (None when fixed)
+    overlap, ground_z : a grid's tile overlap and ground height (:func:`~aerial_synth.camera.grid_poses`)
     """
 
     kind: str
     seed: int
     camera: CameraConfig
     range: GsdRange | None = None
+    overlap: float = 0.2
+    ground_z: float = 0.0
 
     @classmethod
     def of(cls, cfg: ExportConfig) -> "CameraPlan":
@@ -141,9 +145,23 @@ class CameraPlan:
         inside ``bounds``: the first of ``SeedSequence([seed, index])``'s two streams (the
         second draws the rendering). ``clear(cam)`` False redraws a pose (a camera inside a
         building)."""
+        if self.kind == "grid":
+            poses = self.grid(bounds)
+            return poses[int(index) % len(poses)]
         cam_ss, _ = np.random.SeedSequence([self.seed, int(index)]).spawn(2)
         return sample_pose_targeted(self.config_for(index, bounds), placement, np.random.default_rng(cam_ss),
                                     within_xy=bounds, clear=clear)
+
+
+    def grid(self, bounds) -> list:
+        """A grid plan's poses over ``bounds`` (raises CameraError when there are none)."""
+        return _grid_poses(self.camera, tuple(np.asarray(bounds, np.float64)[:, :2].ravel().tolist()),
+                           self.overlap, self.ground_z)
+
+
+@functools.lru_cache(maxsize=8)
+def _grid_poses(camera: CameraConfig, bounds: tuple, overlap: float, ground_z: float) -> list:
+    return grid_poses(camera, np.array(bounds).reshape(2, 2), overlap=overlap, ground_z=ground_z)
 
 
 @dataclass(frozen=True)

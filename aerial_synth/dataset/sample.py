@@ -41,7 +41,7 @@ from .layout import image_name, split_of
 from .plan import ExportPlan, build_plan
 
 __all__ = ["Sample", "SampleRenderer", "load_export_scene", "render_sample", "renderer_for",
-           "scene_georeference"]
+           "scene_distractors", "scene_georeference"]
 
 DEFAULT_GEOREFERENCE = {"origin": [0.0, 0.0, 0.0], "crs": None}
 
@@ -84,6 +84,7 @@ def labels_of(record: meta.ImageRecord) -> ImageLabels:
 # ------------------------------------------------------------------------- scenes
 
 _SCENES: OrderedDict = OrderedDict()  # scene key -> Scene or TiledWorld, this process
+_DISTRACTORS: dict = {}  # scene key -> the drawn distractors (dicts) of the scene loaded
 _MAX_SCENES = 12
 
 
@@ -113,6 +114,12 @@ def load_export_scene(cfg: ExportConfig, keep=None, fresh: bool = False):
     return scene
 
 
+def scene_distractors(cfg: ExportConfig) -> list:
+    """The distractors drawn into the scene of ``cfg`` (loaded by :func:`load_export_scene`)."""
+    load_export_scene(cfg)
+    return list(_DISTRACTORS.get(_scene_key(cfg), []))
+
+
 def _load(cfg: ExportConfig):
     if cfg.tile_m is not None:
         from .tiled import load_world
@@ -123,7 +130,8 @@ def _load(cfg: ExportConfig):
         from ..render.distractors import DISTRACTOR_KEY, add_distractors
 
         rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, DISTRACTOR_KEY]))
-        scene, _ = add_distractors(scene, rng, per_hectare=cfg.distractors)
+        scene, drawn = add_distractors(scene, rng, per_hectare=cfg.distractors)
+        _DISTRACTORS[_scene_key(cfg)] = drawn
     return scene
 
 
