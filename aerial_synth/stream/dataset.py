@@ -195,14 +195,16 @@ class StreamDataset:
 
 class EpochSampler:
     """(epoch, index) keys for a :class:`StreamDataset`: pass ``p`` over the sampler is epoch
-    ``start_epoch + p``, its indices shuffled from ``SeedSequence([seed, epoch])``
-    (``shuffle``) or ascending."""
+    ``start_epoch + p`` (``advance``; else every pass is ``start_epoch``), its indices shuffled
+    from ``SeedSequence([seed, epoch])`` (``shuffle``) or ascending."""
 
-    def __init__(self, dataset: StreamDataset, shuffle: bool = True, start_epoch: int = 0):
+    def __init__(self, dataset: StreamDataset, shuffle: bool = True, start_epoch: int = 0,
+                 advance: bool = True):
         self.n = len(dataset)
         self.seed = dataset.config.seed
         self.shuffle = bool(shuffle)
         self.epoch = int(start_epoch)
+        self.advance = bool(advance)
 
     def __len__(self) -> int:
         return self.n
@@ -213,7 +215,7 @@ class EpochSampler:
 
     def __iter__(self):
         e = self.epoch
-        self.epoch += 1
+        self.epoch += int(self.advance)
         order = np.arange(self.n)
         if self.shuffle:
             order = np.random.default_rng(np.random.SeedSequence([self.seed, e])).permutation(self.n)

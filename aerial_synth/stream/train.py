@@ -1,0 +1,115 @@
+"""Train an Ultralytics OBB detector from the stream (the ``[train]`` extra): every epoch
+sees new images, rendered in the DataLoader's workers, none written to disk.
+
+:func:`stream_datasets` ``(config, ...)`` is the constructor a caller (sim2real's arms, a
+script) needs: the training :class:`~.dataset.StreamDataset` of ``config`` (epoch ``e`` is
+:func:`~aerial_synth.stream.epoch_config` ``(config, e)``) and a fixed validation one
+(``val_config``, default: ``config``'s :data:`VAL_EPOCH`, ``val_images`` images).
+:func:`train_from_stream` trains with them, offline, with sim2real's Ultralytics settings
+(:mod:`aerial_synth.sim2real.ultra`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from .. import validators as v
+from ..dataset.config import ExportConfig
+from ..errors import ConfigError
+from .core import epoch_config, plan_of
+from .dataset import EpochSampler, StreamDataset
+
+__all__ = ["VAL_EPOCH", "StreamTrainResult", "stream_datasets", "train_from_stream"]
+
+#: the epoch whose images validate a stream run (never a training epoch in practice)
+VAL_EPOCH = 1_000_000
+
+
+def stream_datasets(config: ExportConfig, *, imgsz: int | None = None, val_config: ExportConfig | None = None,
+                    val_images: int | None = None, pool: int | None = None, refresh: float = 0.25,
+                    nthreads: int = 1) -> tuple[StreamDataset, StreamDataset]:
+    """(train, val) datasets of ``config``: train renders epoch e's images; val is fixed
+    (``val_config``, or ``config`` at :data:`VAL_EPOCH` with ``val_images`` images,
+    default a quarter of ``config.images``, at least 1)."""
+    cfg = plan_of(config).cfg
+    if val_config is None:
+        n = max(1, cfg.images // 4) if val_images is None else v.integer("val_images", val_images, 1,
+                                                                         error=ConfigError)
+        val_config = dataclasses.replace(epoch_config(cfg, VAL_EPOCH), images=n)
+    train = StreamDataset(cfg, imgsz=imgsz, pool=pool, refresh=refresh, nthreads=nthreads)
+    val = StreamDataset(plan_of(val_config).cfg, imgsz=imgsz, nthreads=nthreads)
+    return train, val
+
+
+def _loader(dataset: StreamDataset, batch: int, workers: int, train: bool):
+    """Ultralytics' repeating DataLoader over (epoch, index) keys: each pass is the next
+    epoch (training) or the same images again (validation)."""
+    from ultralytics.data.build import InfiniteDataLoader
+
+    sampler = EpochSampler(dataset, shuffle=train, start_epoch=dataset.epoch, advance=train)
+    return InfiniteDataLoader(dataset, batch_size=min(batch, len(dataset)), sampler=sampler,
+                              num_workers=workers, collate_fn=StreamDataset.collate_fn, drop_last=False)
+
+
+def _stream_trainer_class(train_ds: StreamDataset, val_ds: StreamDataset):
+    from ..sim2real.ultra import _trainer_class
+
+    base = _trainer_class()
+
+    class StreamOBBTrainer(base):
+        """The offline OBB trainer with the stream as its data (no dataset folder)."""
+
+        def get_dataset(self):
+            names = {i: n for i, n in enumerate(train_ds.classes)}
+            return {"train": "stream:train", "val": "stream:val", "names": names, "nc": len(names),
+                    "channels": 3}
+
+        def get_dataloader(self, dataset_path, batch_size=16, rank=0, mode="train"):
+            train = mode == "train"
+            return _loader(train_ds if train else val_ds, batch_size, self.args.workers, train)
+
+        def plot_training_labels(self):
+            pass
+
+    return StreamOBBTrainer
+
+
+@dataclass
+class StreamTrainResult:
+    weights: Path
+    epochs: int
+    seconds: float
+    images_seen: int
+    val_map50: float | None
+
+
+def train_from_stream(config: ExportConfig, run_dir: Path, *, epochs: int, imgsz: int, model: str = "yolo11n-obb.yaml",
+                      device: str = "cpu", batch: int = 8, workers: int = 2, seed: int = 0,
+                      val_images: int | None = None, pool: int | None = None, refresh: float = 0.25,
+                      ) -> StreamTrainResult:
+    """Train ``model`` (a yaml: from scratch) for ``epochs`` epochs on the stream of
+    ``config`` (``config.images`` images an epoch, each epoch new ones; ``pool``: pool
+    mode); validation on :func:`stream_datasets`' fixed set. ``run_dir``: Ultralytics' run."""
+    from ..sim2real.ultra import _offline_ultralytics, _patched_amp_check
+
+    _offline_ultralytics()
+    from ultralytics import YOLO
+
+    train_ds, val_ds = stream_datasets(config, imgsz=imgsz, val_images=val_images, pool=pool, refresh=refresh)
+    run_dir = Path(run_dir)
+    net = YOLO(model, task="obb")
+    kw = dict(data="stream.yaml", imgsz=imgsz, device=device, seed=seed, deterministic=True, batch=batch,
+              workers=workers, plots=False, amp=False, project=str(run_dir.parent.resolve()), name=run_dir.name,
+              exist_ok=True, verbose=False, pretrained=False, cache=False, val=True, patience=0, epochs=int(epochs),
+              close_mosaic=0, mosaic=0.0, trainer=_stream_trainer_class(train_ds, val_ds))
+    t0 = time.perf_counter()
+    with _patched_amp_check():
+        metrics = net.train(**kw)
+    tr = net.trainer
+    best = Path(tr.best) if Path(tr.best).is_file() else Path(tr.last)
+    rd = getattr(metrics, "results_dict", None) or {}
+    return StreamTrainResult(best, int(tr.epoch) + 1, time.perf_counter() - t0, len(train_ds) * (int(tr.epoch) + 1),
+                             rd.get("metrics/mAP50(B)"))
