@@ -74,15 +74,31 @@ def _stream_trainer_class(train_ds: StreamDataset, val_ds: StreamDataset):
         def plot_training_labels(self):
             pass
 
+        def preprocess_batch(self, batch):
+            """Notes (epoch, image, digest of its pixels) of every training image, then
+            Ultralytics' own preprocessing."""
+            import hashlib
+
+            for f, img in zip(batch["im_file"], batch["img"]):
+                self.stream_seen.append((int(self.epoch), f, hashlib.sha256(img.numpy().tobytes()).hexdigest()))
+            return super().preprocess_batch(batch)
+
+        def __init__(self, *a, **k):
+            self.stream_seen: list = []
+            super().__init__(*a, **k)
+
     return StreamOBBTrainer
 
 
 @dataclass
 class StreamTrainResult:
+    """weights: best (else last) weights; seen: (epoch, image name, sha256 of the BGR CHW
+    uint8 pixels) of every training image, in order."""
+
     weights: Path
     epochs: int
     seconds: float
-    images_seen: int
+    seen: list
     val_map50: float | None
 
 
@@ -111,5 +127,5 @@ def train_from_stream(config: ExportConfig, run_dir: Path, *, epochs: int, imgsz
     tr = net.trainer
     best = Path(tr.best) if Path(tr.best).is_file() else Path(tr.last)
     rd = getattr(metrics, "results_dict", None) or {}
-    return StreamTrainResult(best, int(tr.epoch) + 1, time.perf_counter() - t0, len(train_ds) * (int(tr.epoch) + 1),
+    return StreamTrainResult(best, int(tr.epoch) + 1, time.perf_counter() - t0, list(tr.stream_seen),
                              rd.get("metrics/mAP50(B)"))

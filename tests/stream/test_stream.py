@@ -142,3 +142,31 @@ def test_render_cli_shows_exports_images(tiny_scene, tmp_path):
         r = decode_png((tmp_path / "r" / f"{i:06d}" / "rgb.png").read_bytes())
         e = decode_png(next((tmp_path / "e").glob(f"dota/*/images/{i:06d}.png")).read_bytes())
         assert np.array_equal(r, e), i
+
+
+def test_pool_naming_without_torch(tiny_scene):
+    """Pool mode: epoch 0 renders every slot; each later epoch refreshes round(refresh * P)
+    slots, drawn from the seed; a slot shows the image of its last refresh."""
+    from aerial_synth.stream.dataset import EpochSampler, StreamDataset
+
+    cfg = ExportConfig(scene=tiny_scene, images=10, seed=2)
+    ds = StreamDataset(cfg, pool=8, refresh=0.25)
+    assert len(ds) == 8 and ds.refreshed(0).tolist() == list(range(8))
+    fresh = [set(ds.refreshed(e).tolist()) for e in range(1, 6)]
+    assert all(len(f) == 2 for f in fresh) and len({frozenset(f) for f in fresh}) > 1
+    for e in range(6):
+        for j in range(8):
+            b = ds.born(e, j)
+            assert b <= e and (b == 0 or j in fresh[b - 1])
+            assert all(j not in fresh[k - 1] for k in range(b + 1, e + 1))
+            assert ds.image_of((e, j)) == (b, j)
+    with pytest.raises(ConfigError, match="pool"):
+        StreamDataset(cfg, pool=11)
+    with pytest.raises(IndexError):
+        ds.split_key((0, 8))
+    s = EpochSampler(StreamDataset(cfg), shuffle=True, start_epoch=3)
+    a, b = list(s), list(s)
+    assert {e for e, _ in a} == {3} and {e for e, _ in b} == {4}
+    assert sorted(i for _, i in a) == list(range(10)) and [i for _, i in a] != list(range(10))
+    fixed = EpochSampler(StreamDataset(cfg), shuffle=False, advance=False)
+    assert list(fixed) == list(fixed) == [(0, i) for i in range(10)]
