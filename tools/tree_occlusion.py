@@ -42,7 +42,7 @@ def roof_points(world: dict, nx: int, ny: int) -> np.ndarray:
 def measure(dataset: Path, nx: int = 5, ny: int = 3) -> dict:
     from aerial_synth.camera import Camera
     from aerial_synth.dataset.config import ExportConfig
-    from aerial_synth.dataset.sample import load_export_scene
+    from aerial_synth.dataset.scenes import load_export_scene
     from aerial_synth.formats.meta import FORMAT
     from aerial_synth.scene.model import LABEL_IDS
     from aerial_synth.scene.raycast import RayScene

@@ -56,8 +56,8 @@ from .output import (
 )
 from .plan import build_plan
 from .pool import check_entry_point, pool_context, start_pool_server
-from .sample import scene_georeference
 from .scene_mix import check_names
+from .scenes import scene_georeference
 from .tiled import export_pads
 from .worker import ImageWorker, encode_image, record_counts, render_image
 

@@ -33,6 +33,7 @@ from ..render.config import RenderConfig
 from .config import ExportConfig
 from .gsd import GSD_STREAM, GsdRange, scene_cap_m
 from .scene_mix import parse_mix
+from .scenes import load_export_scene
 
 __all__ = ["CameraPlan", "ExportPlan", "GroupEntry", "SceneSource", "build_plan"]
 
@@ -85,17 +86,15 @@ class SceneSource:
 
     def scene_config(self, group: int) -> ExportConfig:
         """The parameters group ``group``'s scene is loaded with (a mix's entry as a plain
-        export's): what :func:`~aerial_synth.dataset.sample.load_export_scene` takes."""
+        export's): what :func:`~aerial_synth.dataset.scenes.load_export_scene` takes."""
         if self.kind != "mix":
             return self.cfg
         return dataclasses.replace(self.cfg, scene=self.entry_for_group(group).scene, scene_mix=None)
 
     def scene_for_group(self, group: int):
         """Group ``group``'s scene, loaded through this process's scene memo
-        (:func:`~aerial_synth.dataset.sample.load_export_scene`): a Scene, or the
+        (:func:`~aerial_synth.dataset.scenes.load_export_scene`): a Scene, or the
         TiledWorld of a tiled export."""
-        from .sample import load_export_scene
-
         return load_export_scene(self.scene_config(group))
 
 

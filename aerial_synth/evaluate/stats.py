@@ -32,9 +32,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import EvaluationError
+from ..formats import CATEGORIES
 from ..io_utils import atomic_write_bytes, atomic_write_json, atomic_write_text
 from ..safe_input import check_image_pixels, decode_image, image_file_complete
-from ..vehicles.model import CLASSES
 from .labels import image_size, read_dataset
 from .plots import grid, histogram_chart, line_chart, png_bytes
 
@@ -191,7 +191,7 @@ def _hist(pixels_bgr: np.ndarray) -> np.ndarray:
     return out
 
 
-VEHICLE_CLASSES = CLASSES  # the one list, the vehicle catalog's
+VEHICLE_CLASSES = CATEGORIES  # the one list, the vehicle catalog's (formats.CATEGORIES)
 
 
 def _pixel_stats(items, max_images: int, seed: int, dist: dict):

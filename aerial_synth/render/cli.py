@@ -169,7 +169,8 @@ def run(args) -> int:
 
     from ..dataset.config import ExportConfig
     from ..dataset.plan import CameraPlan, build_plan
-    from ..dataset.sample import SampleRenderer, scene_distractors
+    from ..dataset.sample import SampleRenderer
+    from ..dataset.scenes import scene_distractors
     from . import io  # lazy: the renderer (numba, OpenCV)
 
     # validate everything cheap before loading or writing anything

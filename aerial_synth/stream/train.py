@@ -5,8 +5,10 @@ sees new images, rendered in the DataLoader's workers, none written to disk.
 script) needs: the training :class:`~.dataset.StreamDataset` of ``config`` (epoch ``e`` is
 :func:`~aerial_synth.stream.epoch_config` ``(config, e)``) and a fixed validation one
 (``val_config``, default: ``config``'s :data:`VAL_EPOCH`, ``val_images`` images).
-:func:`train_from_stream` trains with them, offline, with sim2real's Ultralytics settings
-(:mod:`aerial_synth.sim2real.ultra`).
+:func:`stream_trainer_class` turns any Ultralytics OBB trainer class into one fed by those
+datasets (sim2real passes its offline trainer, :mod:`aerial_synth.sim2real.ultra`), and
+:func:`train_from_stream` trains with it. Nothing here sets Ultralytics' settings: a caller
+that must stay offline sets them first (sim2real's ``ultra`` does).
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from ..errors import ConfigError
 from .core import epoch_config, plan_of
 from .dataset import EpochSampler, StreamDataset
 
-__all__ = ["VAL_EPOCH", "StreamTrainResult", "stream_datasets", "train_from_stream"]
+__all__ = ["VAL_EPOCH", "StreamTrainResult", "stream_datasets", "stream_trainer_class", "train_from_stream"]
 
 #: the epoch whose images validate a stream run (never a training epoch in practice)
 VAL_EPOCH = 1_000_000
@@ -54,13 +56,21 @@ def _loader(dataset: StreamDataset, batch: int, workers: int, train: bool):
                               num_workers=workers, collate_fn=StreamDataset.collate_fn, drop_last=False)
 
 
-def _stream_trainer_class(train_ds: StreamDataset, val_ds: StreamDataset):
-    from ..sim2real.ultra import _trainer_class
-
-    base = _trainer_class()
+def stream_trainer_class(train_ds: StreamDataset, val_ds: StreamDataset, base=None, workers: int = 2):
+    """An Ultralytics trainer class (``base``, default ``OBBTrainer``) whose data are the two
+    stream datasets: no dataset folder, one DataLoader pass per epoch, training images
+    rendered in ``workers`` DataLoader processes (Ultralytics' own loader uses none on a CPU:
+    there the rendering, not the network, is the slow part). Its instances note (epoch,
+    image, digest of the pixels) of every training image in ``stream_seen``."""
+    if base is None:
+        from ultralytics.models.yolo.obb import OBBTrainer as base
 
     class StreamOBBTrainer(base):
-        """The offline OBB trainer with the stream as its data (no dataset folder)."""
+        """``base`` with the stream as its data."""
+
+        def __init__(self, *a, **k):
+            self.stream_seen: list = []
+            super().__init__(*a, **k)
 
         def get_dataset(self):
             names = {i: n for i, n in enumerate(train_ds.classes)}
@@ -69,25 +79,34 @@ def _stream_trainer_class(train_ds: StreamDataset, val_ds: StreamDataset):
 
         def get_dataloader(self, dataset_path, batch_size=16, rank=0, mode="train"):
             train = mode == "train"
-            return _loader(train_ds if train else val_ds, batch_size, self.args.workers, train)
+            return _loader(train_ds if train else val_ds, batch_size, workers if train else 0, train)
 
         def plot_training_labels(self):
             pass
 
         def preprocess_batch(self, batch):
-            """Notes (epoch, image, digest of its pixels) of every training image, then
-            Ultralytics' own preprocessing."""
+            """Notes every training image, then Ultralytics' own preprocessing."""
             import hashlib
 
             for f, img in zip(batch["im_file"], batch["img"]):
                 self.stream_seen.append((int(self.epoch), f, hashlib.sha256(img.numpy().tobytes()).hexdigest()))
             return super().preprocess_batch(batch)
 
-        def __init__(self, *a, **k):
-            self.stream_seen: list = []
-            super().__init__(*a, **k)
-
     return StreamOBBTrainer
+
+
+def _data_yaml(run_dir: Path, classes) -> Path:
+    """A data yaml for Ultralytics' own checks (the final validation of the best weights
+    reads one): the class names, and an empty folder as the image folders (the images come
+    from the stream)."""
+    import yaml
+
+    from ..io_utils import atomic_write_text
+
+    empty = run_dir / "stream-data"
+    empty.mkdir(parents=True, exist_ok=True)
+    body = {"path": str(empty.resolve()), "train": ".", "val": ".", "names": dict(enumerate(classes))}
+    return atomic_write_text(run_dir / "stream.yaml", yaml.safe_dump(body, sort_keys=False))
 
 
 @dataclass
@@ -105,24 +124,25 @@ class StreamTrainResult:
 def train_from_stream(config: ExportConfig, run_dir: Path, *, epochs: int, imgsz: int, model: str = "yolo11n-obb.yaml",
                       device: str = "cpu", batch: int = 8, workers: int = 2, seed: int = 0,
                       val_images: int | None = None, pool: int | None = None, refresh: float = 0.25,
-                      ) -> StreamTrainResult:
+                      trainer_base=None, amp_check=None) -> StreamTrainResult:
     """Train ``model`` (a yaml: from scratch) for ``epochs`` epochs on the stream of
     ``config`` (``config.images`` images an epoch, each epoch new ones; ``pool``: pool
-    mode); validation on :func:`stream_datasets`' fixed set. ``run_dir``: Ultralytics' run."""
-    from ..sim2real.ultra import _offline_ultralytics, _patched_amp_check
+    mode); validation on :func:`stream_datasets`' fixed set. ``run_dir``: Ultralytics' run.
+    ``trainer_base``: the trainer class to feed (:func:`stream_trainer_class`);
+    ``amp_check``: a context manager to train in (sim2real's offline AMP check)."""
+    import contextlib
 
-    _offline_ultralytics()
     from ultralytics import YOLO
 
     train_ds, val_ds = stream_datasets(config, imgsz=imgsz, val_images=val_images, pool=pool, refresh=refresh)
     run_dir = Path(run_dir)
     net = YOLO(model, task="obb")
-    kw = dict(data="stream.yaml", imgsz=imgsz, device=device, seed=seed, deterministic=True, batch=batch,
+    kw = dict(data=str(_data_yaml(run_dir, train_ds.classes)), imgsz=imgsz, device=device, seed=seed, deterministic=True, batch=batch,
               workers=workers, plots=False, amp=False, project=str(run_dir.parent.resolve()), name=run_dir.name,
               exist_ok=True, verbose=False, pretrained=False, cache=False, val=True, patience=0, epochs=int(epochs),
-              close_mosaic=0, mosaic=0.0, trainer=_stream_trainer_class(train_ds, val_ds))
+              close_mosaic=0, mosaic=0.0, trainer=stream_trainer_class(train_ds, val_ds, trainer_base, workers))
     t0 = time.perf_counter()
-    with _patched_amp_check():
+    with amp_check or contextlib.nullcontext():
         metrics = net.train(**kw)
     tr = net.trainer
     best = Path(tr.best) if Path(tr.best).is_file() else Path(tr.last)

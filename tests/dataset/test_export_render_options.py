@@ -10,7 +10,7 @@ import pytest
 from aerial_synth.camera import CameraConfig
 from aerial_synth.dataset.config import RENDER_KEYS
 from aerial_synth.dataset.export import ExportConfig, export_dataset
-from aerial_synth.dataset.sample import load_export_scene
+from aerial_synth.dataset.scenes import load_export_scene
 from aerial_synth.errors import ConfigError, ExportError
 from aerial_synth.render.config import RenderOptions
 

@@ -166,6 +166,7 @@ LAYERS = (
     ("render",),  # frame buffers and RGB of scene + placed vehicles
     ("formats",),  # label files (registry of DOTA, EAGLE, YOLO-OBB, COCO, meta)
     ("dataset", "evaluate"),  # export orchestration | measurement (an island, see below)
+    ("stream",),  # an export's samples in memory: iter_samples, shards, a torch dataset
     ("sim2real",),  # trains a detector on exports, scores it on real images through evaluate
     ("cli",),  # aerial_synth.cli and every package's command module
 )

@@ -16,6 +16,7 @@ pytest.importorskip("ultralytics", reason="needs the [train] extra (Ultralytics,
 from aerial_synth.camera import CameraConfig  # noqa: E402
 from aerial_synth.dataset.export import ExportConfig  # noqa: E402
 from aerial_synth.dataset.sample import render_sample  # noqa: E402
+from aerial_synth.sim2real import ultra  # noqa: E402
 from aerial_synth.stream import epoch_config  # noqa: E402
 from aerial_synth.stream.dataset import EpochSampler, StreamDataset  # noqa: E402
 from aerial_synth.stream.train import train_from_stream  # noqa: E402
@@ -35,7 +36,10 @@ def _digest(cfg, epoch, index):
 
 def test_ultralytics_trains_two_epochs_from_the_stream(tiny_scene, tmp_path):
     cfg = _cfg(tiny_scene)
-    res = train_from_stream(cfg, tmp_path / "run", epochs=2, imgsz=128, batch=4, workers=2, device="cpu")
+    # sim2real's offline Ultralytics (settings, fonts, AMP check) and its trainer as the base
+    ultra._offline_ultralytics()
+    res = train_from_stream(cfg, tmp_path / "run", epochs=2, imgsz=128, batch=4, workers=2, device="cpu",
+                            trainer_base=ultra._trainer_class(), amp_check=ultra._patched_amp_check())
     assert res.epochs == 2 and res.weights.is_file()
     by_epoch: dict[int, dict[int, str]] = {}
     for epoch, name, digest in res.seen:
