@@ -44,6 +44,7 @@ from ..vehicles import load_catalog
 from . import engines
 from .aggregate import aggregate_pool, write_aggregates
 from .config import IMAGE_EXTS, PLACEMENT_STREAM, SPLITS, ExportConfig, ExportResult
+from .engines.fork_server import check_entry_point, pool_context, start_pool_server
 from .layout import image_name, image_paths, is_done, label_paths, meta_path, split_of
 from .manifest import MANIFEST_FORMAT, is_dataset, manifest, read_manifest
 from .output import (
@@ -55,7 +56,6 @@ from .output import (
     remove_stray_temps,
 )
 from .plan import build_plan
-from .pool import check_entry_point, pool_context, start_pool_server
 from .scene_mix import check_names
 from .scenes import scene_georeference
 from .tiled import export_pads

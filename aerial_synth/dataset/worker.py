@@ -26,8 +26,8 @@ from ..formats import meta
 from ..formats.registry import get as get_format
 from ..io_utils import atomic_write_bytes, atomic_write_text
 from .config import ExportConfig
+from .engines.parent import check_parent
 from .layout import image_paths, meta_path
-from .parent import check_parent
 from .plan import build_plan
 from .sample import SampleRenderer
 

@@ -215,7 +215,7 @@ def test_kill_and_resume_identical(exported, tiny_scene, tmp_path):
 
 _ORPHAN = r"""
 import os, sys
-from aerial_synth.dataset.parent import watch_parent
+from aerial_synth.dataset.engines.parent import watch_parent
 r, w = os.pipe()
 os.close(r)  # the reader (the exporter's result handler) is gone
 if sys.argv[1] == "watched":
@@ -587,13 +587,13 @@ def test_pool_workers_fork_from_a_preloading_server():
     the guard that ties the server to the exporter acts only inside that server."""
     import multiprocessing as mp
 
-    from aerial_synth.dataset import _server_guard
-    from aerial_synth.dataset.pool import WORKER_MODULES, pool_context
+    from aerial_synth.dataset.engines import _server_guard
+    from aerial_synth.dataset.engines.fork_server import WORKER_MODULES, pool_context
 
     ctx = pool_context()
     if "forkserver" in mp.get_all_start_methods():
         assert ctx.get_start_method() == "forkserver"
-        assert WORKER_MODULES[0] == "aerial_synth.dataset._server_guard"
+        assert WORKER_MODULES[0] == "aerial_synth.dataset.engines._server_guard"
     else:
         assert ctx.get_start_method() == "spawn"
     assert _server_guard.GUARDED is False  # imported here, in no fork server: no prctl
@@ -641,7 +641,7 @@ def test_fork_server_workers_are_ready_and_light():
 
     import pytest
 
-    from aerial_synth.dataset import _server_open3d
+    from aerial_synth.dataset.engines import _server_open3d
     from aerial_synth.dataset.export import pool_context
 
     if "forkserver" not in mp.get_all_start_methods():

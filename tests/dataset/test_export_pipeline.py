@@ -111,7 +111,7 @@ def _probe(_):
     import numpy as np
     import open3d as o3d
 
-    from aerial_synth.dataset.affinity import current_share
+    from aerial_synth.dataset.engines.affinity import current_share
 
     time.sleep(1.0)
     before = len(os.listdir("/proc/self/task"))

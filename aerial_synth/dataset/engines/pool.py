@@ -29,14 +29,14 @@ from ...errors import ExportError
 from ...formats.registry import BUILTIN, get, names, register
 from ...render.budget import frame_gb
 from ...scene.model import Scene
-from .._server_guard import ENTRY_POINT_EXIT
-from ..affinity import allowed_cores, limit_threads, pin_share
 from ..config import ExportConfig
 from ..layout import is_done
 from ..output import remove_stray_temps
-from ..parent import watch_parent
-from ..pool import pool_context, start_pool_server
 from ..worker import ImageWorker
+from ._server_guard import ENTRY_POINT_EXIT
+from .affinity import allowed_cores, limit_threads, pin_share
+from .fork_server import pool_context, start_pool_server
+from .parent import watch_parent
 from .serial import SerialEngine
 
 __all__ = ["ENGINE", "PoolEngine", "MAX_POOL_RESTARTS", "init_pool_worker", "run_group", "shareable"]

@@ -17,7 +17,7 @@ from __future__ import annotations
 import os
 import sys
 
-from ..errors import EntryPointError
+from ...errors import EntryPointError
 
 
 def in_fork_server() -> bool:
