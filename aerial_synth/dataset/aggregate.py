@@ -137,7 +137,7 @@ class MetaRecords:
     :meth:`map` applies a function to every record (of a split) on a process pool.
 
     workers : processes of :meth:`map`'s pool (default: the cores this process may use,
-              :func:`~aerial_synth.dataset.affinity.allowed_cores`); 1 = never a pool
+              :func:`~aerial_synth.dataset.engines.affinity.allowed_cores`); 1 = never a pool
     pool_min: a pass over fewer records runs in this process (:data:`POOL_MIN_RECORDS`)
 
     Every record read by iterating or by :meth:`map` is also counted for ``summary.json``

@@ -1,5 +1,5 @@
 """The process-pool engine: ``--workers K`` processes forked from the export's fork server
-(:func:`~aerial_synth.dataset.pool.pool_context`), each with its share of the cores.
+(:func:`~aerial_synth.dataset.engines.fork_server.pool_context`), each with its share of the cores.
 
 Worker k of the pool pins itself to the k-th share of the cores (:func:`init_pool_worker`).
 An untiled export hands its loaded scene and catalog to the workers (pickled: milliseconds,
