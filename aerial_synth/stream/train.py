@@ -48,12 +48,15 @@ def stream_datasets(config: ExportConfig, *, imgsz: int | None = None, val_confi
 
 def _loader(dataset: StreamDataset, batch: int, workers: int, train: bool):
     """Ultralytics' repeating DataLoader over (epoch, index) keys: each pass is the next
-    epoch (training) or the same images again (validation)."""
+    epoch (training) or the same images again (validation). Workers are spawned, not
+    forked: a fork of a process whose OpenMP runtime (torch's, numba's) has started
+    threads can hang at its first parallel region."""
     from ultralytics.data.build import InfiniteDataLoader
 
     sampler = EpochSampler(dataset, shuffle=train, start_epoch=dataset.epoch, advance=train)
     return InfiniteDataLoader(dataset, batch_size=min(batch, len(dataset)), sampler=sampler,
-                              num_workers=workers, collate_fn=StreamDataset.collate_fn, drop_last=False)
+                              num_workers=workers, collate_fn=StreamDataset.collate_fn, drop_last=False,
+                              multiprocessing_context="spawn" if workers > 0 else None)
 
 
 def stream_trainer_class(train_ds: StreamDataset, val_ds: StreamDataset, base=None, workers: int = 2):

@@ -74,9 +74,10 @@ def test_stream_equals_export_on_a_tiny_scene(tiny_scene, tmp_path):
     assert np.array_equal(s.rgb, next(iter_samples(cfg, 4, 5)).rgb)
 
 
+@pytest.mark.slow  # about 1 min on a busy machine; make test has the tiny scene's version
 @pytest.mark.parametrize("scene, scenario", [("city_park", "jam")])
 def test_stream_equals_export_bundled(scene, scenario, tmp_path):
-    """One bundled scene x scenario pair, 4 indices (the 3 x 20 version is marked slow)."""
+    """One bundled scene x scenario pair, 4 indices, 2 export workers."""
     cfg = _pair_cfg(scene, scenario, 4, n_vehicles=60)
     out = tmp_path / "ds"
     export_dataset(cfg, out, workers=2, progress=False)
