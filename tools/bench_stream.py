@@ -10,7 +10,7 @@ training job or an export pays them):
 
 - ``export``  K=1 and K=2 (``--workers``), PNG and DOTA written to a temp folder;
 - ``stream``  K=1: one process iterating ``iter_samples``; K=2: two processes, each its
-  shard (``shard_indices``), ray casting on half the cores each.
+  shard (``shard_indices``), pinned to half the cores each (as export's pool workers).
 
 Prints one line per run (seconds, images/s, images/s per worker) and a JSON object last.
 The stream does not encode or write, so it should be at least as fast as export.
@@ -39,6 +39,9 @@ a = json.loads(sys.argv[1])
 cfg = ExportConfig(scene=a["scene"], scenario=a["scenario"], images=a["images"], seed=a["seed"],
                    images_per_placement=a["ipp"], render=RenderOptions(preset=a["preset"]),
                    camera=CameraConfig(width_px=a["size"], height_px=a["size"]))
+if a["K"] > 1:  # each worker on its share of the cores, as export's pool workers are
+    from aerial_synth.dataset.engines.affinity import pin_share
+    pin_share(a["k"], a["K"])
 idx = shard_indices(cfg.images, a["k"], a["K"], cfg.images_per_placement)
 n = sum(1 for s in iter_samples(cfg, indices=idx, nthreads=a["nthreads"]) if s.rgb.size)
 print(n)
