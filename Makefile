@@ -123,7 +123,7 @@ $(TRAIN_VENV)/.installed: pylock.test.toml pyproject.toml requirements/uv.txt | 
 	touch $@
 
 test-train: sysdeps $(TRAIN_VENV)/.installed
-	$(TRAIN_VENV)/bin/python -m pytest -q -p no:cacheprovider -m train tests/sim2real
+	$(TRAIN_VENV)/bin/python -m pytest -q -p no:cacheprovider -m train tests/sim2real tests/stream
 
 install: sysdeps $(VENV)/.installed
 install-test: sysdeps sysdeps-egl $(VENV)/.installed-test

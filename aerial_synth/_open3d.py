@@ -2,7 +2,7 @@
 
 ``import open3d`` takes ~1.1-1.7 s, about half of it in
 ``open3d.visualization.draw_plotly``, which imports Dash and Plotly for a notebook viewer
-aerial-synth never uses. The export pool's fork server (:mod:`.dataset._server_open3d`) and
+aerial-synth never uses. The export pool's fork server (:mod:`.dataset.engines._server_open3d`) and
 the ``aerial-synth`` command (:func:`aerial_synth.cli.console_main`) put a stub module in
 its place before open3d is imported: ``scene``, ``place`` and ``export`` start ~0.4 s
 sooner (open3d's import: 0.72 -> 0.32 s). A library user's process is left alone (``aerial_synth.cli.main`` called as a

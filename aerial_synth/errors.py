@@ -58,7 +58,7 @@ class ExportError(AerialSynthError):
 class EntryPointError(ExportError):
     """A worker process, importing the main module of a script without an ``if __name__ ==
     '__main__'`` guard, was about to export again (see
-    :func:`aerial_synth.dataset.pool.check_entry_point`)."""
+    :func:`aerial_synth.dataset.engines.fork_server.check_entry_point`)."""
 
 
 class OutputError(AerialSynthError):

@@ -87,7 +87,7 @@ def main(argv=None) -> int:
 
     pinned = None
     if a.pin_one_core:  # before open3d, numba or OpenMP start a thread
-        from aerial_synth.dataset.affinity import allowed_cores, limit_threads, pin_cores
+        from aerial_synth.dataset.engines.affinity import allowed_cores, limit_threads, pin_cores
 
         pinned = allowed_cores()[0]
         if not pin_cores([pinned]):

@@ -37,7 +37,7 @@ def main() -> None:
     ap.add_argument("--fresh-scene", action="store_true", help="a new RayScene per placement")
     args = ap.parse_args()
     if args.pin_one_core:  # before open3d, numba or OpenMP start a thread
-        from aerial_synth.dataset.affinity import allowed_cores, limit_threads, pin_cores
+        from aerial_synth.dataset.engines.affinity import allowed_cores, limit_threads, pin_cores
 
         core = allowed_cores()[0]
         if not pin_cores([core]):

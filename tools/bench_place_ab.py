@@ -37,7 +37,7 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=12)
     a = ap.parse_args()
 
-    from aerial_synth.dataset.affinity import allowed_cores, limit_threads, pin_cores
+    from aerial_synth.dataset.engines.affinity import allowed_cores, limit_threads, pin_cores
 
     core = allowed_cores()[0]
     if not pin_cores([core]):  # before open3d, numba or OpenMP start a thread

@@ -41,9 +41,9 @@ if sys.argv[6] == "group":  # the world's part only: group 0's scene, placement 
     from aerial_synth.dataset.worker import ImageWorker
     t0 = time.perf_counter()
     w = ImageWorker.for_config(cfg, Path(out))
-    w._ensure_group(0)
-    print(json.dumps({"seconds": round(time.perf_counter() - t0, 1), "vehicles": len(w._placement.vehicles),
-                      "triangles": int(w._rayscene.scene.n_triangles),
+    grp = w.renderer.group(0)
+    print(json.dumps({"seconds": round(time.perf_counter() - t0, 1), "vehicles": len(grp.placement.vehicles),
+                      "triangles": int(grp.rayscene.scene.n_triangles),
                       "windows_built": getattr(w.scene, "windows_built", None),
                       "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)}))
     sys.exit(0)

@@ -21,6 +21,9 @@ outputs, and writes one JSON object ``{artifact: sha256}``:
   perturbed predictions (boxes shifted, scores falling, every 5th box dropped, one false
   positive per image) made from the full city_park/jam export's DOTA labels, against
   that export: eval.json, summary.txt and the PR curves;
+- ``variant/<name>/...``: exports beyond one scene and scenario (``--fast`` preset, small
+  images, all four formats): a scene mix, a GSD range, an altitude range and a tiled world,
+  each with 1 and 2 workers and on Dask (``--dask local:2``): every file as above;
 - ``error/...``: the exit status and the one-line message of a run expected to fail
   (``highway`` has no parking lot for the ``parking`` scenario).
 
@@ -64,6 +67,18 @@ COMBOS = [("city_park", "jam"), ("city_park", "sparse"), ("city_park", "street-p
 QUICK_COMBOS = [("city_park", "jam"), ("suburb", "parking"), ("highway", "sparse")]
 EXPORT_ARGS = ["--images", "2", "--size", "512", "--images-per-placement", "2",
                "--seed", str(SEED), "--no-progress", "--workers", "1"]
+#: name -> the export's own arguments; each runs with --workers 1, --workers 2 and on Dask
+VARIANTS = {
+    "mix": ["--scene-mix", "city_park/jam:1,suburb/sparse:1,highway/normal:1",
+            "--images", "4", "--images-per-placement", "1"],
+    "gsd-range": ["--scene", "highway", "--scenario", "jam", "--gsd", "0.1:0.3",
+                  "--images", "3", "--images-per-placement", "2"],
+    "altitude-range": ["--scene", "suburb", "--scenario", "sparse", "--altitude", "40:90",
+                       "--images", "3", "--images-per-placement", "3"],
+    "tiled": ["--scene", "city_park", "--scenario", "jam", "--tile-m", "80",
+              "--images", "4", "--images-per-placement", "2"],
+}
+VARIANT_RUNS = {"w1": ["--workers", "1"], "w2": ["--workers", "2"], "dask": ["--dask", "local:2"]}
 _TIME_KEYS = {"elapsed_s", "seconds", "created", "timestamp", "started", "finished", "wall_s"}
 
 
@@ -229,6 +244,17 @@ def evaluate(export_dir: Path, work: Path, norm: Normaliser, out: dict) -> None:
             _hash_tree(d, f"eval/{metric}", norm, out)
 
 
+def variant(name: str, run: str, work: Path, norm: Normaliser, out: dict) -> None:
+    """One of :data:`VARIANTS` run as :data:`VARIANT_RUNS` says (1 or 2 workers, Dask)."""
+    d = work / "variant" / name / run
+    key = f"variant/{name}/{run}"
+    args = ["export", *VARIANTS[name], "--preset", "fast", "--size", "256",
+            "--format", "dota,eagle,yolo-obb,coco", "--seed", str(SEED), "--no-progress",
+            *VARIANT_RUNS[run], "--out", str(d)]
+    if _run_ok(args, work, norm, out, key):
+        _hash_tree(d, key, norm, out)
+
+
 def expected_error(work: Path, norm: Normaliser, out: dict) -> None:
     r = _cli(["place", "--scene", "highway", "--scenario", "parking", "--seed", str(SEED),
               "--out", str(work / "error")], work)
@@ -251,6 +277,10 @@ def run_all(work: Path, quick: bool, scenes_only: bool = False) -> dict:
         export(scene, scenario, "fast", work, norm, out)
     if first is not None:
         evaluate(first, work, norm, out)
+    for name in VARIANTS:
+        for run in VARIANT_RUNS:
+            print(f"  variant {name} ({run})", file=sys.stderr, flush=True)
+            variant(name, run, work, norm, out)
     expected_error(work, norm, out)
     return dict(sorted(out.items()))
 

@@ -42,7 +42,7 @@ def roof_points(world: dict, nx: int, ny: int) -> np.ndarray:
 def measure(dataset: Path, nx: int = 5, ny: int = 3) -> dict:
     from aerial_synth.camera import Camera
     from aerial_synth.dataset.config import ExportConfig
-    from aerial_synth.dataset.worker import _load_scene
+    from aerial_synth.dataset.scenes import load_export_scene
     from aerial_synth.formats.meta import FORMAT
     from aerial_synth.scene.model import LABEL_IDS
     from aerial_synth.scene.raycast import RayScene
@@ -61,7 +61,7 @@ def measure(dataset: Path, nx: int = 5, ny: int = 3) -> dict:
         if name not in scenes:
             import dataclasses
 
-            scenes[name] = RayScene(_load_scene(dataclasses.replace(cfg, scene=name, scene_mix=None)))
+            scenes[name] = RayScene(load_export_scene(dataclasses.replace(cfg, scene=name, scene_mix=None)))
         rs = scenes[name]
         cam = Camera.from_dict(d["camera"])
         centre = np.asarray(cam.cam_to_world)[:3, 3]

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import importlib
+from ..lazy import lazy_module_attrs
 
 __all__ = ["ExportConfig", "ExportResult", "export_dataset", "show_dataset"]
 
@@ -10,10 +10,4 @@ _LAZY = {"ExportConfig": "export", "ExportResult": "export", "export_dataset": "
          "show_dataset": "show"}
 
 
-def __getattr__(name: str):
-    mod = _LAZY.get(name)
-    if mod is None:
-        raise AttributeError(f"module 'aerial_synth.dataset' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{mod}"), name)
-    globals()[name] = value
-    return value
+__getattr__, __dir__ = lazy_module_attrs(__name__, _LAZY, __all__)

@@ -26,11 +26,11 @@ from ..errors import AerialSynthError, ExportError
 from ..formats import CATEGORIES, meta
 from ..formats.registry import DatasetInfo, get
 from ..io_utils import atomic_write_chunks, atomic_write_json, atomic_write_text
-from .affinity import allowed_cores
 from .config import ExportConfig
+from .engines.affinity import allowed_cores
+from .engines.fork_server import check_entry_point, pool_context
+from .engines.parent import watch_parent
 from .layout import meta_path, split_of
-from .parent import watch_parent
-from .pool import check_entry_point, pool_context
 from .worker import record_counts
 
 __all__ = ["MetaRecords", "POOL_MIN_RECORDS", "aggregate_pool", "dataset_info", "write_aggregates", "summarise"]
@@ -137,7 +137,7 @@ class MetaRecords:
     :meth:`map` applies a function to every record (of a split) on a process pool.
 
     workers : processes of :meth:`map`'s pool (default: the cores this process may use,
-              :func:`~aerial_synth.dataset.affinity.allowed_cores`); 1 = never a pool
+              :func:`~aerial_synth.dataset.engines.affinity.allowed_cores`); 1 = never a pool
     pool_min: a pass over fewer records runs in this process (:data:`POOL_MIN_RECORDS`)
 
     Every record read by iterating or by :meth:`map` is also counted for ``summary.json``

@@ -44,6 +44,7 @@ from ..vehicles import load_catalog
 from . import engines
 from .aggregate import aggregate_pool, write_aggregates
 from .config import IMAGE_EXTS, PLACEMENT_STREAM, SPLITS, ExportConfig, ExportResult
+from .engines.fork_server import check_entry_point, pool_context, start_pool_server
 from .layout import image_name, image_paths, is_done, label_paths, meta_path, split_of
 from .manifest import MANIFEST_FORMAT, is_dataset, manifest, read_manifest
 from .output import (
@@ -54,10 +55,11 @@ from .output import (
     prepare_build,
     remove_stray_temps,
 )
-from .pool import check_entry_point, pool_context, start_pool_server
-from .scene_mix import check_names, parse_mix
+from .plan import build_plan
+from .scene_mix import check_names
+from .scenes import scene_georeference
 from .tiled import export_pads
-from .worker import ImageWorker, encode_image, mix_scene, record_counts, render_image
+from .worker import ImageWorker, encode_image, record_counts, render_image
 
 __all__ = [
     "IMAGE_EXTS",
@@ -88,26 +90,18 @@ __all__ = [
 def validate_inputs(cfg: ExportConfig):
     """Load and check everything that can only be checked by loading it (camera, scenario,
     catalog, scene) before anything is written. Returns (scene, catalog)."""
-    cfg.camera_config()
-    if cfg.scene_mix is not None:  # every entry's names; the first group's scene is loaded
-        mix = parse_mix(cfg.scene_mix)
-        check_names(mix, cfg.scenario)
-        catalog = load_catalog()
-        scene = mix_scene(cfg, mix.entries[mix.index_for_group(cfg.seed, 0)].scene)
-        return scene, catalog
+    plan = build_plan(cfg)
+    if plan.scenes.kind == "mix":  # every entry's names; the first group's scene is loaded
+        check_names(plan.scenes.mix, cfg.scenario)
+        return plan.scenes.scene_for_group(0), load_catalog()
     load_scenario(cfg.scenario)
     catalog = load_catalog()
-    scene = ImageWorker.for_config(cfg, Path(".")).scene
-    if getattr(cfg, "tile_m", None) is not None:  # a capped render pad: said once, here
+    scene = plan.scenes.scene_for_group(0)
+    if plan.scenes.kind == "tiled":  # a capped render pad: said once, here
         cut = export_pads(scene, cfg.render.config(), cfg.camera_config(), catalog).warning
         if cut is not None:
             warnings.warn(cut, stacklevel=2)
     return scene, catalog
-
-
-def _georeference(scene) -> dict:
-    geo = getattr(scene, "georeference", None)
-    return geo() if callable(geo) else {"origin": [0.0, 0.0, 0.0], "crs": None}
 
 
 def export_dataset(
@@ -150,7 +144,7 @@ def export_dataset(
     except BaseException:
         eng.close()
         raise
-    geo = _georeference(scene)
+    geo = scene_georeference(scene)
 
     # --- from here on, files are written (only into plan.build until the final swap), under
     # a lock on --out; the plan is made again under it (another export may have finished).

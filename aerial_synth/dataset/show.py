@@ -28,13 +28,14 @@ from ..formats import dota, meta
 from ..formats.registry import get, names
 from ..io_utils import atomic_write_bytes, check_output_dir, is_inside
 from ..safe_input import check_image_pixels, cv_text, decode_image
+from ..vehicles.model import CLASSES
 
 __all__ = ["Drawn", "draw_labels", "contact_sheet", "show_dataset"]
 
 # BGR
-COLOURS = {"small-vehicle": (80, 220, 80), "large-vehicle": (230, 200, 40)}
+COLOURS = dict(zip(CLASSES, ((80, 220, 80), (230, 200, 40))))
 DIFFICULT = (0, 140, 255)
-SHORT = {"small-vehicle": "SV", "large-vehicle": "LV"}
+SHORT = {c: "".join(w[0] for w in c.split("-")).upper() for c in CLASSES}  # SV, LV
 
 
 @dataclass(frozen=True)

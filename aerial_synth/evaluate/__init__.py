@@ -3,7 +3,7 @@ domain-gap report (``stats``). Submodules import their heavy dependencies lazily
 
 from __future__ import annotations
 
-import importlib
+from ..lazy import lazy_module_attrs
 
 __all__ = ["evaluate", "run_eval", "Detections", "EvalResult", "make_mix", "MixConfig",
            "dataset_stats", "compare_stats", "run_stats"]
@@ -13,10 +13,4 @@ _LAZY = {"evaluate": "ap", "Detections": "ap", "EvalResult": "ap", "run_eval": "
          "run_stats": "stats"}
 
 
-def __getattr__(name: str):
-    mod = _LAZY.get(name)
-    if mod is None:
-        raise AttributeError(f"module 'aerial_synth.evaluate' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{mod}"), name)
-    globals()[name] = value
-    return value
+__getattr__, __dir__ = lazy_module_attrs(__name__, _LAZY, __all__)

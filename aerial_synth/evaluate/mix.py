@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import EvaluationError
-from ..formats import dota, yolo_obb
+from ..formats import CATEGORIES, dota, yolo_obb
 from ..formats.labels import ImageLabels
 from ..io_utils import check_output_dir, dumps_json, is_inside, replace_dir
 from ..safe_input import image_file_complete, quote, read_image, shown
@@ -77,7 +77,7 @@ class MixConfig:
     gsd: float | None = None
     gsd_missing: str = "error"
     real_gsd: float | None = None
-    classes: list[str] | None = ("small-vehicle", "large-vehicle")  # type: ignore[assignment]
+    classes: list[str] | None = CATEGORIES  # type: ignore[assignment]
     force: bool = False
     formats: tuple[str, ...] = ()  # derived from ``format`` (a comma list)
 

@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import EvaluationError
+from ..formats import CATEGORIES
 from ..io_utils import atomic_write_bytes, atomic_write_json, atomic_write_text
 from ..safe_input import check_image_pixels, decode_image, image_file_complete
 from .labels import image_size, read_dataset
@@ -190,7 +191,7 @@ def _hist(pixels_bgr: np.ndarray) -> np.ndarray:
     return out
 
 
-VEHICLE_CLASSES = ("small-vehicle", "large-vehicle")
+VEHICLE_CLASSES = CATEGORIES  # the one list, the vehicle catalog's (formats.CATEGORIES)
 
 
 def _pixel_stats(items, max_images: int, seed: int, dist: dict):

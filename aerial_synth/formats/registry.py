@@ -19,11 +19,11 @@ This module imports nothing heavy: format modules are imported the first time th
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from ..errors import ExportError
+from ..registry import Registry
 
 __all__ = [
     "BUILTIN",
@@ -104,50 +104,22 @@ class LabelFormat:
         return f"<label format {self.name!r}>"
 
 
-_LOADED: dict[str, LabelFormat] = {}
-_EXTRA: dict[str, LabelFormat] = {}  # registered at run time (plugins, tests)
-
-
-def names() -> tuple[str, ...]:
-    """Every registered format name: built-ins first (in :data:`BUILTIN` order), then the
-    ones registered at run time, in registration order."""
-    return tuple(BUILTIN) + tuple(n for n in _EXTRA if n not in BUILTIN)
-
-
-def get(name: str) -> LabelFormat:
-    """The format called ``name``; an unknown name raises ExportError listing the valid ones."""
-    if name in _EXTRA:
-        return _EXTRA[name]
-    if name in _LOADED:
-        return _LOADED[name]
-    if name not in BUILTIN:
-        raise ExportError(f"--format: unknown format {name!r}; expected one of {', '.join(names())}")
-    fmt = getattr(importlib.import_module(BUILTIN[name]), "FORMAT", None)
-    if not isinstance(fmt, LabelFormat) or fmt.name != name:
-        raise ExportError(f"format module {BUILTIN[name]}: expected FORMAT = a LabelFormat named {name!r}, "
-                          f"got {fmt!r}")
-    _LOADED[name] = fmt
-    return fmt
+REGISTRY = Registry(BUILTIN, attr="FORMAT", noun="format", option="--format", kind="a LabelFormat",
+                    is_entry=lambda o: isinstance(o, LabelFormat), error=ExportError)
+names = REGISTRY.names
+get = REGISTRY.get
+unregister = REGISTRY.unregister
 
 
 def register(fmt: LabelFormat, *, replace: bool = False) -> LabelFormat:
     """Add a format at run time (a plugin, a test). Its name must be a new one-word,
     lower-case name unless ``replace``."""
-    if not isinstance(fmt, LabelFormat):
-        raise ExportError(f"register: expected a LabelFormat, got {type(fmt).__name__}")
-    n = fmt.name
-    if not n or any(c.isspace() or c in ",/\\" for c in n) or n != n.lower() or n.startswith("."):
+    n = getattr(fmt, "name", "")
+    if isinstance(fmt, LabelFormat) and (not n or any(c.isspace() or c in ",/\\" for c in n)
+                                         or n != n.lower() or n.startswith(".")):
         raise ExportError(f"register: expected a lower-case format name without spaces, commas or "
                           f"slashes, got {n!r}")
-    if n in names() and not replace:
-        raise ExportError(f"register: format {n!r} is already registered")
-    _EXTRA[n] = fmt
-    return fmt
-
-
-def unregister(name: str) -> None:
-    """Remove a format registered at run time (built-ins stay)."""
-    _EXTRA.pop(name, None)
+    return REGISTRY.register(fmt, replace=replace)
 
 
 def parse_names(value: str | Iterable[str]) -> tuple[str, ...]:

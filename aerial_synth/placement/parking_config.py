@@ -13,6 +13,7 @@ from typing import Any, Mapping
 
 from .. import validators as V
 from ..errors import ConfigError, SceneError
+from ..vehicles.model import CLASSES
 
 __all__ = ["ParkingConfig", "parse_parking", "PARKING_KINDS", "PARKING_KEYS", "DEFAULT_DEPOT_MIX"]
 
@@ -26,7 +27,7 @@ PARKING_KINDS: dict[str, tuple[bool, bool, bool]] = {
 }
 DEFAULT_MIX = {"small-vehicle": 0.96, "delivery_van": 0.04}
 DEFAULT_DEPOT_MIX = {"city_bus": 0.45, "school_bus": 0.1, "coach": 0.2, "semi_trailer": 0.25}
-_CLASSES = ("small-vehicle", "large-vehicle")
+_CLASSES = CLASSES
 
 
 def _mix(name: str, value: Any) -> dict:

@@ -22,7 +22,7 @@ Names are imported lazily so ``aerial-synth --help`` stays fast.
 
 from __future__ import annotations
 
-import importlib
+from ..lazy import lazy_module_attrs
 
 __all__ = [
     "render_frame",
@@ -45,14 +45,4 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str):
-    mod = _LAZY.get(name)
-    if mod is None:
-        raise AttributeError(f"module 'aerial_synth.render' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{mod}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_module_attrs(__name__, _LAZY, __all__)

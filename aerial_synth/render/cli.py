@@ -1,10 +1,12 @@
 """``aerial-synth render``: place vehicles, pose cameras, render and write frames.
 
-Per image i the generator is ``default_rng(SeedSequence([seed, i]))`` (camera pose, factors,
-noise); the placement uses ``SeedSequence([seed, PLACEMENT_KEY])`` (once per run, or per
-image with ``--placement-per-image``: ``SeedSequence([seed, i, PLACEMENT_KEY])``);
-distractors (``--distractors``, per hectare) use ``SeedSequence([seed, DISTRACTOR_KEY])``
-once per run. Output::
+Every frame is :func:`~aerial_synth.dataset.sample.render_sample`'s, with the export's seed
+streams: image i's camera and rendering come from ``SeedSequence([seed, i])``, the
+placement from ``SeedSequence([seed, g, PLACEMENT_STREAM])`` where the placement group g is
+0 (one placement per run) or i (``--placement-per-image``); distractors (``--distractors``,
+per hectare) from ``SeedSequence([seed, DISTRACTOR_KEY])`` once per run. So ``render`` and
+``export`` show the same image for the same scene, scenario, seed, camera and grouping.
+Output::
 
     OUT/placement.json                (once per run)
     OUT/distractors.json              (once per run: every drawn distractor)
@@ -25,22 +27,16 @@ from ..camera import (
     MAX_IMAGE_PX,
     MAX_TILT_LIMIT_DEG,
     CameraConfig,
-    grid_poses,
-    sample_pose_targeted,
 )
 from ..errors import AerialSynthError
 from ..io_utils import atomic_write_json, atomic_write_text, check_output_dir
-from ..scene.cli import add_scene_args, scene_from_args
-from ..scene.raycast import RayScene
+from ..scene.cli import add_scene_args
 from ..validators import arg_choice, arg_float, arg_int
 from .budget import check_frame_memory
 from .config import RANDOMISE, RENDER_PRESETS, Backend, RenderOptions, device_spec
 
 __all__ = ["register", "add_camera_args", "camera_config_from_args", "add_render_options",
            "render_options_from_args", "run"]
-
-PLACEMENT_KEY = 0x504C  # "PL"
-
 
 def add_camera_args(p: argparse.ArgumentParser, *, size: bool = False, lens: bool = True,
                     ranges=None) -> None:
@@ -178,10 +174,18 @@ def _check_args(args) -> None:
 
 
 def run(args) -> int:
+    """Render ``--images`` frames with :func:`~aerial_synth.dataset.sample.render_sample`'s
+    renderer: the export's plan and seed streams (an export with the same scene, scenario,
+    seed, camera and placement grouping shows the same images)."""
+    import dataclasses
+
     import numpy as np
 
-    from ..placement import place  # lazy: shapely, only when render runs
-    from . import distractors, frame, io, world  # lazy: the renderer (numba, OpenCV)
+    from ..dataset.config import ExportConfig
+    from ..dataset.plan import CameraPlan, build_plan
+    from ..dataset.sample import SampleRenderer
+    from ..dataset.scenes import scene_distractors
+    from . import io  # lazy: the renderer (numba, OpenCV)
 
     # validate everything cheap before loading or writing anything
     cam_cfg = camera_config_from_args(args)
@@ -192,54 +196,44 @@ def run(args) -> int:
     rcfg = opts.config(**kw)
     check_frame_memory(cam_cfg.width_px, cam_cfg.height_px)  # before a 30 GB frame is OOM-killed
     _check_args(args)
+    # the lens (--focal / --fov) lives in the camera plan: an export's is set by its GSD
+    cfg = ExportConfig(scene=args.scene, labels=args.labels, scene_seed=args.scene_seed,
+                       bbox=args.bbox, crs=args.crs, scenario=args.scenario, images=args.images,
+                       seed=args.seed, n_vehicles=args.vehicles, render=opts,
+                       images_per_placement=1 if args.placement_per_image else args.images,
+                       camera=dataclasses.replace(cam_cfg, focal_px=None, fov_deg=None),
+                       distractors=args.distractors or None)
     out = check_output_dir(args.out, "--out")
     opts.check()  # e.g. pyrender without EGL, cuda without CUDA: said before any work
     t0 = time.perf_counter()
-    scene = scene_from_args(args)
-    grid = None
-    if args.sampler == "grid":  # before any write: a bad grid leaves nothing behind
-        b = scene.bounds()
+    cam_plan = CameraPlan("fixed", cfg.seed, cam_cfg)
+    if args.sampler == "grid":
+        scene = SampleRenderer(build_plan(cfg, render=rcfg, camera=cam_plan)).scene(0)
         lows = [o.vertices[:, 2].min() for o in scene.objects if len(o.vertices)]
-        gz = float(np.median(lows)) if lows else 0.0
-        grid = grid_poses(cam_cfg, b[:, :2], overlap=args.overlap, ground_z=gz)
-    extras = []
-    if args.distractors > 0:
-        scene, extras = distractors.add_distractors(
-            scene, np.random.default_rng(np.random.SeedSequence([args.seed, distractors.DISTRACTOR_KEY])),
-            per_hectare=args.distractors)
-    rs = RayScene(scene)
-
-    def make_placement(key):
-        rng = np.random.default_rng(np.random.SeedSequence(key))
-        pl = place(rs, args.scenario, rng, n_vehicles=args.vehicles, seed=args.seed,
-                   scene_name=scene.name)
-        rs.clear_vehicles()
-        world.add_placement(rs, pl)
-        return pl
-
-    placement = None
+        cam_plan = CameraPlan("grid", cfg.seed, cam_cfg, overlap=args.overlap,
+                              ground_z=float(np.median(lows)) if lows else 0.0)
+        cam_plan.grid(scene.bounds())  # before any write: a bad grid leaves nothing behind
+    r = SampleRenderer(build_plan(cfg, render=rcfg, camera=cam_plan))
+    scene = r.scene(0)
+    extras = scene_distractors(cfg) if cfg.distractors else []
     if not args.placement_per_image:
-        placement = make_placement([args.seed, PLACEMENT_KEY])
+        placement = r.group(0).placement
         atomic_write_text(out / "placement.json", placement.to_json())
     atomic_write_json(out / "distractors.json", {"per_hectare": args.distractors,
                                                  "distractors": extras})
     n_veh = 0
     for i in range(args.images):
         if args.placement_per_image:
-            placement = make_placement([args.seed, i, PLACEMENT_KEY])
+            placement = r.group(i).placement
             atomic_write_text(out / f"{i:06d}" / "placement.json", placement.to_json())
-        rng = np.random.default_rng(np.random.SeedSequence([args.seed, i]))
-        if grid is not None:
-            cam = grid[i % len(grid)]
-        else:
-            cam = sample_pose_targeted(cam_cfg, placement, rng, within_xy=scene.bounds()[:, :2],
-                                       clear=lambda c: rs.open_above(c.center))
-        fr = frame.render_frame(rs, cam, placement, rng, rcfg)
+        s = r.sample(i, frame=True)
+        fr = s.frame
         io.write_frame(fr, out / f"{i:06d}", depth_format=args.depth_format, extra_meta={
             "seed": args.seed, "image_index": i, "scene": scene.name,
             "scenario": placement.scenario, "sampler": args.sampler,
             "render_config": rcfg.to_dict(),
             "distractors": {"per_hectare": args.distractors, "count": len(extras)},
+            "seed_streams": s.meta.seed,
         })
         n_veh += len(fr.visibility)
     dt = time.perf_counter() - t0

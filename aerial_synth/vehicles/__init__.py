@@ -12,6 +12,7 @@ built.
 
 from __future__ import annotations
 
+from ..lazy import lazy_module_attrs
 from .catalog import (
     BODY_TYPES,
     CLASSES,
@@ -37,13 +38,6 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str):
-    """``VehicleMesh`` and ``build_mesh`` load the mesh modules on first use: reading the
-    catalog (and ``aerial-synth --help``, which imports this package) needs none of them."""
-    if name in ("VehicleMesh", "build_mesh"):
-        from . import meshes  # lazy: the mesh builders; --help and catalog reads load none
-
-        value = getattr(meshes, name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'aerial_synth.vehicles' has no attribute {name!r}")
+# ``VehicleMesh`` and ``build_mesh`` load the mesh modules on first use: reading the catalog
+# (and ``aerial-synth --help``, which imports this package) needs none of them.
+__getattr__, __dir__ = lazy_module_attrs(__name__, {"VehicleMesh": "meshes", "build_mesh": "meshes"}, __all__)

@@ -302,7 +302,7 @@ def test_an_export_aggregating_on_the_pool_is_the_same_export(small_export, tmp_
     """export_dataset with the thresholds lowered: the fork server started early, the
     aggregates made on the pool, every file as before."""
     from aerial_synth.dataset import export
-    from aerial_synth.dataset.affinity import allowed_cores
+    from aerial_synth.dataset.engines.affinity import allowed_cores
 
     if len(allowed_cores()) < 2:
         pytest.skip("one core: the default is no pool")

@@ -104,13 +104,13 @@ def test_coco_masks_decode_to_instance_masks(exported, tiny_scene):
 
     cfg = _cfg(tiny_scene)
     w = ImageWorker.for_config(cfg, out)
-    w._ensure_group(0)
+    grp = w.renderer.group(0)
     from aerial_synth.camera import sample_pose_targeted
     from aerial_synth.render import RenderConfig, render_frame
 
     cam_ss, render_ss = np.random.SeedSequence([3, 0]).spawn(2)
-    cam = sample_pose_targeted(cfg.camera_config(), w._placement, np.random.default_rng(cam_ss))
-    fr = render_frame(w._rayscene, cam, w._placement, np.random.default_rng(render_ss), RenderConfig())
+    cam = sample_pose_targeted(cfg.camera_config(), grp.placement, np.random.default_rng(cam_ss))
+    fr = render_frame(grp.rayscene, cam, grp.placement, np.random.default_rng(render_ss), RenderConfig())
     img_id = 1
     anns = c.loadAnns(c.getAnnIds(imgIds=[img_id]))
     assert anns
@@ -215,7 +215,7 @@ def test_kill_and_resume_identical(exported, tiny_scene, tmp_path):
 
 _ORPHAN = r"""
 import os, sys
-from aerial_synth.dataset.parent import watch_parent
+from aerial_synth.dataset.engines.parent import watch_parent
 r, w = os.pipe()
 os.close(r)  # the reader (the exporter's result handler) is gone
 if sys.argv[1] == "watched":
@@ -587,13 +587,13 @@ def test_pool_workers_fork_from_a_preloading_server():
     the guard that ties the server to the exporter acts only inside that server."""
     import multiprocessing as mp
 
-    from aerial_synth.dataset import _server_guard
-    from aerial_synth.dataset.pool import WORKER_MODULES, pool_context
+    from aerial_synth.dataset.engines import _server_guard
+    from aerial_synth.dataset.engines.fork_server import WORKER_MODULES, pool_context
 
     ctx = pool_context()
     if "forkserver" in mp.get_all_start_methods():
         assert ctx.get_start_method() == "forkserver"
-        assert WORKER_MODULES[0] == "aerial_synth.dataset._server_guard"
+        assert WORKER_MODULES[0] == "aerial_synth.dataset.engines._server_guard"
     else:
         assert ctx.get_start_method() == "spawn"
     assert _server_guard.GUARDED is False  # imported here, in no fork server: no prctl
@@ -641,7 +641,7 @@ def test_fork_server_workers_are_ready_and_light():
 
     import pytest
 
-    from aerial_synth.dataset import _server_open3d
+    from aerial_synth.dataset.engines import _server_open3d
     from aerial_synth.dataset.export import pool_context
 
     if "forkserver" not in mp.get_all_start_methods():
@@ -667,7 +667,7 @@ def test_meta_records_our_warnings_not_a_library_s(tiny_scene, tmp_path, monkeyp
     killed-and-resumed export differed from a clean one). Our own warnings stay."""
     import warnings
 
-    import aerial_synth.dataset.worker as worker_module
+    import aerial_synth.dataset.sample as worker_module
     from aerial_synth.placement.traffic import PlacementWarning
 
     real = worker_module.place

@@ -111,7 +111,7 @@ def _probe(_):
     import numpy as np
     import open3d as o3d
 
-    from aerial_synth.dataset.affinity import current_share
+    from aerial_synth.dataset.engines.affinity import current_share
 
     time.sleep(1.0)
     before = len(os.listdir("/proc/self/task"))
@@ -176,9 +176,9 @@ def test_group_builds_only_the_vehicles_its_cameras_can_see(tmp_path, monkeypatc
                        seed=5, n_vehicles=400,
                        camera=CameraConfig(width_px=512, height_px=512, altitude_m=30.0))
     w = W.ImageWorker(cfg, tmp_path)
-    w._ensure_group(0)
-    pl, rs = w._placement, w._rayscene
-    cams = dict(w._cameras)
+    grp = w.renderer.group(0)
+    pl, rs = grp.placement, grp.rayscene
+    cams = dict(grp.cameras)
     kept = set(rs.vehicle_ids)
     assert 0 < len(kept) < 0.8 * len(pl.vehicles)  # 4 small views of a 500 m park
     full = RayScene(w.scene)
@@ -186,10 +186,10 @@ def test_group_builds_only_the_vehicles_its_cameras_can_see(tmp_path, monkeypatc
     for i, cam in cams.items():
         cam_ss, render_ss = np.random.SeedSequence([cfg.seed, i]).spawn(2)
         again = sample_pose_targeted(cfg.camera_config(), pl, np.random.default_rng(cam_ss),
-                                     within_xy=w.scene_xy_bounds)
+                                     within_xy=grp.within_xy)
         assert np.array_equal(again.cam_to_world, cam.cam_to_world)
-        a = render_frame(rs, cam, pl, np.random.default_rng(render_ss), config=w.render_config)
-        b = render_frame(full, cam, pl, np.random.default_rng(render_ss), config=w.render_config)
+        a = render_frame(rs, cam, pl, np.random.default_rng(render_ss), config=w.plan.render)
+        b = render_frame(full, cam, pl, np.random.default_rng(render_ss), config=w.plan.render)
         seen = set(np.unique(b.instance).tolist()) - {0}
         assert seen and seen <= kept
         for name in ("instance", "semantic", "depth"):
@@ -197,8 +197,9 @@ def test_group_builds_only_the_vehicles_its_cameras_can_see(tmp_path, monkeypatc
         assert a.visibility == b.visibility
         differ = (a.rgb != b.rgb).any(axis=2).mean()
         assert differ < 5e-4, differ  # a missing shadow or reflection would be far more
-    rec, _ = w.record(0)  # uses the group's camera (no second draw), then forgets it
-    assert 0 not in w._cameras and rec.camera == cams[0].to_dict()
+    rec, _ = w.record(0)  # uses the group's camera (no second draw)
+    assert rec.camera == cams[0].to_dict()
+    assert w.record(0)[0].camera == rec.camera  # and again: nothing is used up
 
 
 def test_cli_full_disk_is_one_line_naming_out(tiny_scene, tmp_path, monkeypatch, capsys):

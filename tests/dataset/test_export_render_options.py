@@ -10,7 +10,7 @@ import pytest
 from aerial_synth.camera import CameraConfig
 from aerial_synth.dataset.config import RENDER_KEYS
 from aerial_synth.dataset.export import ExportConfig, export_dataset
-from aerial_synth.dataset.worker import _load_scene
+from aerial_synth.dataset.scenes import load_export_scene
 from aerial_synth.errors import ConfigError, ExportError
 from aerial_synth.render.config import RenderOptions
 
@@ -61,12 +61,12 @@ def test_fast_preset_and_randomised_textures_change_pixels_not_labels(plain, tin
 
 def test_distractors_are_in_the_scene_and_never_labelled(tiny_scene, tmp_path):
     cfg = _cfg(tiny_scene, distractors=400.0)
-    scene = _load_scene(cfg)
-    base = _load_scene(_cfg(tiny_scene))
+    scene = load_export_scene(cfg, fresh=True)
+    base = load_export_scene(_cfg(tiny_scene), fresh=True)
     added = [o for o in scene.objects if o.name not in {b.name for b in base.objects}]
     assert added, "400 per hectare on 0.64 ha drew no distractor"
     assert all(o.label != "vehicle" for o in added)
-    assert _load_scene(cfg).vertex_hash() == scene.vertex_hash()  # same draw every time
+    assert load_export_scene(cfg, fresh=True).vertex_hash() == scene.vertex_hash()  # same draw every time
     one, two = tmp_path / "one", tmp_path / "two"
     export_dataset(cfg, one, workers=1, progress=False)
     export_dataset(cfg, two, workers=2, progress=False)

@@ -6,7 +6,7 @@ import json
 import numpy as np
 
 from aerial_synth.camera import CameraConfig
-from aerial_synth.dataset import worker as worker_mod
+from aerial_synth.dataset import sample as sample_mod
 from aerial_synth.dataset.export import ExportConfig, export_dataset
 from aerial_synth.scene import load_scene
 from aerial_synth.scene.raycast import RayScene
@@ -51,6 +51,6 @@ def test_low_cameras_are_redrawn_out_from_under_a_building(tmp_path, monkeypatch
     export_dataset(_cfg(scene), tmp_path / "open", workers=1, progress=False)
     assert not any(_centres_under_deck(scene, tmp_path / "open"))
     # the same export without the test: some cameras sit under the deck (so the test can fail)
-    monkeypatch.setattr(worker_mod.ImageWorker, "_open_sky", lambda self, cam: True)
+    monkeypatch.setattr(sample_mod.SampleRenderer, "_open_sky", lambda self, rs, cam: True)
     export_dataset(_cfg(scene), tmp_path / "blind", workers=1, progress=False)
     assert any(_centres_under_deck(scene, tmp_path / "blind"))

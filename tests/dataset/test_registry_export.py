@@ -113,7 +113,7 @@ def test_one_module_plus_one_registry_line(monkeypatch, tiny_scene, tmp_path):
     """The documented way to add a format: a module defining FORMAT, and its line in
     registry.BUILTIN (imported lazily on first use)."""
     monkeypatch.setitem(registry.BUILTIN, "count", "tests.dataset.tiny_format")
-    monkeypatch.setattr(registry, "_LOADED", dict(registry._LOADED))
+    monkeypatch.setattr(registry.REGISTRY, "loaded", dict(registry.REGISTRY.loaded))
     assert "count" in registry.names()
     assert isinstance(registry.get("count"), CountFormat)
     cfg = ExportConfig(scene=tiny_scene, images=1, formats="count", seed=1, n_vehicles=6,
@@ -127,7 +127,7 @@ def test_one_module_plus_one_registry_line(monkeypatch, tiny_scene, tmp_path):
 
 def test_builtin_module_must_define_its_format(monkeypatch):
     monkeypatch.setitem(registry.BUILTIN, "broken", "aerial_synth.formats._common")
-    monkeypatch.setattr(registry, "_LOADED", dict(registry._LOADED))
+    monkeypatch.setattr(registry.REGISTRY, "loaded", dict(registry.REGISTRY.loaded))
     with pytest.raises(ExportError, match="expected FORMAT = a LabelFormat named 'broken', got None"):
         registry.get("broken")
 

@@ -154,7 +154,7 @@ def test_top_level_import_stays_light():
 #: ``aerial_synth.cli`` and every package's command module (``*.cli``, ``*_cli``) form "cli".
 #: The root package ``aerial_synth`` holds only ``__version__``.
 LAYERS = (
-    ("aerial_synth", "errors", "numba_setup", "_open3d"),  # leaves: import nothing of ours
+    ("aerial_synth", "errors", "numba_setup", "_open3d", "lazy", "registry"),  # leaves: import nothing of ours
     ("validators", "io_utils", "png", "versions", "safe_input"),  # field checks, atomic
     # writes, PNG, versions, hostile-input guards (budgeted YAML/JSON, links, image headers)
     ("out_guard",),  # the --out lock and refusals shared by every writing command
@@ -166,6 +166,7 @@ LAYERS = (
     ("render",),  # frame buffers and RGB of scene + placed vehicles
     ("formats",),  # label files (registry of DOTA, EAGLE, YOLO-OBB, COCO, meta)
     ("dataset", "evaluate"),  # export orchestration | measurement (an island, see below)
+    ("stream",),  # an export's samples in memory: iter_samples, shards, a torch dataset
     ("sim2real",),  # trains a detector on exports, scores it on real images through evaluate
     ("cli",),  # aerial_synth.cli and every package's command module
 )
@@ -173,7 +174,7 @@ LAYERS = (
 #: these components, and only sim2real and the cli import it.
 EVALUATE_MAY_IMPORT = {"formats", "annotate", "camera_rays", "validators", "io_utils", "png",
                        "safe_input", "out_guard",
-                       "aerial_synth", "errors", "numba_setup", "_open3d"}
+                       "aerial_synth", "errors", "numba_setup", "_open3d", "lazy", "registry"}
 _RANK = {c: i for i, line in enumerate(LAYERS) for c in line}
 
 #: Edges that break the order inside the packages of PART B of issue 26 (dataset engines,

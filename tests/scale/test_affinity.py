@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from aerial_synth.dataset.affinity import partition_cores
+from aerial_synth.dataset.engines.affinity import partition_cores
 from aerial_synth.dataset.engines.dask import host_slots, worker_slot
 
 from ..helpers import REPO
@@ -53,7 +53,7 @@ _CHILD = r"""
 import json, os, sys, threading, time
 ev = threading.Event()
 t = threading.Thread(target=ev.wait, daemon=True); t.start()   # a thread that exists before
-from aerial_synth.dataset.affinity import pin_share, current_share
+from aerial_synth.dataset.engines.affinity import pin_share, current_share
 k, K = int(sys.argv[1]), int(sys.argv[2])
 share = pin_share(k, K)
 import numba

@@ -209,12 +209,12 @@ def test_huge_world_builds_only_nearby_windows(tmp_path):
     cfg = ExportConfig(scene=scene, tile_m=150.0, margin_m=20.0, images=1, n_vehicles=200_000, **SMALL_CAM)
     w = ImageWorker.for_config(cfg, tmp_path / "ds")
     rec, rgb = w.record(0)
-    assert len(w.grid) == 134 * 134
+    assert len(w.renderer.grid) == 134 * 134
     tile = rec.placement["parameters"]["tile"]
     assert tile["tiles_placed"] <= 9
     assert w.scene.windows_built == tile["tiles_placed"] + 1
     x0, y0, x1, y1 = tile["core_m"]
-    b = w._rayscene.scene.bounds()
+    b = w.renderer.group(0).rayscene.scene.bounds()
     reach = tile["camera_reach_m"]
     # the render window only (objects that straddle its edge are kept whole: 30 m of slack)
     assert (b[0, :2] >= np.array([x0, y0]) - reach - 80.0 - 30.0).all()
@@ -232,12 +232,12 @@ def test_large_world_builds_only_the_touched_tiles(tmp_path):
     w = ImageWorker.for_config(cfg, tmp_path / "ds")
     recs = [w.record(i)[0] for i in range(2)]
     world = w.scene
-    assert len(w.grid) == 1600
+    assert len(w.renderer.grid) == 1600
     placed = recs[0].placement["parameters"]["tile"]["tiles_placed"]
     assert placed <= 9
     assert world.windows_built == placed + 1  # the placed tiles and one render window
     assert sum(len(r.annotations) for r in recs) >= 1
-    tri = w._rayscene.scene.n_triangles
+    tri = w.renderer.group(0).rayscene.scene.n_triangles
     assert tri < 200_000  # a window of about 0.4 km^2, not 400 km^2
 
 

@@ -22,9 +22,8 @@ may :func:`register` one at run time.
 
 from __future__ import annotations
 
-import importlib
-
 from ...errors import ExportError
+from ...registry import Registry
 from .base import Engine, plan_tasks
 
 __all__ = ["BUILTIN", "Engine", "choose", "get", "names", "plan_tasks", "register", "unregister"]
@@ -37,43 +36,12 @@ BUILTIN: dict[str, str] = {
 }
 
 
-_LOADED: dict[str, type[Engine]] = {}
-_EXTRA: dict[str, type[Engine]] = {}  # registered at run time (plugins, tests)
-
-
-def names() -> tuple[str, ...]:
-    """Every engine name: built-ins first, then those registered at run time."""
-    return tuple(BUILTIN) + tuple(n for n in _EXTRA if n not in BUILTIN)
-
-
-def get(name: str) -> type[Engine]:
-    """The engine class called ``name``; an unknown name raises ExportError."""
-    if name in _EXTRA:
-        return _EXTRA[name]
-    if name in _LOADED:
-        return _LOADED[name]
-    if name not in BUILTIN:
-        raise ExportError(f"engine: unknown engine {name!r}; expected one of {', '.join(names())}")
-    cls = getattr(importlib.import_module(BUILTIN[name]), "ENGINE", None)
-    if not (isinstance(cls, type) and issubclass(cls, Engine)) or cls.name != name:
-        raise ExportError(f"engine module {BUILTIN[name]}: expected ENGINE = an Engine named {name!r}, got {cls!r}")
-    _LOADED[name] = cls
-    return cls
-
-
-def register(cls: type[Engine], *, replace: bool = False) -> type[Engine]:
-    """Add an engine class at run time (a plugin, a test)."""
-    if not (isinstance(cls, type) and issubclass(cls, Engine)) or not cls.name:
-        raise ExportError(f"register: expected an Engine subclass with a name, got {cls!r}")
-    if cls.name in names() and not replace:
-        raise ExportError(f"register: engine {cls.name!r} is already registered")
-    _EXTRA[cls.name] = cls
-    return cls
-
-
-def unregister(name: str) -> None:
-    """Remove an engine registered at run time (built-ins stay)."""
-    _EXTRA.pop(name, None)
+REGISTRY = Registry(BUILTIN, attr="ENGINE", noun="engine", option="engine", kind="an Engine",
+                    is_entry=lambda o: isinstance(o, type) and issubclass(o, Engine), error=ExportError)
+names = REGISTRY.names
+get = REGISTRY.get
+register = REGISTRY.register
+unregister = REGISTRY.unregister
 
 
 def choose(workers: int | None = None, dask: str | None = None, engine: str | None = None) -> Engine:

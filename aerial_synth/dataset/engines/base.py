@@ -56,7 +56,7 @@ class Engine:
 
     def warm_up(self) -> bool:
         """Start what the workers need while the scene loads; True when the export's fork
-        server was started (see :func:`~aerial_synth.dataset.pool.start_pool_server`)."""
+        server was started (see :func:`~aerial_synth.dataset.engines.fork_server.start_pool_server`)."""
         return False
 
     def start(self) -> None:

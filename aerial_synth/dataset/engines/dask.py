@@ -45,11 +45,11 @@ from ...errors import ExportError
 from ...formats.registry import BUILTIN, get, names, register
 from ...io_utils import atomic_write_text
 from ...render.budget import frame_gb
-from ..affinity import limit_threads, pin_share
 from ..output import remove_stray_temps
-from ..pool import FORK_SERVER_PRELOAD, start_pool_server
 from ..worker import ImageWorker
+from .affinity import limit_threads, pin_share
 from .base import Engine, plan_tasks
+from .fork_server import FORK_SERVER_PRELOAD, start_pool_server
 
 __all__ = ["ENGINE", "DaskEngine", "DaskCluster", "plan_tasks", "threads_per_worker", "limit_threads",
            "parse_dask_address", "probe_scheduler", "host_slots", "worker_slot", "LocalStart",

@@ -1,5 +1,5 @@
 """The process-pool engine: ``--workers K`` processes forked from the export's fork server
-(:func:`~aerial_synth.dataset.pool.pool_context`), each with its share of the cores.
+(:func:`~aerial_synth.dataset.engines.fork_server.pool_context`), each with its share of the cores.
 
 Worker k of the pool pins itself to the k-th share of the cores (:func:`init_pool_worker`).
 An untiled export hands its loaded scene and catalog to the workers (pickled: milliseconds,
@@ -29,14 +29,14 @@ from ...errors import ExportError
 from ...formats.registry import BUILTIN, get, names, register
 from ...render.budget import frame_gb
 from ...scene.model import Scene
-from .._server_guard import ENTRY_POINT_EXIT
-from ..affinity import allowed_cores, limit_threads, pin_share
 from ..config import ExportConfig
 from ..layout import is_done
 from ..output import remove_stray_temps
-from ..parent import watch_parent
-from ..pool import pool_context, start_pool_server
 from ..worker import ImageWorker
+from ._server_guard import ENTRY_POINT_EXIT
+from .affinity import allowed_cores, limit_threads, pin_share
+from .fork_server import pool_context, start_pool_server
+from .parent import watch_parent
 from .serial import SerialEngine
 
 __all__ = ["ENGINE", "PoolEngine", "MAX_POOL_RESTARTS", "init_pool_worker", "run_group", "shareable"]

@@ -20,9 +20,8 @@ nothing heavy: a backend's module is imported the first time it is used.
 
 from __future__ import annotations
 
-import importlib
-
 from ...errors import RenderError
+from ...registry import Registry
 from .base import RenderBackend, Shaded
 
 __all__ = ["BUILTIN", "RenderBackend", "Shaded", "get", "names", "register", "unregister"]
@@ -35,41 +34,9 @@ BUILTIN: dict[str, str] = {
 }
 
 
-_LOADED: dict[str, RenderBackend] = {}
-_EXTRA: dict[str, RenderBackend] = {}  # registered at run time (plugins, tests)
-
-
-def names() -> tuple[str, ...]:
-    """Every backend name: built-ins first, then those registered at run time."""
-    return tuple(BUILTIN) + tuple(n for n in _EXTRA if n not in BUILTIN)
-
-
-def get(name: str) -> RenderBackend:
-    """The backend called ``name``; an unknown name raises RenderError listing the valid ones."""
-    if name in _EXTRA:
-        return _EXTRA[name]
-    if name in _LOADED:
-        return _LOADED[name]
-    if name not in BUILTIN:
-        raise RenderError(f"--backend: unknown backend {name!r}; expected one of {', '.join(names())}")
-    backend = getattr(importlib.import_module(BUILTIN[name]), "BACKEND", None)
-    if not isinstance(backend, RenderBackend) or backend.name != name:
-        raise RenderError(f"backend module {BUILTIN[name]}: expected BACKEND = a RenderBackend named "
-                          f"{name!r}, got {backend!r}")
-    _LOADED[name] = backend
-    return backend
-
-
-def register(backend: RenderBackend, *, replace: bool = False) -> RenderBackend:
-    """Add a backend at run time (a plugin, a test)."""
-    if not isinstance(backend, RenderBackend) or not backend.name:
-        raise RenderError(f"register: expected a RenderBackend with a name, got {backend!r}")
-    if backend.name in names() and not replace:
-        raise RenderError(f"register: backend {backend.name!r} is already registered")
-    _EXTRA[backend.name] = backend
-    return backend
-
-
-def unregister(name: str) -> None:
-    """Remove a backend registered at run time (built-ins stay)."""
-    _EXTRA.pop(name, None)
+REGISTRY = Registry(BUILTIN, attr="BACKEND", noun="backend", option="--backend", kind="a RenderBackend",
+                    is_entry=lambda o: isinstance(o, RenderBackend), error=RenderError)
+names = REGISTRY.names
+get = REGISTRY.get
+register = REGISTRY.register
+unregister = REGISTRY.unregister

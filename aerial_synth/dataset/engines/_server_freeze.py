@@ -1,7 +1,7 @@
 """Freezes the export's fork server's objects (imported by that server only, last).
 
 Listed last among the modules the fork server imports before it forks any worker (see
-:func:`aerial_synth.dataset.pool.pool_context`): :func:`gc.freeze` moves every object the
+:func:`aerial_synth.dataset.engines.fork_server.pool_context`): :func:`gc.freeze` moves every object the
 server has created (the imported modules, ~1M objects) to the garbage collector's permanent
 generation. A worker forked from the server shares those pages with it until it writes to
 them, and a full collection in the worker would otherwise visit (and so write to) every

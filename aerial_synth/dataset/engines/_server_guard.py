@@ -1,6 +1,6 @@
 """Ties the export pool's fork server to the exporter (imported by that server only).
 
-:func:`aerial_synth.dataset.pool.pool_context` lists this module first among the modules
+:func:`aerial_synth.dataset.engines.fork_server.pool_context` lists this module first among the modules
 the fork server imports before it forks any worker. The server is the exporter's child and
 the workers are the server's, and each worker asks for SIGKILL when its parent dies; the
 server itself would only exit once its last worker has. So here, in the server, the same
@@ -17,7 +17,7 @@ from __future__ import annotations
 import os
 import sys
 
-from ..errors import EntryPointError
+from ...errors import EntryPointError
 
 
 def in_fork_server() -> bool:

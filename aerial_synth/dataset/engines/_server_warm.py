@@ -17,7 +17,7 @@ def _warm() -> bool:
     if not in_fork_server():
         return False
     # lazy: numba, in the fork server only (threading layer chosen before anything else)
-    from .. import numba_setup  # noqa: F401
+    from ... import numba_setup  # noqa: F401
 
     try:
         from numba.core.registry import cpu_target

@@ -65,7 +65,7 @@ def limit_threads(nthreads: int) -> int:
         import numba
 
         # lazy: numba, only where threads are set (the threading layer, before numba starts it)
-        from .. import numba_setup  # noqa: F401
+        from ... import numba_setup  # noqa: F401
 
         numba.set_num_threads(max(1, min(n, numba.config.NUMBA_NUM_THREADS)))
     except ImportError:  # pragma: no cover - numba is a core dependency

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import sys
 
-from .._open3d import stub_viewer
+from ..._open3d import stub_viewer
 from ._server_guard import in_fork_server
 
 

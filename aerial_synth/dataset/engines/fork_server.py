@@ -5,15 +5,15 @@ LocalCluster's workers (:mod:`.engines.dask`) and the aggregate files' readers
 
 from __future__ import annotations
 
-from ..errors import EntryPointError
+from ...errors import EntryPointError
 
 __all__ = ["WORKER_MODULES", "FORK_SERVER_PRELOAD", "pool_context", "start_pool_server", "check_entry_point"]
 
 
 #: What a pool worker imports; the fork server imports it once, before it forks workers.
 WORKER_MODULES = (
-    "aerial_synth.dataset._server_guard",  # first: see that module
-    "aerial_synth.dataset._server_open3d",  # before anything imports open3d
+    "aerial_synth.dataset.engines._server_guard",  # first: see that module
+    "aerial_synth.dataset.engines._server_open3d",  # before anything imports open3d
     "aerial_synth.numba_setup", "aerial_synth.dataset.worker", "aerial_synth.dataset.engines.pool",
     "aerial_synth.render.frame", "aerial_synth.render.backends.raycast", "aerial_synth.scene.hints",
     "aerial_synth.render.shading", "aerial_synth.render._kernels", "aerial_synth.render._tone",
@@ -28,14 +28,14 @@ WORKER_MODULES = (
     # its whole task after Ctrl-C; imported here, no worker imports them
     "trimesh", "networkx", "shapely",
     "scipy.spatial", "scipy.ndimage", "cv2",
-    "aerial_synth.dataset._server_warm",  # last: see that module
+    "aerial_synth.dataset.engines._server_warm",  # last: see that module
 )
 #: What the export's fork server imports after the workers' modules when a ``--dask local:K``
 #: cluster's workers fork from it (:func:`pool_context`): Dask distributed, then
 #: :mod:`._server_freeze` (last: it freezes the server's objects so that a forked worker's
 #: garbage collections do not copy the server's heap: 0.1 s of CPU per worker on its first
 #: scene alone).
-FORK_SERVER_PRELOAD = ("distributed", "aerial_synth.dataset.engines.dask", "aerial_synth.dataset._server_freeze")
+FORK_SERVER_PRELOAD = ("distributed", "aerial_synth.dataset.engines.dask", "aerial_synth.dataset.engines._server_freeze")
 
 
 def pool_context(dask: bool = False):
@@ -57,7 +57,7 @@ def pool_context(dask: bool = False):
         return mp.get_context("spawn")
     ctx = mp.get_context("forkserver")
     ctx.set_forkserver_preload(list(WORKER_MODULES) + list(
-        FORK_SERVER_PRELOAD if dask else ("aerial_synth.dataset._server_freeze",)))
+        FORK_SERVER_PRELOAD if dask else ("aerial_synth.dataset.engines._server_freeze",)))
     return ctx
 
 
