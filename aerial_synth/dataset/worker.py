@@ -92,7 +92,7 @@ class ImageWorker:
     @property
     def writer(self) -> "ImageWriter":
         if self._writer is None:
-            self._writer = ImageWriter(threads=encode_threads(self.render_config))
+            self._writer = ImageWriter(threads=encode_threads(self.plan.render))
         return self._writer
 
     def _writer_error(self) -> None:
@@ -176,7 +176,7 @@ def encode_threads(render_config) -> int:
     """Writer threads for a worker rendering with ``render_config``: 1 on the CPU (the
     export's processes encode in parallel already), up to 8 on a device (``--device cuda``:
     one process renders faster than one core encodes; the encoders release the GIL)."""
-    if getattr(render_config, "device", "cpu") == "cpu":
+    if render_config.device == "cpu":
         return 1
     return max(1, min(8, (os.cpu_count() or 1) - 1))
 
