@@ -1,4 +1,5 @@
-# The two set-up commands of the README: `make demo` and `make test`.
+# The two set-up commands of the README: `make demo` and `make test`. `make demo` also compiles
+# the render kernels into numba's cache (once per machine; the first export is then fast).
 # What they install comes from the committed PEP 751 locks (pylock.toml, pylock.test.toml),
 # read by uv (itself pinned, with hashes, in requirements/uv.txt); `make lock` regenerates them.
 PYTHON ?= $(shell command -v python3.11 2>/dev/null || echo python3)
@@ -127,6 +128,7 @@ install: sysdeps $(VENV)/.installed
 install-test: sysdeps sysdeps-egl $(VENV)/.installed-test
 
 demo: install
+	$(BIN)/python -m aerial_synth.render.warm
 	$(BIN)/aerial-synth place --scenario jam --scene city_park --seed 0 --out out/demo
 	@echo "demo output in out/demo/ (placement.json, placement.png)"
 
