@@ -128,7 +128,7 @@ install: sysdeps $(VENV)/.installed
 install-test: sysdeps sysdeps-egl $(VENV)/.installed-test
 
 demo: install
-	$(BIN)/python -m aerial_synth.render.warm
+	$(BIN)/python -c 'from aerial_synth.render import frame, warm; warm.ensure_compiled(frame.render_frame)'
 	$(BIN)/aerial-synth place --scenario jam --scene city_park --seed 0 --out out/demo
 	@echo "demo output in out/demo/ (placement.json, placement.png)"
 

@@ -84,7 +84,7 @@ def render_frame(
                 None skips visibility.
     rng       : draws the influence factors and sensor noise (deterministic per seed).
     """
-    ensure_compiled()  # first frame of a process: the kernels, compiled once per machine
+    ensure_compiled(render_frame)  # first frame of a process: the kernels, compiled once per machine
     cfg = config or RenderConfig()
     backend = backends.get(cfg.backend)
     t0 = time.perf_counter()

@@ -15,7 +15,7 @@ again. :func:`ensure_compiled` runs before the first frame of a process
   kernels). A process that finds the lock taken waits, silently, then loads the cache that
   the other one filled instead of compiling.
 
-``make demo`` warms the cache with ``python -m aerial_synth.render.warm``.
+``make demo`` warms the cache (``ensure_compiled(render_frame)``).
 """
 
 from __future__ import annotations
@@ -75,7 +75,7 @@ def _lock_path(ks) -> str | None:
     return None
 
 
-def _tiny_frame(preset: str) -> None:
+def _tiny_frame(render, preset: str) -> None:
     """Render a 48 px frame of a street with a house, a tree and two cars: every kernel of
     the default stages runs once."""
     import numpy as np
@@ -87,7 +87,6 @@ def _tiny_frame(preset: str) -> None:
     from ..scene.model import Scene, SceneObject
     from ..scene.raycast import RayScene
     from .config import RenderConfig
-    from .frame import render_frame
     from .world import add_placement
 
     road = shapely.box(-40, -4, 40, 4)
@@ -106,12 +105,14 @@ def _tiny_frame(preset: str) -> None:
     add_placement(rs, pl, simple_boxes=True)
     cam = Camera.look_at_ground(CameraConfig(altitude_m=40.0, width_px=48, height_px=48,
                                              gsd_m=0.4, max_tilt_deg=0.0), (0.0, 0.0, 0.0))
-    render_frame(rs, cam, pl, np.random.default_rng(0), RenderConfig.preset(preset))
+    render(rs, cam, pl, np.random.default_rng(0), RenderConfig.preset(preset))
 
 
-def ensure_compiled(presets=("full", "fast"), quiet: bool = False) -> bool:
-    """Compile the render kernels if this machine's cache lacks any (see the module doc).
-    Returns True when this process compiled (or waited for another that did)."""
+def ensure_compiled(render, presets=("full", "fast"), quiet: bool = False) -> bool:
+    """Compile the render kernels if this machine's cache lacks any (see the module doc),
+    by rendering tiny frames with ``render`` (:func:`aerial_synth.render.frame.render_frame`,
+    passed in: it calls this function). Returns True when this process compiled (or waited
+    for another that did)."""
     global _done
     if _done:
         return False
@@ -138,16 +139,8 @@ def ensure_compiled(presets=("full", "fast"), quiet: bool = False) -> bool:
         print(_MESSAGE, file=sys.stderr, flush=True)
     try:
         for preset in presets:
-            _tiny_frame(preset)
+            _tiny_frame(render, preset)
     finally:
         if fd is not None:
             os.close(fd)  # releases the lock
     return True
-
-
-if __name__ == "__main__":  # make demo: warm the cache
-    # through the package's module, not this __main__ copy: render_frame calls that one, and
-    # its own flag must say "done" (or it would wait on this process's own lock)
-    from aerial_synth.render.warm import ensure_compiled as _ensure
-
-    _ensure()

@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from aerial_synth.render import warm
+from aerial_synth.render.frame import render_frame
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -32,22 +33,22 @@ def cold(monkeypatch, tmp_path):
     monkeypatch.setattr(warm, "_done", False)
     monkeypatch.setattr(warm, "_cached_here", lambda d: False)
     monkeypatch.setattr(warm, "_lock_path", lambda ks: str(tmp_path / "lock"))
-    monkeypatch.setattr(warm, "_tiny_frame", lambda preset: frames.append(preset))
+    monkeypatch.setattr(warm, "_tiny_frame", lambda render, preset: frames.append(preset))
     return frames, tmp_path / "lock"
 
 
 def test_cold_cache_says_one_line_and_compiles_once(cold, capsys, monkeypatch):
     frames, _ = cold
-    assert warm.ensure_compiled() is True
+    assert warm.ensure_compiled(render_frame) is True
     assert frames == ["full", "fast"]
     assert capsys.readouterr().err == "aerial-synth: compiling render kernels, once per machine...\n"
-    assert warm.ensure_compiled() is False and frames == ["full", "fast"]  # once per process
+    assert warm.ensure_compiled(render_frame) is False and frames == ["full", "fast"]  # once per process
 
 
 def test_warm_cache_is_silent_and_renders_nothing(cold, capsys, monkeypatch):
     frames, _ = cold
     monkeypatch.setattr(warm, "_cached_here", lambda d: True)
-    assert warm.ensure_compiled() is False
+    assert warm.ensure_compiled(render_frame) is False
     assert frames == [] and capsys.readouterr().err == ""
 
 
@@ -58,7 +59,7 @@ def test_a_second_process_waits_for_the_first_and_says_nothing(cold, capsys):
     fd = os.open(lock, os.O_RDWR | os.O_CREAT)
     fcntl.flock(fd, fcntl.LOCK_EX)
     done = threading.Event()
-    t = threading.Thread(target=lambda: (warm.ensure_compiled(), done.set()))
+    t = threading.Thread(target=lambda: (warm.ensure_compiled(render_frame), done.set()))
     # flock locks belong to the open file description: a thread with its own open() of the
     # file contends like another process would
     t.start()
@@ -72,8 +73,8 @@ def test_a_second_process_waits_for_the_first_and_says_nothing(cold, capsys):
 
 _PROBE = """
 import sys
-from aerial_synth.render import warm
-compiled = warm.ensure_compiled()
+from aerial_synth.render import frame, warm
+compiled = warm.ensure_compiled(frame.render_frame)
 misses = sum(sum(d._cache_misses.values()) for d in warm.kernels())
 print(int(compiled), misses, len(warm.missing_kernels()))
 """
