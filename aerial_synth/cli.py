@@ -22,19 +22,6 @@ from .errors import AerialSynthError
 from .out_guard import INPUT_OPTIONS, refuse_out_is_input
 from .safe_input import input_roots
 
-# (module, ...) each exposing register(subparsers) that adds its commands and sets `func`.
-_COMMAND_MODULES = (
-    "aerial_synth.scene.cli",
-    "aerial_synth.vehicles.cli",
-    "aerial_synth.placement.cli",
-    "aerial_synth.placement.tiled_cli",
-    "aerial_synth.render.cli",
-    "aerial_synth.dataset.cli",
-    "aerial_synth.evaluate.cli",
-    "aerial_synth.sim2real.cli",
-)
-
-
 _ARG_PREFIX = re.compile(r"^argument (?P<opt>[^:]+): (?P<msg>.*)$", re.S)
 _INVALID_VALUE = re.compile(r"^invalid (?P<kind>int|float|\w+) value: (?P<got>.*)$", re.S)
 _INVALID_CHOICE = re.compile(r"^invalid choice: (?P<got>.*?) \(choose from (?P<choices>.*)\)$", re.S)
@@ -72,7 +59,47 @@ class Parser(argparse.ArgumentParser):
         sys.exit(2)
 
 
-def build_parser() -> argparse.ArgumentParser:
+#: Each command's module and one-line help, in the order of ``--help``: ``aerial-synth
+#: --help`` and a mistyped command print these without importing a command module (each
+#: imports numpy and more to state its defaults; 0.5 s of a cold start). A test holds them
+#: equal to what the modules register.
+COMMANDS = {
+    "scene": ("aerial_synth.scene.cli", "list, show and export scenes"),
+    "assets": ("aerial_synth.vehicles.cli",
+               "vehicle catalog: list models, draw a contact sheet of every variant"),
+    "place": ("aerial_synth.placement.cli",
+              "place vehicles on roads with line traces (jam, normal, sparse, random)"),
+    "place-tiled": ("aerial_synth.placement.tiled_cli",
+                    "place vehicles tile by tile on a large world (city of size_km, big meshes)"),
+    "render": ("aerial_synth.render.cli",
+               "render frames (RGB, instance, semantic, depth, meta) of a placed scene"),
+    "export": ("aerial_synth.dataset.cli",
+               "export a labelled dataset (DOTA, EAGLE-style, YOLO-OBB, COCO)"),
+    "show": ("aerial_synth.dataset.cli", "draw a dataset's labels over its images, plus a contact sheet"),
+    "eval": ("aerial_synth.evaluate.cli",
+             "oriented-box average precision of predictions against DOTA ground truth"),
+    "mix": ("aerial_synth.evaluate.cli",
+            "mix real and synthetic images into one training set (deterministic, linked)"),
+    "stats": ("aerial_synth.evaluate.cli", "dataset statistics and, with --compare, the domain-gap report"),
+    "sim2real": ("aerial_synth.sim2real.cli",
+                 "what the data is worth: train a detector per synthetic set, score it on real images"),
+}
+
+
+def _command_of(argv: list[str]) -> str | None:
+    """The command named on a command line (its first word that is not an option)."""
+    for a in argv:
+        if not a.startswith("-"):
+            return a
+        if a == "--":
+            break
+    return None
+
+
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The full parser; with ``argv``, only the named command's module is imported (the
+    others are listed by name and help: enough for ``--help``, ``--version`` and the one
+    line that a mistyped command gets)."""
     parser = Parser(
         prog="aerial-synth",
         description="Synthetic nadir aerial images of vehicles with exact oriented-box labels.",
@@ -80,8 +107,15 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"aerial-synth {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
-    for name in _COMMAND_MODULES:
-        importlib.import_module(name).register(sub)
+    wanted = None if argv is None else COMMANDS.get(_command_of(argv), (None,))[0]
+    done = set()
+    for name, (module, help_) in COMMANDS.items():
+        if argv is None or module == wanted:
+            if module not in done:
+                importlib.import_module(module).register(sub)
+                done.add(module)
+        else:
+            sub.add_parser(name, help=help_)
     return parser
 
 
@@ -170,7 +204,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None) -> int:
-    parser = build_parser()
+    parser = build_parser(sys.argv[1:] if argv is None else list(argv))
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # usage error (one line, printed) or --help/--version

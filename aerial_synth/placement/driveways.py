@@ -5,9 +5,9 @@ A ``residential`` or ``rural`` scene carries a hint per parking site
 (``driveway``, ``pad`` or ``yard``), the usable rectangle (centre, axis from the street
 into the site, length along and width across the axis), the bay size, an occupancy and a
 class mix. What the hint cannot tell is checked with vertical line traces: a bay is kept
-only when a 3 x 3 grid of traces inside it all land on ``parking``, and a parked footprint
-only when the traces along its outline all do. Bays are laid along the axis (as many as
-fit, centred), side by side across it; each bay is filled with probability ``occupancy``
+only when a 3 x 3 grid of traces inside it all land on ``parking``, and a parked vehicle
+only when the traces over its whole footprint (outline and interior every 0.1 m, as the
+validator traces it) all do. Bays are laid along the axis (as many as fit, centred), side by side across it; each bay is filled with probability ``occupancy``
 by a vehicle of the mix that fits it (length <= bay length, width <= bay width - 0.3 m),
 parked nose-in (70 %) or backed in, with a small sideways and heading jitter that keeps
 every corner inside the site. Footprints never overlap (STRtree).
@@ -26,9 +26,9 @@ import numpy as np
 
 from ..errors import PlacementError
 from ..scene.model import LABEL_IDS
-from .footprints import footprint_points
+from .footprints import footprint_points, footprints_on
 from .model import PlacedVehicle, Placement, footprint_corners_xy, with_lonlat
-from .parking import mix_table, outline, place_parking
+from .parking import mix_table, place_parking
 
 __all__ = ["DrivewaySite", "find_sites", "fill_sites", "place_driveways", "driveway_report"]
 
@@ -154,9 +154,9 @@ def fill_sites(sites, catalog, rng: np.random.Generator, rayscene, first_id: int
             xy = bc + site.axis * sl + v * st
             h = float(np.mod(head0 + dth, 2 * np.pi))
             corners = footprint_corners_xy(xy[0], xy[1], h, m.length_m, m.width_m)
-            pts = outline(np.array([xy[0]]), np.array([xy[1]]), np.array([h]),
-                           np.array([m.length_m]), np.array([m.width_m]))
-            if not np.isin(_labels(rayscene, pts), site.label_ids).all():
+            # the whole footprint on the site's surface, traced as the validator does
+            if not footprints_on(lambda p: _labels(rayscene, p), xy[0], xy[1], h, m.length_m,
+                                 m.width_m, site.label_ids)[0]:
                 stats["off_surface"] += 1
                 continue
             poly = shapely.Polygon(corners)

@@ -20,6 +20,7 @@ vertical traces they use. Part of :mod:`aerial_synth.placement.parking` (docs/pa
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -229,10 +230,10 @@ def _bays_from_spaces(spaces, fr):
             continue
         rect = np.asarray(shapely.minimum_rotated_rectangle(poly).exterior.coords)[:4]
         e1, e2 = rect[1] - rect[0], rect[2] - rect[1]
-        long_e, short_e = (e1, e2) if np.linalg.norm(e1) >= np.linalg.norm(e2) else (e2, e1)
+        long_e, short_e = (e1, e2) if math.hypot(*e1) >= math.hypot(*e2) else (e2, e1)
         cs.append(rect.mean(axis=0))
         axes.append(np.arctan2(long_e[1], long_e[0]))
-        sizes.append((np.linalg.norm(short_e), np.linalg.norm(long_e)))
+        sizes.append((math.hypot(*short_e), math.hypot(*long_e)))
     if not cs:
         return None
     axes = np.mod(np.array(axes), 2 * np.pi)

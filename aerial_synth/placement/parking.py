@@ -26,6 +26,7 @@ import numpy as np
 from ..errors import ConfigError, PlacementError
 from ..scene.model import LABEL_IDS
 from ..vehicles.catalog import stream_key
+from .footprints import footprints_on
 from .kerbs import find_kerbs
 from .lots import LOT_LABELS, STICK_OUT_M, Kerb, Lot, find_lots, lot_label_ids, trace_labels
 from .model import PlacedVehicle, Placement, footprint_corners_xy, with_lonlat
@@ -78,8 +79,8 @@ def fill_bays(sites: list, cfg: ParkingConfig, catalog, rng: np.random.Generator
               to_original=None) -> tuple[list, dict]:
     """Fill the bays of every site (lots and kerb lines). Returns (vehicles, stats).
 
-    ``surface_ok(points (n, k, 2), is_kerb (n,)) -> (n,) bool`` checks that footprint
-    samples lie on the site's surface (a lot edge or the kerb); a jittered vehicle that
+    ``surface_ok(x, y, heading, length, width, is_kerb) -> (n,) bool`` checks that the
+    footprints lie on the site's surface (a lot edge or the kerb); a jittered vehicle that
     fails loses its jitter, and one that still fails leaves its bay empty."""
     targets, chosen = _choose_bays(sites, cfg, rng)
     # one row per chosen bay
@@ -121,8 +122,7 @@ def fill_bays(sites: list, cfg: ParkingConfig, catalog, rng: np.random.Generator
             live = np.flatnonzero(valid)
             if not len(live):
                 break
-            pts = outline(x[live], y[live], h[live], L[live], W[live])
-            bad = live[~surface_ok(pts, kerb_row[live])]
+            bad = live[~surface_ok(x[live], y[live], h[live], L[live], W[live], kerb_row[live])]
             if not len(bad):
                 break
             if rnd == 0:
@@ -288,20 +288,6 @@ def _settle_clashes(obstacles, poses, jit, valid, x, y, h, L, W):
     return x, y, h, n_reset
 
 
-def outline(x, y, h, L, W, n_l: int = 5, n_w: int = 3) -> np.ndarray:
-    """(n, 2 n_l + 2 n_w - 4 + 1, 2) points on each footprint's outline (1 cm inside) and
-    its centre."""
-    fl = np.linspace(-0.5, 0.5, n_l)
-    fw = np.linspace(-0.5, 0.5, n_w)
-    rim = [(a, -0.5) for a in fl] + [(a, 0.5) for a in fl] + [(-0.5, b) for b in fw[1:-1]] + [
-        (0.5, b) for b in fw[1:-1]] + [(0.0, 0.0)]
-    r = np.array(rim)
-    lx = r[None, :, 0] * (L[:, None] - 0.02)
-    ly = r[None, :, 1] * (W[:, None] - 0.02)
-    c, s = np.cos(h)[:, None], np.sin(h)[:, None]
-    return np.stack([x[:, None] + c * lx - s * ly, y[:, None] + s * lx + c * ly], axis=-1)
-
-
 # ------------------------------------------------------------------------- scenario
 def place_parking(rayscene, cfg, rng: np.random.Generator, catalog, seed=None, scene_name=None,
                   n_vehicles=None, n_lines=None, place_traffic=None) -> Placement:
@@ -327,9 +313,14 @@ def place_parking(rayscene, cfg, rng: np.random.Generator, catalog, seed=None, s
     lot_ids = lot_label_ids()
     kerb_ids = np.array([LABEL_IDS["road"], LABEL_IDS["lane_marking"]])
 
-    def surface_ok(pts, is_kerb):
-        lab = trace_labels(rs, pts.reshape(-1, 2)).reshape(pts.shape[:2])
-        return np.where(is_kerb, np.isin(lab, kerb_ids).all(axis=1), np.isin(lab, lot_ids).all(axis=1))
+    lut = np.zeros((2, max(LABEL_IDS.values()) + 1), bool)  # row 0: a lot, row 1: a kerb
+    lut[0, lot_ids] = True
+    lut[1, kerb_ids] = True
+
+    def surface_ok(x, y, h, L, W, is_kerb):
+        # the whole footprint, traced as the validator traces it (outline and interior
+        # every 0.1 m): 5 x 3 outline traces let a kerb car overhang a curved kerb
+        return footprints_on(lambda p: trace_labels(rs, p), x, y, h, L, W, lut[is_kerb.astype(int)])
 
     parked, fstats = fill_bays(sites, pc, catalog, rng, None, first_id=1, z_of=z_of,
                                surface_ok=surface_ok, to_original=rs.scene.to_original)
@@ -403,7 +394,7 @@ def parking_report(placement: Placement, lots: list[Lot] | None = None, kerbs: l
     """Parked-vehicle figures: in-bay fraction (share of vehicles whose footprint stays
     within its bay grown by STICK_OUT_M), overlaps between parked footprints, alignment
     (degrees between the vehicle axis and its bay axis, modulo 180), and, with a rayscene,
-    the share of parked footprints wholly on lot or road surface (3 x 5 traces each).
+    the share of parked footprints wholly on lot or road surface (traced as the validator traces a footprint).
 
     Without ``lots``/``kerbs`` the lots are found again from ``rayscene``'s traces (kerb
     vehicles then count as unmatched)."""
@@ -455,8 +446,7 @@ def parking_report(placement: Placement, lots: list[Lot] | None = None, kerbs: l
                           "max": round(float(align[matched].max()), 4)} if matched.any() else None,
     }
     if rayscene is not None:
-        pts = outline(x, y, h, L, W, n_l=5, n_w=3)
-        lab = trace_labels(rayscene, pts.reshape(-1, 2)).reshape(n, -1)
         surf = [LABEL_IDS[s] for s in ("parking", "parking_marking", "road", "lane_marking")]
-        out["on_surface_fraction"] = round(float(np.isin(lab, surf).all(axis=1).mean()), 6)
+        on = footprints_on(lambda p: trace_labels(rayscene, p), x, y, h, L, W, surf)
+        out["on_surface_fraction"] = round(float(on.mean()), 6)
     return out

@@ -11,7 +11,8 @@ The shading model is described in :mod:`aerial_synth.render.shading`; these func
 its inner loops, one fused pass over the pixels per stage instead of dozens of
 whole-image numpy temporaries. Every pixel is computed independently (``prange`` over
 rows), so results do not depend on the number of threads. Compiled code is cached on
-disk (``cache=True``); the first call in a fresh checkout compiles for a few seconds.
+disk (``cache=True``); on an empty cache :mod:`.warm` compiles them before the first
+frame, once per machine, and says so.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from . import _materials
 #: sha256 (first 16 hex digits) of ``_materials.py``. :func:`compose` inlines its helpers,
 #: but numba's disk cache checks only this file's content, so this line must change
 #: whenever ``_materials.py`` does (tests/render/test_materials.py checks it).
-MATERIALS_SHA = "e66399def67347b8"
+MATERIALS_SHA = "433eaa98a3cd0800"
 
 
 _bilinear = _materials._bil  # wrapped bilinear lookup in a 256 x 256 noise tile (one copy)

@@ -15,6 +15,7 @@ from . import backends
 from .buffers import cast_buffers
 from .config import RenderConfig, sample_factors
 from .visibility import AmodalMasks, VehicleVisibility
+from .warm import ensure_compiled
 
 __all__ = ["Frame", "render_frame"]
 
@@ -87,6 +88,7 @@ def render_frame(
                 None skips visibility.
     rng       : draws the influence factors and sensor noise (deterministic per seed).
     """
+    ensure_compiled(render_frame)  # first frame of a process: the kernels, compiled once per machine
     cfg = config or RenderConfig()
     backend = backends.get(cfg.backend)
     t0 = time.perf_counter()

@@ -18,7 +18,23 @@ __all__ = [
     "cylinder",
     "polygon_object",
     "merge_meshes",
+    "snap_to_grid",
+    "GRID_M",
 ]
+
+#: Generated x, y coordinates are snapped to this grid (2**-20 m, about a micrometre) before
+#: they are triangulated and when a procedural scene is finished. The grid is a power of two, so
+#: snapping is exact arithmetic. Why: the last bits of a coordinate may differ between CPUs
+#: (OpenBLAS picks its kernels by CPU; glibc's sin/cos/exp have FMA variants), and where
+#: points are cocircular (a disc's ring) the constrained Delaunay triangulation of the
+#: unsnapped points flips diagonals on such a difference. On the grid, two machines agree
+#: unless a coordinate lies within a few ulps of a grid boundary (odds ~1e-8 per coordinate).
+GRID_M = 2.0 ** -20
+
+
+def snap_to_grid(a: np.ndarray) -> np.ndarray:
+    """Coordinates rounded to :data:`GRID_M` (float64, exact: a power-of-two scale)."""
+    return np.rint(np.asarray(a, np.float64) / GRID_M) * GRID_M + 0.0
 
 
 def triangulate_polygon(polygon) -> tuple[np.ndarray, np.ndarray]:
@@ -28,6 +44,7 @@ def triangulate_polygon(polygon) -> tuple[np.ndarray, np.ndarray]:
     """
     import shapely
 
+    polygon = shapely.set_precision(polygon, GRID_M)  # see GRID_M: no diagonal flips
     if polygon.is_empty:
         return np.zeros((0, 2)), np.zeros((0, 3), np.int64)
     tris = shapely.constrained_delaunay_triangles(polygon)
@@ -44,7 +61,7 @@ def triangulate_polygon(polygon) -> tuple[np.ndarray, np.ndarray]:
     cw = cross[keep] < 0
     tri[cw] = tri[cw][:, ::-1]
     flat = tri.reshape(-1, 2)
-    verts, inv = np.unique(np.round(flat, 9), axis=0, return_inverse=True)
+    verts, inv = np.unique(snap_to_grid(flat), axis=0, return_inverse=True)  # exact: on the grid
     faces = inv.reshape(-1, 3).astype(np.int64)
     return verts.astype(np.float64), faces
 
@@ -60,7 +77,7 @@ def prism(polygon, z0: float, z1: float, top: bool = True) -> tuple[np.ndarray, 
     """Closed vertical prism over a shapely Polygon between z0 and z1 (buildings, kerbs)."""
     import shapely
 
-    polys = list(shapely.get_parts(polygon))
+    polys = list(shapely.get_parts(shapely.set_precision(polygon, GRID_M)))  # walls meet the top
     vs, fs, off = [], [], 0
     for poly in polys:
         poly = shapely.geometry.polygon.orient(poly, 1.0)

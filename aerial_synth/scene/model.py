@@ -362,11 +362,12 @@ class Scene:
         """SHA-256 over names, labels, materials, vertices and faces (for determinism checks).
 
         ``decimals``: hash the vertices rounded to that many decimals of a metre (6: a
-        micrometre) instead of their exact bits. Two runs of one install agree bit for bit;
-        across machines, glibc picks CPU-specific variants of sin, cos, exp and pow (FMA code
-        where the CPU has it) that may differ in the last bit, and the procedural scenes'
-        coordinates follow (``GLIBC_TUNABLES=glibc.cpu.hwcaps=-FMA`` changes city_park's exact
-        hash, not its micrometre one). Pinned hashes use ``decimals=6``.
+        micrometre) instead of their exact bits. Two runs of one install agree bit for bit.
+        Across machines the procedural generators snap their output to a power-of-two grid
+        (:data:`aerial_synth.scene.build.GRID_M`) and avoid CPU-dispatched BLAS calls, so the
+        hash normally agrees too; the tolerant cross-machine check is
+        :func:`aerial_synth.scene.fingerprint.scene_fingerprint` (docs/portability.md).
+        Pinned hashes use ``decimals=6`` and are machine-specific (``lock_exact``).
         """
         import hashlib
 

@@ -17,6 +17,7 @@ Frames: world metres, x east, y north; angles in radians unless named ``_deg``; 
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -156,7 +157,7 @@ def lot_frame(poly) -> LotFrame:
     rect = shapely.minimum_rotated_rectangle(poly)
     c = np.asarray(rect.exterior.coords)[:4]
     e1, e2 = c[1] - c[0], c[2] - c[1]
-    l1, l2 = np.linalg.norm(e1), np.linalg.norm(e2)
+    l1, l2 = math.hypot(*e1), math.hypot(*e2)
     e = e1 if l1 >= l2 else e2
     u = float(np.mod(np.arctan2(e[1], e[0]), np.pi))
     cen = c.mean(axis=0)

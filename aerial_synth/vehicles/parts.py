@@ -6,6 +6,7 @@ z up (see :mod:`aerial_synth.vehicles.meshes`).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -68,7 +69,7 @@ def glass_slab(quad, inside_point, offset=0.012, thickness=0.012, inset=0.05):
     c = q.mean(axis=0)
     q = c + (q - c) * (1.0 - inset)
     n = np.cross(q[1] - q[0], q[2] - q[0])
-    n /= np.linalg.norm(n)
+    n /= math.hypot(*n)
     if np.dot(n, c - np.asarray(inside_point, float)) < 0:
         n = -n
     a = q + n * offset

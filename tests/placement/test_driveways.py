@@ -104,3 +104,51 @@ def test_bad_site_mix_is_one_clear_error():
     rs = RayScene(generate(spec))
     with pytest.raises(ConfigError, match=r"driveways\[0\]\.mix\.spaceship: unknown class or model"):
         place(rs, "residential", seed=1, overrides={"lines": 1, "parking": {"kerb_lines": 1}})
+
+
+def _coarse_footprints_on(labels_of, x, y, h, L, W, allowed):
+    """The parked-vehicle surface check before issue 36: 5 x 3 points on the outline (1 cm
+    inside) and the centre; a body may overhang a curved kerb between them."""
+    x, y, h, L, W = (np.atleast_1d(np.asarray(a, float)) for a in (x, y, h, L, W))
+    fl, fw = np.linspace(-0.5, 0.5, 5), np.linspace(-0.5, 0.5, 3)
+    r = np.array([(a, s) for s in (-0.5, 0.5) for a in fl] + [(s, b) for s in (-0.5, 0.5) for b in fw[1:-1]]
+                 + [(0.0, 0.0)])
+    lx, ly = r[None, :, 0] * (L[:, None] - 0.02), r[None, :, 1] * (W[:, None] - 0.02)
+    c, s = np.cos(h)[:, None], np.sin(h)[:, None]
+    pts = np.stack([x[:, None] + c * lx - s * ly, y[:, None] + s * lx + c * ly], -1).reshape(-1, 2)
+    owner = np.repeat(np.arange(len(x)), len(r))
+    lab = np.asarray(labels_of(pts), np.int64)
+    t = np.asarray(allowed)
+    ok = t[owner, lab] if (t.dtype == bool and t.ndim == 2) else np.isin(lab, t)
+    return np.bincount(owner[~ok], minlength=len(x)) == 0
+
+
+def test_kerb_parking_keeps_the_whole_footprint_on_the_road(monkeypatch):
+    """residential_eu, street parking, seed 7: every parked footprint on drivable surface
+    (100 %, traced as the validator traces it). With the old 5 x 3 outline check, 3 kerb
+    cars overhang the sidewalk of a curved kerb: this test can fail."""
+    from aerial_synth.placement import parking
+    from aerial_synth.scene import load_scene
+
+    rs = RayScene(load_scene("residential_eu"))
+    p = place(rs, "street-parking", seed=7)
+    assert len(p.vehicles) >= 50
+    assert validate_placement(rs, p).footprint_drivable == 1.0
+    monkeypatch.setattr(parking, "footprints_on", _coarse_footprints_on)
+    old = place(rs, "street-parking", seed=7)
+    assert validate_placement(rs, old).footprint_drivable < 1.0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scene", ["residential_us", "residential_eu"])
+@pytest.mark.parametrize("scenario", ["mixed", "residential"])
+def test_bundled_residential_footprints_all_on_drivable(scene, scenario):
+    """Issue 36: `place --scene S --scenario mixed --seed 7 --vehicles 5000` said 98.8 %
+    (residential_us) and 99.1 % (residential_eu) footprint on drivable; it must be 100 %."""
+    from aerial_synth.scene import load_scene
+
+    rs = RayScene(load_scene(scene))
+    p = place(rs, scenario, seed=7, n_vehicles=5000)
+    rep = validate_placement(rs, p, rs.scene.truth)
+    assert len(p.vehicles) > 100
+    assert rep.footprint_drivable == 1.0, rep.summary()

@@ -18,7 +18,13 @@ from shapely.geometry import box
 from aerial_synth.placement import footprints as fp_mod
 from aerial_synth.placement import place, traffic_engine
 from aerial_synth.placement.config import load_scenario, scenario_dir
-from aerial_synth.placement.footprints import FootprintIndex, _unit_samples, footprint_points
+from aerial_synth.placement.footprints import (
+    EDGE_STEP_M,
+    INNER_STEP_M,
+    FootprintIndex,
+    _unit_samples,
+    footprint_points,
+)
 from aerial_synth.placement.linetrace import Prober, unit
 from aerial_synth.placement.traffic import PlacementWarning
 from aerial_synth.scene.build import polygon_object
@@ -285,7 +291,7 @@ def _footprint_points_reference(x, y, heading, length, width):
     n = len(x)
     sizes, inv = np.unique(np.stack([ln, w], axis=1), axis=0, return_inverse=True)
     inv = inv.reshape(-1)
-    tables = [np.array(_unit_samples(float(a), float(b), 0.1, 1.0)) for a, b in sizes]
+    tables = [np.array(_unit_samples(float(a), float(b), EDGE_STEP_M, INNER_STEP_M)) for a, b in sizes]
     count = np.array([len(tables[j]) for j in inv], dtype=np.int64)
     start = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
     uv = np.concatenate([tables[j] for j in inv])

@@ -19,8 +19,8 @@ from aerial_synth.placement import (
 from aerial_synth.placement import traffic as traffic_mod
 from aerial_synth.placement.footprints import FootprintIndex, footprint_points, footprint_samples
 from aerial_synth.placement.traffic import PlacementWarning
-from aerial_synth.scene.build import prism
-from aerial_synth.scene.model import LABEL_IDS, SceneObject
+from aerial_synth.scene.build import polygon_object, prism
+from aerial_synth.scene.model import LABEL_IDS, Scene, SceneObject
 from aerial_synth.scene.raycast import RayScene
 from aerial_synth.vehicles import load_catalog
 
@@ -203,3 +203,77 @@ def test_footprint_points_follow_each_vehicle_size():
 def test_drivable_ids_include_parking():
     rs = RayScene(layouts.straight())
     assert LABEL_IDS["parking"] in traffic_engine.Prober(rs, traffic_mod.load_scenario("jam").probe).drivable_ids
+
+
+# ------------------------------------------------------------- cracks between road polygons
+
+
+def _crack_scene(road_len=160.0, width=8.0):
+    """A straight road along x made of pieces that leave 0.3 m gaps (cracks) with grass
+    below: cracks right across the road every 20 m, and 2 m slits along both lane centres
+    (y = +-2) between them, as where two mapped road polygons meet. A car centred on a
+    slit has all of its outline on road; only its interior meets the gap."""
+    cracks = [shapely.box(x - 0.15, -width / 2, x + 0.15, width / 2)
+              for x in np.arange(-road_len / 2 + 10, road_len / 2 - 5, 20.0)]
+    cracks += [shapely.box(x, y - 0.15, x + 2.0, y + 0.15)
+               for x in np.arange(-road_len / 2 + 14, road_len / 2 - 10, 5.0) for y in (-2.0, 2.0)]
+    gap = shapely.union_all(cracks)
+    base = layouts.make_scene("cracks", [(LineString([(-road_len / 2, 0), (road_len / 2, 0)]), width)])
+    road_area = base.truth.road_area.difference(gap)
+    ground = shapely.box(*base.bounds()[:, :2].T.ravel()[[0, 2, 1, 3]]).difference(road_area)
+    objs = [polygon_object("road", "road", road_area, layouts.ROAD_Z),
+            polygon_object("grass", "ground", ground, 0.0)]
+    truth = type(base.truth)(road_area=road_area, roads=base.truth.roads)
+    return Scene("cracks", objs, truth=truth), gap
+
+
+def test_no_footprint_straddles_a_crack(monkeypatch):
+    """Jam and normal traffic on a road with 0.3 m cracks: no placed body covers any part of
+    a crack, and the validator agrees. With the interior traced every 1 m (before issue 36)
+    the same runs do put bodies over the slits, and the validator misses them: this test
+    can fail."""
+    scene, gap = _crack_scene()
+    rs = RayScene(scene)
+    cat = load_catalog()
+
+    def run():
+        hits, n, missed = 0, 0, 0
+        for scenario, seed in (("jam", 0), ("jam", 1), ("normal", 2)):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", PlacementWarning)
+                p = place(rs, scenario, seed=seed, catalog=cat, n_lines=8,
+                          overrides={"double_lane_probability": 0.0})
+            bodies = shapely.polygons(np.array([v.corners_xy() for v in p.vehicles]))
+            on_gap = shapely.area(shapely.intersection(bodies, gap)) > 1e-6
+            hits += int(on_gap.sum())
+            n += len(p.vehicles)
+            rep = validate_placement(rs, p)  # traced samples only, no truth
+            missed += int((on_gap & rep.footprint_ok).sum())
+        return hits, n, missed
+
+    hits, n, missed = run()
+    assert n >= 20
+    assert hits == 0 and missed == 0
+
+    coarse = footprint_points.__defaults__[:-1] + (1.0,)  # the interior every 1 m
+    monkeypatch.setattr(footprint_points, "__defaults__", coarse)
+    hits_old, _, missed_old = run()
+    assert hits_old > 0 and missed_old == hits_old
+
+
+def test_validator_traces_the_interior_every_tenth_of_a_metre():
+    """A car whose outline is all road but whose interior covers a 0.3 m x 2 m slit."""
+    scene, gap = _crack_scene()
+    rs = RayScene(scene)
+    slit = next(g for g in shapely.get_parts(gap) if shapely.bounds(g)[3] - shapely.bounds(g)[1] < 1)
+    (x0, y0, x1, y1) = shapely.bounds(slit)
+    v = _vehicle(x0 - 0.1, (y0 + y1) / 2)  # the slit under its front half, off the centre
+    assert shapely.contains(shapely.Polygon(v.corners_xy()), slit)
+    outline = footprint_points(v.x_m, v.y_m, v.heading_rad, L, W, inner_step_m=1e9)[0]
+    assert set(rs.trace_down(outline).labels) == {"road"}  # the outline alone sees no gap
+    rep = validate_placement(rs, Placement("cracks", "jam", 0, vehicles=[v]))
+    assert rep.footprint_ok.tolist() == [False]
+    pts = footprint_samples(0.0, 0.0, 0.0, L, W)[0]
+    inner = pts[np.abs(pts).max(axis=1) < 0.8]
+    xs, ys = np.unique(inner[:, 0]), np.unique(inner[:, 1])
+    assert np.diff(xs).max() <= 0.1 + 1e-9 and np.diff(ys).max() <= 0.1 + 1e-9

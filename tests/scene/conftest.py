@@ -36,5 +36,5 @@ def cli_main(monkeypatch):
     """aerial_synth.cli.main restricted to the scene commands (other packages may not exist yet)."""
     import aerial_synth.cli as cli
 
-    monkeypatch.setattr(cli, "_COMMAND_MODULES", ("aerial_synth.scene.cli",))
+    monkeypatch.setattr(cli, "COMMANDS", {k: v for k, v in cli.COMMANDS.items() if v[0] == "aerial_synth.scene.cli"})
     return cli.main

@@ -7,5 +7,5 @@ def cli_main(monkeypatch):
     not depend on the other packages' CLI modules being present."""
     import aerial_synth.cli as cli
 
-    monkeypatch.setattr(cli, "_COMMAND_MODULES", ("aerial_synth.vehicles.cli",))
+    monkeypatch.setattr(cli, "COMMANDS", {k: v for k, v in cli.COMMANDS.items() if v[0] == "aerial_synth.vehicles.cli"})
     return cli.main

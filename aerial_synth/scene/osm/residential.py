@@ -16,6 +16,8 @@ their metadata). Frame: the scene's local metres.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..procedural.negatives import NEGATIVE_KINDS
@@ -56,12 +58,12 @@ def _driveways(roads, clip) -> list[dict]:
         end = 1
         for k in range(1, len(coords) - 1):
             d = coords[k + 1] - coords[k]
-            cosang = np.dot(d, d0) / max(np.linalg.norm(d) * np.linalg.norm(d0), 1e-12)
+            cosang = (d[0] * d0[0] + d[1] * d0[1]) / max(math.hypot(*d) * math.hypot(*d0), 1e-12)
             if cosang < np.cos(np.radians(20.0)):
                 break
             end = k + 1
         p0, p1 = coords[0], coords[end]
-        L = float(np.linalg.norm(p1 - p0))
+        L = float(math.hypot(*(p1 - p0)))
         if L < 6.0:
             continue
         u = (p1 - p0) / L

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Mapping
 
 import numpy as np
@@ -55,7 +56,7 @@ def generate_highway(b: Builder, spec: Mapping):
         p = np.asarray(base.interpolate(s).coords[0])
         q = np.asarray(base.interpolate(min(s + 1.0, base.length)).coords[0])
         r = np.asarray(base.interpolate(max(s - 1.0, 0.0)).coords[0])
-        t = (q - r) / np.linalg.norm(q - r)
+        t = (q - r) / math.hypot(*(q - r))
         return p, t, np.array([-t[1], t[0]])
 
     # two-way crossing roads (at-grade junctions): straight and square to the highway within

@@ -41,6 +41,7 @@ World frame: metres, x east, y north, z up; the scene is centred on the origin.
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 from typing import Mapping
 
@@ -174,8 +175,8 @@ def _streets(b: Builder, cfg: Mapping) -> None:
         if cres.is_empty or cres.geom_type != "LineString":
             continue
         c = np.asarray(cres.coords)  # run both ends on along their tangents, past the edge
-        t0 = (c[0] - c[1]) / max(np.linalg.norm(c[0] - c[1]), 1e-9)
-        t1 = (c[-1] - c[-2]) / max(np.linalg.norm(c[-1] - c[-2]), 1e-9)
+        t0 = (c[0] - c[1]) / max(math.hypot(*(c[0] - c[1])), 1e-9)
+        t1 = (c[-1] - c[-2]) / max(math.hypot(*(c[-1] - c[-2])), 1e-9)
         cres = LineString(np.vstack([c[:1] + t0 * W / 4, c, c[-1:] + t1 * W / 4]))
         b.roads.append(Road(f"crescent_{k}", cres, sw, sidewalk_m=side, centre="none"))
     nb = int(st["branches"])
@@ -214,7 +215,7 @@ def _frames(b: Builder, cfg: Mapping):
         if r.dead_end:  # pie parcels round the turning circle
             e = np.asarray(r.line.coords[-1])
             e0 = np.asarray(r.line.interpolate(r.line.length - 1.0).coords[0])
-            t = (e - e0) / max(np.linalg.norm(e - e0), 1e-9)
+            t = (e - e0) / max(math.hypot(*(e - e0)), 1e-9)
             R = max(r.width_m, 7.0) + r.sidewalk_m
             phi0 = np.arctan2(t[1], t[0])
             for ang in np.radians([-100.0, -50.0, 0.0, 50.0, 100.0]):
@@ -237,7 +238,7 @@ def _frames(b: Builder, cfg: Mapping):
                 q = np.asarray(front.interpolate(min(sc + 0.5, L)).coords[0])
                 p0 = np.asarray(front.interpolate(max(sc - 0.5, 0.0)).coords[0])
                 d = q - p0
-                nd = np.linalg.norm(d)
+                nd = math.hypot(*d)
                 s += f
                 if nd < 1e-6:
                     continue

@@ -20,6 +20,7 @@ inside the footprint (flat roofs: inside the parapet). Coordinates: world metres
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Mapping
 
@@ -97,7 +98,7 @@ def _frame(poly):
     rect = shapely.minimum_rotated_rectangle(poly)
     c = np.asarray(rect.exterior.coords)[:4]
     e1, e2 = c[1] - c[0], c[2] - c[1]
-    l1, l2 = np.linalg.norm(e1), np.linalg.norm(e2)
+    l1, l2 = math.hypot(*e1), math.hypot(*e2)
     if l1 >= l2:
         u, a, b = e1 / l1, l1, l2
     else:

@@ -31,6 +31,7 @@ World frame: metres, x east, y north, z up; the scene is centred on the origin.
 from __future__ import annotations
 
 import functools
+import math
 from typing import Mapping
 
 import numpy as np
@@ -107,7 +108,7 @@ def _check(spec: Mapping) -> dict:
 def _curve(rng, a, b, amp, n=9):
     t = np.linspace(0.0, 1.0, n)
     d = b - a
-    nrm = np.array([-d[1], d[0]]) / max(np.linalg.norm(d), 1e-9)
+    nrm = np.array([-d[1], d[0]]) / max(math.hypot(*d), 1e-9)
     off = amp * np.sin(np.pi * t * rng.uniform(1.0, 2.0) + rng.uniform(0, np.pi)) * np.sin(np.pi * t)
     pts = a + np.outer(t, d) + np.outer(off, nrm)
     return chaikin(pts, 3)
@@ -194,7 +195,7 @@ def _rural_roads(b: Builder, rng, rc: Mapping, W: float, H: float):
             base.length * rng.uniform(0.15, 0.85)
         p0 = np.asarray(base.interpolate(s).coords[0])
         q = np.asarray(base.interpolate(min(s + 1.0, base.length)).coords[0]) - p0
-        q /= max(np.linalg.norm(q), 1e-9)
+        q /= max(math.hypot(*q), 1e-9)
         nrm = np.array([-q[1], q[0]]) * (1.0 if i % 2 == 0 else -1.0)
         length = rng.uniform(0.25, 0.42) * min(W, H)
         end = p0 + nrm * length + q * rng.uniform(-0.3, 0.3) * length
@@ -223,7 +224,7 @@ def _farmyards(b: Builder, cfg: Mapping, rng, tracks, road):
         tr = tracks[k][0]
         e = np.asarray(tr.line.coords[-1])
         e0 = np.asarray(tr.line.interpolate(tr.line.length - 2.0).coords[0])
-        u = (e - e0) / max(np.linalg.norm(e - e0), 1e-9)
+        u = (e - e0) / max(math.hypot(*(e - e0)), 1e-9)
         v = np.array([-u[1], u[0]])
         ya, yb = rng.uniform(40.0, 55.0), rng.uniform(30.0, 40.0)  # along u, across
         yc = e + u * (ya / 2 - 1.0)

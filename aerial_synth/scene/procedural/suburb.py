@@ -3,6 +3,7 @@ driveways, parking lots, street and yard trees, poles."""
 
 from __future__ import annotations
 
+import math
 from typing import Mapping
 
 import numpy as np
@@ -71,9 +72,9 @@ def generate_suburb(b: Builder, spec: Mapping):
                 p = front.interpolate(si)
                 q = front.interpolate(min(si + 0.5, front.length))
                 d = np.array([q.x - p.x, q.y - p.y])
-                if np.linalg.norm(d) < 1e-6:
+                if math.hypot(*d) < 1e-6:
                     continue
-                d /= np.linalg.norm(d)
+                d /= math.hypot(*d)
                 nrm = np.array([-d[1], d[0]]) * sign  # away from the road
                 w = b.rng.uniform(*hs.get("width_m", [10, 15]))
                 dep = b.rng.uniform(*hs.get("depth_m", [9, 13]))
