@@ -115,9 +115,11 @@ def run_one(spec: dict) -> dict:
     import torch
 
     torch.set_num_threads(int(spec["threads"]))
+    seen = None
     if spec.get("stream") is not None:
         tr, names, n_train, n_val = _train_stream(spec, run_dir)
         val_is_train = False
+        seen = seen_digest(tr.seen)
     else:
         sets = [inspect_synthetic(Path(d), f"arm {spec['arm']}: ") for d in spec["dirs"]]
         names = list(sets[0].names)
@@ -145,8 +147,20 @@ def run_one(spec: dict) -> dict:
            "synthetic_val_map50": None if tr.val_map50 is None else round(tr.val_map50, 6),
            "synthetic_val_map50_95": None if tr.val_map50_95 is None else round(tr.val_map50_95, 6),
            "weights": "weights.pt", "predictions": preds}
+    if seen is not None:
+        res["stream_seen"] = seen
     atomic_write_json(run_dir / "result.json", res)
     return res
+
+
+def seen_digest(seen) -> dict:
+    """A stream run's training images in brief: how many, and the sha256 of its sorted
+    ``epoch name pixel-digest`` lines (``StreamTrainResult.seen``)."""
+    import hashlib
+
+    lines = sorted(f"{e} {n} {d}" for e, n, d in seen)
+    return {"images": len(lines), "epochs": sorted({int(e) for e, _, _ in seen}),
+            "sha256": hashlib.sha256("\n".join(lines).encode()).hexdigest()}
 
 
 def _train_stream(spec: dict, run_dir: Path):

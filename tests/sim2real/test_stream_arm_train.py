@@ -5,15 +5,22 @@ report records the arm as a stream (images per epoch, epochs)."""
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import json
 import shutil
 
+import numpy as np
 import pytest
 
 pytestmark = pytest.mark.train
 pytest.importorskip("ultralytics", reason="needs the [train] extra (Ultralytics, torch): make test-train")
 
+from aerial_synth.dataset.config import ExportConfig  # noqa: E402
+from aerial_synth.dataset.sample import render_sample  # noqa: E402
 from aerial_synth.sim2real.plan import stream_seed  # noqa: E402
+from aerial_synth.sim2real.runs import seen_digest  # noqa: E402
+from aerial_synth.stream import epoch_config  # noqa: E402
 
 from ..helpers import write_crossing_obj  # noqa: E402
 from .test_plan_train import _run  # noqa: E402
@@ -62,4 +69,13 @@ def test_stream_arm_trains_from_the_stream_and_keeps_weights(run):
     assert (out / r["predictions"]["arm"]).is_dir() and 0.0 <= r["real_ap50"] <= 1.0
     res = json.loads((out / "runs" / "S" / "seed3" / "result.json").read_text())
     assert res["spec"]["stream"]["seed"] == stream_seed(7, 3) and res["spec"]["dirs"] == []
+    # the images it trained on are the ones (stream seed, epoch 0, index) names
+    cfg = ExportConfig.from_dict(res["spec"]["stream"]["config"])  # scene: relative to the run's cwd
+    cfg = dataclasses.replace(cfg, seed=stream_seed(7, 3), scene=out.parent / cfg.scene)
+    want = []
+    for i in range(4):
+        s = render_sample(epoch_config(cfg, 0), i)
+        bgr = np.ascontiguousarray(s.rgb[..., ::-1].transpose(2, 0, 1))
+        want.append((0, f"stream/seed{cfg.seed}/epoch0/{s.meta.name}", hashlib.sha256(bgr.tobytes()).hexdigest()))
+    assert res["stream_seen"] == seen_digest(want)
     assert (out / "summary.txt").is_file()
