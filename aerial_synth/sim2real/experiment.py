@@ -37,7 +37,7 @@ from . import ultra
 from .confidence import BOOTSTRAP, INTERVAL, differences, spread
 from .config import Sim2RealConfig, Sim2RealError, inspect_synthetic
 from .pipeline import AGNOSTIC, REPORT_FORMAT, log, real_summary, write_figures
-from .plan import ARM_KINDS, Plan, check_export_arms, load_plan
+from .plan import ARM_KINDS, Plan, check_export_arms, load_plan, stream_seed
 from .real import plan_image, read_real
 from .runs import auto_parallel, predict_real, run_all, share_out
 
@@ -83,19 +83,21 @@ def check_plan(plan_path, out, device: str, export_config=None) -> tuple[Plan, P
     plan = load_plan(plan_path, device=device, out=Path(out), export_config=export_config)
     where = f"--plan {plan.path}"
     inputs = [("real", plan.real)] + [(f"arm {a.name}", d) for a in plan.arms
-                                      if not ARM_KINDS[a.kind].writes for d in a.spec]
+                                      for d in ARM_KINDS[a.kind].inputs(a.spec)]
     out = _check_out(Path(out), inputs)
     try:
         items = read_real(plan.real, plan.configs[plan.baseline].real_classes)
         for a in plan.arms:
             _real_checks(plan.configs[a.name], items, plan.ignore_classes)
-            if ARM_KINDS[a.kind].writes or a.gsd is not None or "arm" not in plan.configs[a.name].real_scale:
+            kind = ARM_KINDS[a.kind]
+            if kind.gsd is None or a.gsd is not None or "arm" not in plan.configs[a.name].real_scale:
                 continue
-            gs = {inspect_synthetic(d, "").gsd_m for d in a.spec}
+            gs = kind.gsd(a.spec)
             if len(gs) != 1 or None in gs:
-                raise Sim2RealError(f"arm {a.name}: " + ("no GSD known (no export manifest.json with gsd_m)"
-                                    if None in gs else f"its folders have different GSDs {sorted(gs)}")
-                                    + "; give the arm gsd: M")
+                raise Sim2RealError(f"arm {a.name}: " + (
+                    ("no single GSD (a GSD or altitude range)" if a.kind == "stream"
+                     else "no GSD known (no export manifest.json with gsd_m)")
+                    if None in gs else f"its folders have different GSDs {sorted(gs)}") + "; give the arm gsd: M")
     except Sim2RealError as exc:
         msg = str(exc)
         raise Sim2RealError(msg if msg.startswith("--plan") else f"{where}: {msg}") from None
@@ -127,7 +129,7 @@ def run_plan(plan_path, out, *, parallel="auto", device: str = "auto", export_wo
         if kind.writes:
             log(f"arm {a.name}: {a.kind} into {out / 'exports' / a.name} ({export_workers} processes)")
         b = kind.build(a.spec, out / "exports" / a.name, export_workers)
-        sets = [inspect_synthetic(d, f"arm {a.name}: ") for d in b.dirs]
+        sets = list(b.sets) if b.sets is not None else [inspect_synthetic(d, f"arm {a.name}: ") for d in b.dirs]
         built[a.name] = (b, sets)
         arm_info[a.name] = {"gsd_m": _arm_gsd(a, sets) if "arm" in plan.configs[a.name].real_scale or a.gsd
                             else (sets[0].gsd_m if sets[0].gsd_m else None)}
@@ -154,6 +156,9 @@ def run_plan(plan_path, out, *, parallel="auto", device: str = "auto", export_wo
                 "epochs": cfg.epochs, "minutes": cfg.minutes, "imgsz": cfg.imgsz, "batch": cfg.batch,
                 "device": dev, "workers": workers, "threads": threads, "gsd_m": gsd, "plan": str(plan.path),
                 "real": real, "targets": {sc: (gsd if sc == "arm" else None) for sc in cfg.real_scale}})
+            if built[a.name][0].stream is not None:  # a stream arm: each seed its own images
+                specs[-1]["stream"] = dict(built[a.name][0].stream,
+                                           seed=stream_seed(built[a.name][0].stream["config"]["seed"], s))
     log(f"{n_runs} runs, {n_par} at once ({rule}) on {dev_name}")
     t0 = time.perf_counter()
     results, gpu = run_all(specs, n_par, dev, log)
@@ -233,6 +238,11 @@ def _plan_report(plan, out, items, built, arm_info, specs, results, gpu, par, de
             "images_per_s": spread([r["images_per_s"] for _, r in rs]),
             "peak_gpu_mib": max((r["peak_gpu_mib"] for _, r in rs if r["peak_gpu_mib"] is not None), default=None),
         }
+        if b.stream is not None:
+            entry["stream"] = {"images_per_epoch": b.images, "pool": b.stream["pool"],
+                               "refresh": b.stream["refresh"] if b.stream["pool"] is not None else None,
+                               "epochs": [r["epochs"] for _, r in rs],
+                               "stream_seeds": [s["stream"]["seed"] for s, _ in rs]}
         entry.update(_arm_stats(figs))
         if a.name != plan.baseline:
             entry["vs_baseline"] = vs[a.name].to_dict()

@@ -17,7 +17,9 @@ Every check runs in :func:`load_plan`, before anything is written; a refusal is 
 functions: ``check(arm, value, ctx: PlanContext) -> spec`` (validate, write nothing) and
 ``build(spec, folder, workers) -> Built`` (make or find the YOLO-OBB folders where the run
 happens). ``synthetic`` (existing folders) and ``export`` (generated where sim2real runs,
-reused by manifest) are registered here; a new kind is one :func:`arm_kind` registration.
+reused by manifest) and ``stream`` (an export's options, trained from the stream: new images
+every epoch, nothing written) are registered here; a new kind is one :func:`arm_kind`
+registration.
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ from ..errors import AerialSynthError
 from .config import Arm, Sim2RealConfig, Sim2RealError, inspect_synthetic
 
 __all__ = ["TrainSpec", "PlanArm", "Plan", "PlanContext", "ArmKind", "Built", "ARM_KINDS", "arm_kind", "load_plan",
-           "PLAN_KEYS", "TRAIN_KEYS", "REAL_KEYS", "EXPORT_SET_BY_SIM2REAL"]
+           "PLAN_KEYS", "TRAIN_KEYS", "REAL_KEYS", "EXPORT_SET_BY_SIM2REAL", "STREAM_KEYS", "StreamArm", "stream_seed"]
 
 #: the real-set options of a plan (as today's flags, ``-`` written ``_``)
 REAL_KEYS = ("real_gsd", "real_classes", "real_scale", "iou_type", "ignore_border", "ignore_classes",
@@ -60,6 +62,10 @@ class Built:
     seconds: float = 0.0
     reused: bool = False
     images: int | None = None
+    #: a stream arm: what each run renders (export parameters, pool, refresh), and its sets' stand-in
+    #: (class names, GSD) since it has no folder
+    stream: dict | None = None
+    sets: tuple | None = None
 
 
 @dataclass(frozen=True)
@@ -79,18 +85,22 @@ class ArmKind:
     build: Callable[[object, Path, int], Built]
     #: True when ``build`` writes into the report folder (its folder is ``exports/<arm>``)
     writes: bool = False
+    #: the folders an arm of this kind reads (kept apart from --out), from its checked spec
+    inputs: Callable[[object], tuple] = lambda spec: ()
+    #: the GSD (m/px) its images have, known before building; None: unknown until built
+    gsd: Callable[[object], object] | None = None
 
 
 ARM_KINDS: dict[str, ArmKind] = {}
 
 
-def arm_kind(name: str, *, writes: bool = False):
+def arm_kind(name: str, *, writes: bool = False, inputs=None, gsd=None):
     """Register ``(check, build)`` as the arm kind ``name``: decorate a function returning
-    the pair."""
+    the pair. ``inputs``, ``gsd``: see :class:`ArmKind`."""
 
     def deco(fn):
         check, build = fn()
-        ARM_KINDS[name] = ArmKind(name, check, build, writes)
+        ARM_KINDS[name] = ArmKind(name, check, build, writes, inputs or (lambda spec: ()), gsd)
         return fn
 
     return deco
@@ -344,7 +354,11 @@ EXPORT_SET_BY_SIM2REAL = ("out", "resume", "force", "workers", "dask", "no_progr
 
 # -- the arm kinds ----------------------------------------------------------------------------------
 
-@arm_kind("synthetic")
+def _synthetic_gsds(dirs) -> set:
+    return {inspect_synthetic(d, "").gsd_m for d in dirs}
+
+
+@arm_kind("synthetic", inputs=tuple, gsd=_synthetic_gsds)
 def _synthetic_kind():
     """``synthetic: DIR`` or ``[DIR, ...]``: existing exports / YOLO-OBB folders."""
 
@@ -363,21 +377,28 @@ def _synthetic_kind():
     return check, build
 
 
+def _export_check(arm, value, ctx, kind: str = "export"):
+    """An ``export:`` mapping -> ExportConfig with the export command's checks; its messages
+    start ``arm NAME: KIND:``."""
+    if ctx.export_config is None:
+        raise Sim2RealError(f"arm {arm}: {kind}: no export parser given to load_plan "
+                            f"(aerial_synth.sim2real.cli.export_config)")
+    try:
+        return ctx.export_config(arm, value)
+    except AerialSynthError as exc:
+        msg = " ".join(str(exc).split())
+        if msg.startswith(f"arm {arm}: export: "):
+            msg = f"arm {arm}: {kind}: " + msg[len(f"arm {arm}: export: "):]
+        raise Sim2RealError(msg if msg.startswith(f"arm {arm}: ") else f"arm {arm}: {kind}: {msg}") from None
+
+
 @arm_kind("export", writes=True)
 def _export_kind():
     """``export: {OPTION: VALUE, ...}``: generated where sim2real runs, into
     ``OUT/exports/<arm>``, with --export-workers processes; a complete export there whose
     manifest holds the same parameters is reused."""
 
-    def check(arm, value, ctx):
-        if ctx.export_config is None:
-            raise Sim2RealError(f"arm {arm}: export: no export parser given to load_plan "
-                                f"(aerial_synth.sim2real.cli.export_config)")
-        try:
-            return ctx.export_config(arm, value)
-        except AerialSynthError as exc:
-            msg = " ".join(str(exc).split())
-            raise Sim2RealError(msg if msg.startswith(f"arm {arm}: ") else f"arm {arm}: export: {msg}") from None
+    check = _export_check
 
     def build(cfg, folder, workers):
         import json
@@ -396,15 +417,92 @@ def _export_kind():
     return check, build
 
 
+#: ``stream:`` keys besides the export options
+STREAM_KEYS = ("pool", "refresh")
+#: the seed stream of a stream arm's runs: run seed s renders from
+#: ``SeedSequence([export seed, RUN_STREAM, s])``'s first 63-bit word (:func:`stream_seed`)
+RUN_STREAM = 0x52554E  # "RUN"
+
+
+@dataclass(frozen=True)
+class StreamArm:
+    """A checked ``stream:`` arm: the export it streams, and its pool mode (None: new images
+    every epoch)."""
+
+    config: object  # ExportConfig
+    pool: int | None = None
+    refresh: float = 0.25
+
+    @property
+    def gsd_m(self) -> float | None:
+        """Its images' nadir GSD when fixed (None under a GSD or altitude range)."""
+        c = self.config
+        if c.gsd_range is not None or c.altitude_range is not None:
+            return None
+        return float(c.camera.nadir_gsd_m)
+
+
+def stream_seed(export_seed: int, run_seed: int) -> int:
+    """The stream's seed in run ``run_seed`` of an arm whose export seed is ``export_seed``:
+    every run seed draws its own images (epoch e: :func:`aerial_synth.stream.epoch_config`
+    of that seed)."""
+    import numpy as np
+
+    word = np.random.SeedSequence([int(export_seed), RUN_STREAM, int(run_seed)]).generate_state(1, np.uint64)[0]
+    return int(word >> np.uint64(1))
+
+
+def _stream_gsds(spec: StreamArm) -> set:
+    return {spec.gsd_m}
+
+
+@arm_kind("stream", gsd=_stream_gsds)
+def _stream_kind():
+    """``stream: {OPTION: VALUE, ..., pool: P, refresh: F}``: the export options of an
+    ``export:`` arm (same checks and messages), trained from the stream: each epoch renders
+    new images from (seed, epoch, index) in the data loader, none written. ``pool``: P images
+    held, ``refresh`` (0.25) of them re-rendered each epoch. Nothing is built before the runs."""
+
+    def check(arm, value, ctx):
+        if not isinstance(value, dict):
+            raise Sim2RealError(f"arm {arm}: stream: expected a mapping of export options (and pool, "
+                                f"refresh), got {value!r}")
+        opts = {k: v for k, v in value.items() if k not in STREAM_KEYS}
+        cfg = _export_check(arm, opts, ctx, "stream")
+        pool, refresh = value.get("pool"), value.get("refresh", 0.25)
+        if pool is not None and (isinstance(pool, bool) or not isinstance(pool, int) or not 1 <= pool <= cfg.images):
+            raise Sim2RealError(f"arm {arm}: stream: pool: expected an integer in 1..{cfg.images} (images held, "
+                                f"at most images), got {pool!r}")
+        if "refresh" in value and pool is None:
+            raise Sim2RealError(f"arm {arm}: stream: refresh: only with pool (the share of the pool "
+                                f"re-rendered each epoch)")
+        if isinstance(refresh, bool) or not isinstance(refresh, (int, float)) or not 0.0 <= refresh <= 1.0:
+            raise Sim2RealError(f"arm {arm}: stream: refresh: expected a number in 0..1, got {refresh!r}")
+        return StreamArm(cfg, pool, float(refresh))
+
+    def build(spec, folder, workers):
+        import json
+
+        from ..vehicles import CLASSES
+        from .config import SyntheticSet
+
+        run = {"config": json.loads(json.dumps(spec.config.to_dict())), "pool": spec.pool,
+               "refresh": spec.refresh}
+        n = spec.pool if spec.pool is not None else spec.config.images
+        return Built((), 0.0, False, n, run, (SyntheticSet(None, None, None, tuple(CLASSES), spec.gsd_m, n, 0),))
+
+    return check, build
+
+
 def check_export_arms(plan: Plan) -> None:
     """The loading checks of export arms (scene, scenario, catalog: as ``export`` does
     before it writes); raises with the arm's name."""
     from ..dataset.export import validate_inputs
 
     for a in plan.arms:
-        if a.kind != "export":
+        if a.kind not in ("export", "stream"):
             continue
         try:
-            validate_inputs(a.spec)
+            validate_inputs(a.spec if a.kind == "export" else a.spec.config)
         except AerialSynthError as exc:
-            raise Sim2RealError(f"--plan {plan.path}: arm {a.name}: export: {' '.join(str(exc).split())}") from None
+            raise Sim2RealError(f"--plan {plan.path}: arm {a.name}: {a.kind}: {' '.join(str(exc).split())}") from None

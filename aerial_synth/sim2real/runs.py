@@ -115,22 +115,30 @@ def run_one(spec: dict) -> dict:
     import torch
 
     torch.set_num_threads(int(spec["threads"]))
-    sets = [inspect_synthetic(Path(d), f"arm {spec['arm']}: ") for d in spec["dirs"]]
-    data_yaml, n_train, n_val, val_is_train = prepare_training_set(run_dir / "data", sets)
-    tr = ultra.train(data_yaml, run_dir / "train", model=spec["model"],
-                     weights=None if spec["weights"] is None else Path(spec["weights"]),
-                     epochs=spec["epochs"], minutes=spec["minutes"], imgsz=spec["imgsz"],
-                     device=spec["device"], seed=spec["seed"], batch=spec["batch"], workers=spec["workers"])
+    seen = None
+    if spec.get("stream") is not None:
+        tr, names, n_train, n_val = _train_stream(spec, run_dir)
+        val_is_train = False
+        seen = seen_digest(tr.seen)
+    else:
+        sets = [inspect_synthetic(Path(d), f"arm {spec['arm']}: ") for d in spec["dirs"]]
+        names = list(sets[0].names)
+        data_yaml, n_train, n_val, val_is_train = prepare_training_set(run_dir / "data", sets)
+        tr = ultra.train(data_yaml, run_dir / "train", model=spec["model"],
+                         weights=None if spec["weights"] is None else Path(spec["weights"]),
+                         epochs=spec["epochs"], minutes=spec["minutes"], imgsz=spec["imgsz"],
+                         device=spec["device"], seed=spec["seed"], batch=spec["batch"], workers=spec["workers"])
     peak = ultra.gpu_peak_mib(spec["device"])
     meta = {"arm": spec["arm"], "seed": spec["seed"], "imgsz": spec["imgsz"], "gsd_m": spec["gsd_m"],
-            "tile": spec["real"]["tile"], "overlap": spec["real"]["overlap"], "classes": list(sets[0].names),
+            "tile": spec["real"]["tile"], "overlap": spec["real"]["overlap"], "classes": names,
             "epochs": tr.epochs, "training_images": n_train, "plan": spec.get("plan")}
     weights = ultra.save_weights(tr.weights, run_dir / "weights.pt", meta)
     shutil.rmtree(run_dir / "data", ignore_errors=True)  # the mirror (links) is not output
+    shutil.rmtree(run_dir / "train" / "stream-data", ignore_errors=True)  # a stream run's empty folder
     for f in (run_dir / "train" / "weights").glob("*.pt"):  # kept once, small, as weights.pt
         f.unlink()
     t0 = time.perf_counter()
-    preds = predict_real(weights, spec["real"], spec["targets"], run_dir, spec["device"], list(sets[0].names))
+    preds = predict_real(weights, spec["real"], spec["targets"], run_dir, spec["device"], names)
     res = {"spec": spec, "epochs": tr.epochs, "train_seconds": round(tr.seconds, 1),
            "training_images": n_train, "validation_images": n_train if val_is_train else n_val,
            "val_is_train": val_is_train,
@@ -139,8 +147,44 @@ def run_one(spec: dict) -> dict:
            "synthetic_val_map50": None if tr.val_map50 is None else round(tr.val_map50, 6),
            "synthetic_val_map50_95": None if tr.val_map50_95 is None else round(tr.val_map50_95, 6),
            "weights": "weights.pt", "predictions": preds}
+    if seen is not None:
+        res["stream_seen"] = seen
     atomic_write_json(run_dir / "result.json", res)
     return res
+
+
+def seen_digest(seen) -> dict:
+    """A stream run's training images in brief: how many, and the sha256 of its sorted
+    ``epoch name pixel-digest`` lines (``StreamTrainResult.seen``)."""
+    import hashlib
+
+    lines = sorted(f"{e} {n} {d}" for e, n, d in seen)
+    return {"images": len(lines), "epochs": sorted({int(e) for e, _, _ in seen}),
+            "sha256": hashlib.sha256("\n".join(lines).encode()).hexdigest()}
+
+
+def _train_stream(spec: dict, run_dir: Path):
+    """A stream arm's run: Ultralytics trains from the stream of the arm's export at the
+    run's stream seed (``spec["stream"]["seed"]``), new images each epoch (or pool mode).
+    Returns (train result, class names, images per epoch, validation images)."""
+    import dataclasses
+
+    from ..dataset.config import ExportConfig
+    from ..stream.train import train_from_stream
+    from . import ultra
+
+    st = spec["stream"]
+    cfg = dataclasses.replace(ExportConfig.from_dict(st["config"]), seed=int(st["seed"]))
+    ultra._offline_ultralytics()
+    tr = train_from_stream(cfg, run_dir / "train", epochs=spec["epochs"], minutes=spec["minutes"],
+                           imgsz=spec["imgsz"], model=spec["weights"] or spec["model"], device=spec["device"],
+                           batch=spec["batch"], workers=spec["workers"], seed=spec["seed"], pool=st["pool"],
+                           refresh=st["refresh"], trainer_base=ultra._trainer_class(),
+                           amp_check=ultra._patched_amp_check(), amp=spec["device"] != "cpu")
+    from ..vehicles import CLASSES
+
+    n = st["pool"] if st["pool"] is not None else cfg.images
+    return tr, list(CLASSES), n, tr.val_images
 
 
 def main(argv=None) -> int:

@@ -122,15 +122,19 @@ class StreamTrainResult:
     seconds: float
     seen: list
     val_map50: float | None
+    val_images: int = 0
+    val_map50_95: float | None = None
 
 
-def train_from_stream(config: ExportConfig, run_dir: Path, *, epochs: int, imgsz: int, model: str = "yolo11n-obb.yaml",
-                      device: str = "cpu", batch: int = 8, workers: int = 2, seed: int = 0,
-                      val_images: int | None = None, pool: int | None = None, refresh: float = 0.25,
-                      trainer_base=None, amp_check=None) -> StreamTrainResult:
-    """Train ``model`` (a yaml: from scratch) for ``epochs`` epochs on the stream of
-    ``config`` (``config.images`` images an epoch, each epoch new ones; ``pool``: pool
-    mode); validation on :func:`stream_datasets`' fixed set. ``run_dir``: Ultralytics' run.
+def train_from_stream(config: ExportConfig, run_dir: Path, *, epochs: int | None, imgsz: int,
+                      model: str = "yolo11n-obb.yaml", device: str = "cpu", batch: int = 8, workers: int = 2,
+                      seed: int = 0, val_images: int | None = None, pool: int | None = None, refresh: float = 0.25,
+                      trainer_base=None, amp_check=None, minutes: float | None = None,
+                      amp: bool = False) -> StreamTrainResult:
+    """Train ``model`` (a yaml: from scratch; or a ``.pt`` file) for ``epochs`` epochs, or
+    ``minutes`` (Ultralytics' time limit) when given, on the stream of ``config``
+    (``config.images`` images an epoch, each epoch new ones; ``pool``: pool mode);
+    validation on :func:`stream_datasets`' fixed set. ``run_dir``: Ultralytics' run.
     ``trainer_base``: the trainer class to feed (:func:`stream_trainer_class`);
     ``amp_check``: a context manager to train in (sim2real's offline AMP check)."""
     import contextlib
@@ -141,9 +145,13 @@ def train_from_stream(config: ExportConfig, run_dir: Path, *, epochs: int, imgsz
     run_dir = Path(run_dir)
     net = YOLO(model, task="obb")
     kw = dict(data=str(_data_yaml(run_dir, train_ds.classes)), imgsz=imgsz, device=device, seed=seed, deterministic=True, batch=batch,
-              workers=workers, plots=False, amp=False, project=str(run_dir.parent.resolve()), name=run_dir.name,
-              exist_ok=True, verbose=False, pretrained=False, cache=False, val=True, patience=0, epochs=int(epochs),
+              workers=workers, plots=False, amp=bool(amp), project=str(run_dir.parent.resolve()), name=run_dir.name,
+              exist_ok=True, verbose=False, pretrained=False, cache=False, val=True, patience=0,
               close_mosaic=0, mosaic=0.0, trainer=stream_trainer_class(train_ds, val_ds, trainer_base, workers))
+    if minutes is not None:
+        kw.update(epochs=100000, time=float(minutes) / 60.0)
+    else:
+        kw.update(epochs=int(epochs))
     t0 = time.perf_counter()
     with amp_check or contextlib.nullcontext():
         metrics = net.train(**kw)
@@ -151,4 +159,4 @@ def train_from_stream(config: ExportConfig, run_dir: Path, *, epochs: int, imgsz
     best = Path(tr.best) if Path(tr.best).is_file() else Path(tr.last)
     rd = getattr(metrics, "results_dict", None) or {}
     return StreamTrainResult(best, int(tr.epoch) + 1, time.perf_counter() - t0, list(tr.stream_seen),
-                             rd.get("metrics/mAP50(B)"))
+                             rd.get("metrics/mAP50(B)"), len(val_ds), rd.get("metrics/mAP50-95(B)"))

@@ -381,3 +381,67 @@ def test_weighted_ap_is_the_ap_of_the_resampled_set():
             xy.append(d.polygons_xy_px[m])
         ref = _agn(gt2, Detections(np.array(img), ["car"] * len(img), np.array(sc), np.concatenate(xy)))
         assert weighted_ap(c, w[None])[0] == pytest.approx(ref.ap, abs=1e-12)
+
+
+# -- stream arms -------------------------------------------------------------------------------------
+
+STREAM = "A: {stream: {scene: city_park, scenario: jam, images: 6, size: 128, gsd: 0.12, seed: 5, pool: 4, refresh: 0.5}}"
+
+
+def test_stream_arm_is_an_export_config_and_a_pool(folder):
+    p = load_plan(_write(folder, GOOD.replace("A: {synthetic: s1}", STREAM)))
+    a = p.arm("A")
+    assert a.kind == "stream" and isinstance(a.spec, plan_mod.StreamArm)
+    assert a.spec.config.images == 6 and a.spec.config.seed == 5 and a.spec.config.camera.width_px == 128
+    assert a.spec.pool == 4 and a.spec.refresh == 0.5 and a.spec.gsd_m == pytest.approx(0.12)
+    # the same options as an export arm give the same ExportConfig
+    e = load_plan(_write(folder, GOOD.replace("A: {synthetic: s1}", STREAM.replace("stream", "export")
+                                              .replace(", pool: 4, refresh: 0.5", ""))))
+    assert e.arm("A").spec == a.spec.config
+    # build writes nothing: the runs render; its stand-in set has the detection classes
+    b = plan_mod.ARM_KINDS["stream"].build(a.spec, folder / "exports" / "A", 1)
+    assert not (folder / "exports").exists() and b.dirs == () and b.images == 4
+    assert b.stream["pool"] == 4 and b.stream["config"]["seed"] == 5 and b.sets[0].gsd_m == pytest.approx(0.12)
+    assert "small-vehicle" in b.sets[0].names
+    # a GSD range has no single GSD
+    r = load_plan(_write(folder, GOOD.replace("A: {synthetic: s1}", "A: {stream: {gsd: '0.05:0.3', images: 3}}")))
+    assert r.arm("A").spec.gsd_m is None and r.arm("A").spec.pool is None
+
+
+def test_stream_seed_differs_by_run_seed_and_export_seed():
+    s = {plan_mod.stream_seed(e, r) for e in (0, 1) for r in (0, 1, 2)}
+    assert len(s) == 6 and all(0 <= x < 2**63 for x in s)
+    assert plan_mod.stream_seed(3, 1) == plan_mod.stream_seed(3, 1)
+
+
+@pytest.mark.parametrize("arm, expect", [
+    ("A: {stream: {images: 0}}", "arm A: stream: aerial-synth export: --images: expected"),
+    ("A: {stream: {gsd: '0.3:0.05'}}", "arm A: stream: aerial-synth export: --gsd: expected"),
+    ("A: {stream: {sky: blue}}", "arm A: stream: unknown option 'sky'"),
+    ("A: {stream: {out: x}}", "arm A: stream: 'out' is set by sim2real"),
+    ("A: {stream: {scene: nowhere_scene}}", "arm A: stream: "),
+    ("A: {stream: [1, 2]}", "arm A: stream: expected a mapping of export options"),
+    ("A: {stream: {images: 4, pool: 5}}", "arm A: stream: pool: expected an integer in 1..4"),
+    ("A: {stream: {images: 4, pool: true}}", "arm A: stream: pool: expected an integer"),
+    ("A: {stream: {images: 4, pool: 2, refresh: 1.5}}", "arm A: stream: refresh: expected a number in 0..1"),
+    ("A: {stream: {images: 4, refresh: 0.5}}", "arm A: stream: refresh: only with pool"),
+    ("A: {stream: {images: 4}, synthetic: s1}", "arm A: expected exactly one of"),
+])
+def test_bad_stream_arm_is_one_line_and_writes_nothing(folder, capsys, extra_present, arm, expect):
+    msg = _refused(capsys, folder, GOOD.replace("A: {synthetic: s1}", arm))
+    assert "--plan " in msg and expect in msg, msg
+
+
+def test_stream_arm_message_is_the_exports_own(folder, capsys, extra_present, tmp_path):
+    """The message of `export --gsd 0.3:0.05` itself, after ``arm A: stream:``."""
+    r = subprocess.run([sys.executable, "-m", "aerial_synth.cli", "export", "--gsd", "0.3:0.05",
+                        "--out", str(tmp_path / "x")], capture_output=True, text=True, cwd=REPO, timeout=120)
+    own = r.stderr.strip().split("aerial-synth export: ", 1)[1]
+    msg = _refused(capsys, folder, GOOD.replace("A: {synthetic: s1}", "A: {stream: {gsd: '0.3:0.05'}}"))
+    assert msg.endswith("arm A: stream: aerial-synth export: " + own), (msg, own)
+
+
+def test_stream_arm_with_a_gsd_range_needs_gsd_for_arm_scale(folder, capsys, extra_present):
+    text = GOOD.replace("A: {synthetic: s1}", "A: {stream: {gsd: '0.05:0.3', images: 3}}") + "real_scale: [arm]\n"
+    msg = _refused(capsys, folder, text)
+    assert "arm A: no single GSD (a GSD or altitude range); give the arm gsd: M" in msg, msg
