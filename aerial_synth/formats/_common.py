@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from ..errors import LabelFormatError
-from ..safe_input import MAX_COORD_PX, check_link, load_json, quote
+from ..safe_input import MAX_COORD_PX, load_json, quote, shown
+from ..safe_input import read_text as safe_read_text
 from ..vehicles import CLASSES
 
 __all__ = ["CATEGORIES", "fmt_num", "parse_float", "parse_number", "polygon4", "read_text",
@@ -63,12 +62,8 @@ def polygon4(points) -> tuple[tuple[float, float], ...]:
 
 def read_text(path) -> str:
     """A label file's UTF-8 text; a file that is not UTF-8 text raises LabelFormatError."""
-    check_link(path, LabelFormatError)  # a link out of the input folder is never read
-    try:
-        return Path(path).read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise LabelFormatError(f"{path}: expected UTF-8 text, found byte {exc.object[exc.start]:#04x} "
-                               f"at offset {exc.start}") from None
+    # a link out of the input folder, a FIFO or a device is never read
+    return safe_read_text(path, shown(path), LabelFormatError)
 
 
 def read_json(path):
