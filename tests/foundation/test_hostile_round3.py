@@ -1,0 +1,173 @@
+"""Reliability, round 3 (issue 37): one test per cause of the hostile-input failures found at
+3deb0c2, written from the issue. Each runs the command as a user would (``main(argv)`` in
+process, or the console script in a subprocess where a hang, a signal or memory is the point)
+and asserts: one line on stderr, exit status 2 (or the conventional signal status), no
+traceback, no file's content quoted, nothing written or replaced that should not be."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from aerial_synth.cli import main
+from tests.evaluate.conftest import make_dota, write_dota_image
+from tests.helpers import REPO, tree_bytes, write_crossing_obj
+
+SECRET = "root:$6$s3cr3tHASHvalue:19000:0:99999:7:::"
+
+
+def run(capsys, *argv):
+    """(exit status, stderr) of ``aerial-synth ARGV`` run in this process."""
+    code = main([a if isinstance(a, str) else os.fsdecode(a) if isinstance(a, (bytes, os.PathLike)) else str(a) for a in argv])
+    cap = capsys.readouterr()
+    return code, cap.err
+
+
+def one_line(code, err, status=2):
+    assert code == status, err
+    assert len(err.strip().splitlines()) == 1, err
+    assert "Traceback" not in err
+    return err
+
+
+def cli(*argv, timeout=60, cwd=None, env=None, **kw):
+    """The console entry point in its own process (crashes, hangs, signals, memory)."""
+    e = dict(os.environ, PYTHONPATH=str(REPO), **(env or {}))
+    return subprocess.run([sys.executable, "-m", "aerial_synth.cli", *map(os.fsdecode, argv)],
+                          capture_output=True, timeout=timeout, cwd=cwd, env=e, **kw)
+
+
+@pytest.fixture
+def secret(tmp_path):
+    p = tmp_path / "shadow"
+    p.write_text(SECRET + "\n")
+    return p
+
+
+@pytest.fixture
+def mesh_dir(tmp_path, secret):
+    """sc/town.obj with sc/town.labels.yaml a link to a file outside sc/ (issue 37 D1)."""
+    sc = tmp_path / "sc"
+    sc.mkdir()
+    write_crossing_obj(sc / "town.obj", 40)
+    (sc / "town.labels.yaml").symlink_to(secret)
+    return sc
+
+
+# -- D1, D2: disclosure ----------------------------------------------------------------------
+
+
+def test_d1_sidecar_label_rules_link_out_of_folder(capsys, tmp_path, mesh_dir):
+    err = one_line(*run(capsys, "scene", "show", mesh_dir / "town.obj", "--out", tmp_path / "m.png"))
+    assert "outside its folder" in err and "town.labels.yaml" in err
+    assert "s3cr3t" not in err and "root:" not in err
+    assert not (tmp_path / "m.png").exists()
+
+
+def test_d1_sidecar_through_python_api_and_scene_mix(capsys, tmp_path, mesh_dir):
+    from aerial_synth.errors import SceneError
+    from aerial_synth.scene.io import load_scene
+
+    with pytest.raises(SceneError) as e:
+        load_scene(str(mesh_dir / "town.obj"))
+    assert "s3cr3t" not in str(e.value) and "outside its folder" in str(e.value)
+    err = one_line(*run(capsys, "export", "--scene-mix", f"{mesh_dir / 'town.obj'}:1", "--images", 1,
+                        "--out", tmp_path / "ds"))
+    assert "s3cr3t" not in err and "outside its folder" in err
+    assert not (tmp_path / "ds").exists()
+
+
+def test_d1_sidecar_inside_folder_still_read(tmp_path):
+    from aerial_synth.scene.io import load_scene
+
+    sc = tmp_path / "sc"
+    sc.mkdir()
+    write_crossing_obj(sc / "town.obj", 40)
+    (tmp_path / "rules.yaml").write_text("rules:\n  road*: road\n")
+    (sc / "town.labels.yaml").symlink_to("../rules.yaml")  # out of sc/: refused
+    with pytest.raises(Exception, match="outside its folder"):
+        load_scene(str(sc / "town.obj"))
+    (sc / "town.labels.yaml").unlink()
+    (sc / "real.yaml").write_text("rules:\n  road*: road\n  ground: water\n")
+    (sc / "town.labels.yaml").symlink_to("real.yaml")  # a link inside sc/: read
+    assert {o.label for o in load_scene(str(sc / "town.obj")).objects} >= {"road", "water"}
+
+
+# -- H1, H2, A4: YAML bombs, backtracking, duplicate keys ------------------------------------
+
+BOMB = ("- {scene: [&a [1,1,1,1,1,1,1,1,1], &b [*a,*a,*a,*a,*a,*a,*a,*a,*a], "
+        "&c [*b,*b,*b,*b,*b,*b,*b,*b,*b], &d [*c,*c,*c,*c,*c,*c,*c,*c,*c], "
+        "&e [*d,*d,*d,*d,*d,*d,*d,*d,*d], &f [*e,*e,*e,*e,*e,*e,*e,*e,*e], "
+        "&g [*f,*f,*f,*f,*f,*f,*f,*f,*f]], weight: 1}\n")
+
+
+@pytest.mark.timeout(60)
+def test_h1_scene_mix_alias_bomb_and_deep_nesting(capsys, tmp_path):
+    (tmp_path / "bomb.yaml").write_text(BOMB)
+    assert len(BOMB) < 400
+    t = time.monotonic()
+    err = one_line(*run(capsys, "export", "--scene-mix", tmp_path / "bomb.yaml", "--out", tmp_path / "ds"))
+    assert "--scene-mix" in err and "expand" in err and time.monotonic() - t < 20
+    (tmp_path / "deep.yaml").write_text("- scene: " + "[" * 5000 + "]" * 5000 + "\n  weight: 1\n")
+    err = one_line(*run(capsys, "export", "--scene-mix", tmp_path / "deep.yaml", "--out", tmp_path / "ds"))
+    assert "nesting" in err and "RecursionError" not in err
+    assert not (tmp_path / "ds").exists()
+
+
+@pytest.mark.timeout(60)
+def test_h2_group_regex_cannot_backtrack(capsys, tmp_path):
+    name = "a" * 40 + "!"
+    gt = make_dota(tmp_path / "G", 1, name)
+    (tmp_path / "P").mkdir()
+    (tmp_path / "P" / "Task1_small-vehicle.txt").write_text(f"{name}000 0.9 1 1 5 1 5 5 1 5\n")
+    t = time.monotonic()
+    code, err = run(capsys, "eval", "--gt", gt, "--pred", tmp_path / "P",
+                    "--group", "(a+)+$", "--out", tmp_path / "ev")
+    assert code == 0, err
+    assert time.monotonic() - t < 30  # Python's re: 2**40 steps
+    # T2: a repetition count Python's re overflows on, one line
+    err = one_line(*run(capsys, "eval", "--gt", gt, "--pred", tmp_path / "P",
+                        "--group", "a{99999999999}", "--out", tmp_path / "ev2"))
+    assert "--group" in err and "at most 1000" in err and not (tmp_path / "ev2").exists()
+
+
+def test_h2_sim2real_group_checked_with_re2():
+    from aerial_synth.errors import EvaluationError
+    from aerial_synth.evaluate.scoring import ScoringOptions, image_groups
+
+    with pytest.raises(EvaluationError, match="no back-references"):
+        ScoringOptions(group=r"(a)\1")
+
+    class G:
+        name = "a" * 5000 + "!"
+        extra: dict = {}
+
+    t = time.monotonic()
+    assert image_groups([G()], "(a+)+$") == ["(other)"]
+    assert time.monotonic() - t < 5
+
+
+def test_a4_duplicate_keys_refused_in_every_yaml(capsys, tmp_path):
+    (tmp_path / "mix.yaml").write_text("- scene: city_park\n  weight: 1\n  weight: 3\n")
+    err = one_line(*run(capsys, "export", "--scene-mix", tmp_path / "mix.yaml", "--out", tmp_path / "ds"))
+    assert "'weight' twice" in err and "lines 2 and 3" in err
+    (tmp_path / "sc.yaml").write_text("generator: grid\nseed: 1\nseed: 2\n")
+    err = one_line(*run(capsys, "scene", "show", tmp_path / "sc.yaml", "--out", tmp_path / "m.png"))
+    assert "'seed' twice" in err
+    (tmp_path / "names.yaml").write_text("names:\n  0: car\n  0: bus\n")
+    from aerial_synth.errors import EvaluationError
+    from aerial_synth.evaluate.labels import parse_names
+
+    with pytest.raises(EvaluationError, match="twice"):
+        parse_names(str(tmp_path / "names.yaml"))
+    # a merge key may be overridden, as YAML intends
+    from aerial_synth.safe_input import load_yaml
+
+    assert load_yaml("a: &x {k: 1}\nb:\n  <<: *x\n  k: 2\n", "t") == {"a": {"k": 1}, "b": {"k": 2}}
