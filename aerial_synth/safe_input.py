@@ -47,6 +47,7 @@ __all__ = [
     "MAX_IMAGE_SIDE",
     "QUOTE_CHARS",
     "MAX_COORD_PX",
+    "LABEL_GSD_RANGE_M",
     "quote",
     "shown",
     "load_yaml",
@@ -83,6 +84,11 @@ MAX_IMAGE_SIDE = 1 << 20
 #: largest image side. 1e300 passed as "finite" and overflowed in box areas, where numpy's
 #: warnings named no file.
 MAX_COORD_PX = 1e7
+#: The GSD a label's ``gsd:`` header, or a real set's ``--gsd``/``--real-gsd``, may give,
+#: metres per pixel: from 0.1 mm (a close-up) to the camera's largest (1 km,
+#: :data:`aerial_synth.camera.MAX_GSD_M`). ``gsd:1e300`` made mix's rescaled image (and its
+#: tile list) larger than any memory.
+LABEL_GSD_RANGE_M = (1e-4, 1000.0)
 #: Characters of an input line quoted in an error message.
 QUOTE_CHARS = 40
 #: Largest text file (YAML, JSON, label rules, a scene mix) read whole into memory.

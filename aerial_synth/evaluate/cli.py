@@ -11,6 +11,7 @@ from pathlib import Path
 
 from ..errors import EvaluationError
 from ..out_guard import out_lock, refuse_here, remove_dead_temps
+from ..safe_input import LABEL_GSD_RANGE_M
 from ..validators import arg_choice, arg_float, arg_int
 from .scoring_cli import add_scoring_args, cmd_scored_eval, uses_scoring
 
@@ -82,9 +83,9 @@ def register(sub) -> None:
     m.add_argument("--keep-threshold", type=arg_float("--keep-threshold", 0.0, 1.0, lo_open=True),
                    default=0.7, metavar="F",
                    help="keep a cut box when this share of its area is inside the tile (0.7)")
-    m.add_argument("--gsd", type=arg_float("--gsd", 0.0, lo_open=True), default=None, metavar="M",
+    m.add_argument("--gsd", type=arg_float("--gsd", *LABEL_GSD_RANGE_M), default=None, metavar="M",
                    help="rescale real images to M metres per pixel first (their gsd: header)")
-    m.add_argument("--real-gsd", type=arg_float("--real-gsd", 0.0, lo_open=True), default=None,
+    m.add_argument("--real-gsd", type=arg_float("--real-gsd", *LABEL_GSD_RANGE_M), default=None,
                    metavar="M", help="GSD of real images whose labels carry none (YOLO-OBB folders)")
     m.add_argument("--gsd-missing", type=arg_choice("--gsd-missing", ("error", "keep", "skip")),
                    default="error", metavar="error|keep|skip",
@@ -107,9 +108,9 @@ def register(sub) -> None:
                    "VEDAI folder or a folder of images")
     s.add_argument("--compare", default=None, metavar="DIR2", help="second dataset")
     s.add_argument("--out", required=True, metavar="DIR", help="report folder (stats.json, PNGs)")
-    s.add_argument("--gsd", type=arg_float("--gsd", 0.0, lo_open=True), default=None, metavar="M",
+    s.add_argument("--gsd", type=arg_float("--gsd", *LABEL_GSD_RANGE_M), default=None, metavar="M",
                    help="GSD of DIR where its labels carry none")
-    s.add_argument("--compare-gsd", type=arg_float("--compare-gsd", 0.0, lo_open=True), default=None,
+    s.add_argument("--compare-gsd", type=arg_float("--compare-gsd", *LABEL_GSD_RANGE_M), default=None,
                    metavar="M", help="GSD of DIR2 where its labels carry none")
     s.add_argument("--max-images", type=arg_int("--max-images", 1), default=500, metavar="N",
                    help="pixel statistics on at most N images per dataset, drawn by --seed (500)")

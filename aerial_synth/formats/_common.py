@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import LabelFormatError
-from ..safe_input import MAX_COORD_PX, load_json, quote, shown
+from ..safe_input import LABEL_GSD_RANGE_M, MAX_COORD_PX, load_json, quote, shown
 from ..safe_input import read_text as safe_read_text
 from ..vehicles import CLASSES
 
@@ -51,6 +51,16 @@ def parse_number(token: str, where: str, what: str) -> float:
         raise LabelFormatError(f"{where}: expected {what} as a number, got {quote(token)}") from None
     if not np.isfinite(v):
         raise LabelFormatError(f"{where}: expected {what} as a finite number, got {quote(token)}")
+    return v
+
+
+def parse_gsd(token: str, where: str) -> float:
+    """A ``gsd:`` header's value within :data:`LABEL_GSD_RANGE_M`; LabelFormatError otherwise."""
+    v = parse_number(token, where, "gsd")
+    lo, hi = LABEL_GSD_RANGE_M
+    if not lo <= v <= hi:
+        raise LabelFormatError(f"{where}: expected gsd (metres per pixel) in {lo:g}..{hi:g}, "
+                               f"got {quote(token)}")
     return v
 
 

@@ -14,7 +14,8 @@ from pathlib import Path
 
 from ..errors import RenderError
 
-__all__ = ["FRAME_BYTES_PER_PX", "frame_bytes", "frame_gb", "available_memory_bytes", "check_frame_memory"]
+__all__ = ["FRAME_BYTES_PER_PX", "frame_bytes", "frame_gb", "available_memory_bytes", "check_frame_memory",
+           "check_memory"]
 
 #: Peak resident memory a frame adds per pixel: 112 B measured for ``aerial-synth render``
 #: (peak RSS 0.97 GB at 2048 x 2048 px, 2.35 GB at 4096 x 4096), 102 B for one export
@@ -146,3 +147,22 @@ def check_frame_memory(width_px: int, height_px: int, processes: int = 1, error=
             f"render smaller images{' or use fewer workers' if int(processes) > 1 else ''} "
             f"(a 1024 x 1024 frame needs {frame_bytes(1024, 1024) / 1e6:.0f} MB)"
         )
+
+
+def check_memory(need_bytes: int, what: str, advice: str, error=None,
+                 available: int | None = None) -> None:
+    """Refuse work that needs ``need_bytes`` of memory before any of it is allocated: one
+    line ``{what} needs about X GB of memory, <the limit that stops it>; {advice}``. The
+    limits are the address-space limit (``ulimit -v``) and the memory available now
+    (:func:`available_memory_bytes`, a container's cgroup limit included); ``available``
+    overrides the latter (tests)."""
+    err = error or RenderError
+    need = int(need_bytes)
+    room = address_space_room() if available is None else None
+    if room is not None and need > room:
+        raise err(f"{what} needs about {need / 1e9:.1f} GB of memory, the address-space limit "
+                  f"(ulimit -v) leaves {room / 1e9:.1f} GB; {advice}")
+    avail = available_memory_bytes() if available is None else int(available)
+    if avail is not None and need > avail:
+        raise err(f"{what} needs about {need / 1e9:.1f} GB of memory, {avail / 1e9:.1f} GB are "
+                  f"available here; {advice}")

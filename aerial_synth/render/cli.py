@@ -24,6 +24,8 @@ from ..camera import (
     MAX_GSD_M,
     MAX_IMAGE_PX,
     MAX_TILT_LIMIT_DEG,
+    MIN_ALTITUDE_M,
+    MIN_GSD_M,
     CameraConfig,
     grid_poses,
     sample_pose_targeted,
@@ -49,14 +51,14 @@ def add_camera_args(p: argparse.ArgumentParser, *, size: bool = False, lens: boo
 
     size : also ``--size`` (a square image; ``--width``/``--height`` then default to it)
     lens : ``--focal`` and ``--fov`` besides ``--gsd``
-    ranges : ``ranges(option, max_value)`` -> an argparse type for ``--altitude`` and
+    ranges : ``ranges(option, max_value, min_value)`` -> an argparse type for ``--altitude`` and
              ``--gsd`` that also takes a range ``LO:HI`` (export's per-image draw,
              :func:`aerial_synth.dataset.gsd.camera_range`); the bounds stay these"""
     d = CameraConfig()
     g = p.add_argument_group("camera")
     rng = " or a range LO:HI drawn per image (docs/gsd.md)" if ranges else ""
-    g.add_argument("--altitude", type=(ranges("--altitude", MAX_ALTITUDE_M) if ranges else
-                                       arg_float("--altitude", 0.0, MAX_ALTITUDE_M, lo_open=True)),
+    g.add_argument("--altitude", type=(ranges("--altitude", MAX_ALTITUDE_M, MIN_ALTITUDE_M) if ranges
+                                       else arg_float("--altitude", MIN_ALTITUDE_M, MAX_ALTITUDE_M)),
                    default=d.altitude_m, metavar="M|LO:HI" if ranges else "M",
                    help=f"camera height above the target ground, metres ({d.altitude_m:g}){rng}")
     if size:
@@ -66,8 +68,8 @@ def add_camera_args(p: argparse.ArgumentParser, *, size: bool = False, lens: boo
                    metavar="PX", help=f"image width ({d.width_px})")
     g.add_argument("--height", type=arg_int("--height", 1, MAX_IMAGE_PX),
                    default=None if size else d.height_px, metavar="PX", help=f"image height ({d.height_px})")
-    g.add_argument("--gsd", type=(ranges("--gsd", MAX_GSD_M) if ranges else
-                                  arg_float("--gsd", 0.0, MAX_GSD_M, lo_open=True)), default=None,
+    g.add_argument("--gsd", type=(ranges("--gsd", MAX_GSD_M, MIN_GSD_M) if ranges else
+                                  arg_float("--gsd", MIN_GSD_M, MAX_GSD_M)), default=None,
                    metavar="M|LO:HI" if ranges else "M",
                    help=f"ground sampling distance at nadir, m/px ({DEFAULT_GSD_M:g}){rng}")
     if lens:

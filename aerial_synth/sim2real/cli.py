@@ -3,6 +3,7 @@ extra the command prints one line (what to install) and exits with status 2."""
 
 from __future__ import annotations
 
+from ..safe_input import LABEL_GSD_RANGE_M
 from ..validators import arg_choice, arg_float, arg_int
 
 __all__ = ["register"]
@@ -44,9 +45,9 @@ def register(sub) -> None:
                    help="real tiles of PX x PX at the synthetic GSD (--imgsz)")
     p.add_argument("--overlap", type=arg_int("--overlap", 0), default=None, metavar="PX",
                    help="tile overlap (tile / 5)")
-    p.add_argument("--gsd", type=arg_float("--gsd", 0.0, lo_open=True), default=None, metavar="M",
+    p.add_argument("--gsd", type=arg_float("--gsd", *LABEL_GSD_RANGE_M), default=None, metavar="M",
                    help="synthetic GSD to rescale real images to (default: the export's)")
-    p.add_argument("--real-gsd", type=arg_float("--real-gsd", 0.0, lo_open=True), default=None,
+    p.add_argument("--real-gsd", type=arg_float("--real-gsd", *LABEL_GSD_RANGE_M), default=None,
                    metavar="M", help="GSD of real images whose labels carry no gsd: header")
     p.add_argument("--real-scale", default="arm", metavar="arm|native|arm,native",
                    help="arm: rescale real images to each arm's GSD; native: predict them at their "

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..evaluate.ap import candidate_pairs, quad_pair_iou, quads
 from ..evaluate.labels import IMAGE_EXTS, ImageLabels, image_size
-from ..evaluate.mix import tile_origins
+from ..evaluate.mix import check_scaled_plan, tile_origins
 from ..evaluate.scoring import read_gt
 from .config import Sim2RealError
 
@@ -86,8 +86,10 @@ def plan_image(g: ImageLabels, target_gsd: float | None, real_gsd: float | None,
                                 f"for images without one")
         f = gsd / target_gsd
         if abs(f - 1.0) > 1e-9:
-            nw, nh = max(1, int(round(w * f))), max(1, int(round(h * f)))
+            nw, nh = check_scaled_plan(str(g.label_path), w, h, f, tile, overlap, Sim2RealError)
             sx, sy = nw / w, nh / h
+    else:
+        check_scaled_plan(str(g.label_path), w, h, 1.0, tile, overlap, Sim2RealError)
     tiles = [(x, y, min(tile, nw - x), min(tile, nh - y))
              for y in tile_origins(nh, tile, overlap) for x in tile_origins(nw, tile, overlap)]
     return RealImage(g, gsd, (sx, sy), (w, h), (nw, nh), tiles)
