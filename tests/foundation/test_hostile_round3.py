@@ -171,3 +171,90 @@ def test_a4_duplicate_keys_refused_in_every_yaml(capsys, tmp_path):
     from aerial_synth.safe_input import load_yaml
 
     assert load_yaml("a: &x {k: 1}\nb:\n  <<: *x\n  k: 2\n", "t") == {"a": {"k": 1}, "b": {"k": 2}}
+
+
+# -- C1, C2, T1, A3: sizes checked before anything is allocated -------------------------------
+
+GB4 = 4 << 30
+
+
+def _limited(limit=GB4):
+    def pre():
+        import resource
+
+        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+    return pre
+
+
+@pytest.mark.timeout(120)
+def test_c1_t1_huge_label_gsd_is_refused_before_memory(tmp_path):
+    make_dota(tmp_path / "R", 1, "r", size=(400, 300), gsd=1e300)
+    make_dota(tmp_path / "S", 2, "s")
+    for argv in (["mix", "--real", tmp_path / "R", "--synthetic", tmp_path / "S", "--real-fraction",
+                  "0.5", "--gsd", "0.12", "--tile", "64", "--overlap", "16", "--out", tmp_path / "mx"],
+                 ["stats", tmp_path / "R", "--out", tmp_path / "st"]):
+        r = cli(*argv, preexec_fn=_limited(), timeout=100)
+        err = r.stderr.decode()
+        assert r.returncode == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+        assert "expected gsd (metres per pixel) in 0.0001..1000" in err
+    assert not (tmp_path / "mx").exists() and not (tmp_path / "st").exists()
+
+
+def test_c1_rescaled_image_and_tiles_bounded(tmp_path):
+    from aerial_synth.errors import EvaluationError
+    from aerial_synth.evaluate.mix import MAX_TILES_PER_IMAGE, check_scaled_plan, tile_count, tile_origins
+
+    with pytest.raises(EvaluationError, match="OpenCV's limit"):
+        check_scaled_plan("x.png", 400, 300, 1e7, 64, 16)  # gsd 1000 -> 1e-4
+    with pytest.raises(EvaluationError, match=f"at most {MAX_TILES_PER_IMAGE:,}"):
+        check_scaled_plan("x.png", 30000, 30000, 1.0, 2, 1)
+    assert check_scaled_plan("x.png", 400, 300, 0.5, 64, 16) == (200, 150)
+    for size, tile, ov in ((1, 64, 16), (64, 64, 0), (65, 64, 16), (1000, 100, 30)):
+        assert tile_count(size, tile, ov) == len(tile_origins(size, tile, ov))
+    assert tile_origins(100, 40, 10) == [0, 30, 60]
+
+
+def test_t1_mix_target_gsd_bounded(capsys, tmp_path):
+    make_dota(tmp_path / "R", 1, "r", size=(400, 300))
+    make_dota(tmp_path / "S", 2, "s")
+    err = one_line(*run(capsys, "mix", "--real", tmp_path / "R", "--synthetic", tmp_path / "S",
+                        "--gsd", "1e-9", "--out", tmp_path / "mx"))
+    assert "--gsd" in err and ">= 0.0001" in err
+    # the largest GSD a label may give, rescaled to the smallest target: refused by size
+    make_dota(tmp_path / "R2", 1, "r", size=(400, 300), gsd=1000)
+    err = one_line(*run(capsys, "mix", "--real", tmp_path / "R2", "--synthetic", tmp_path / "S", "--real-images", "1",
+                        "--gsd", "1e-4", "--out", tmp_path / "mx"))
+    assert "OpenCV's limit" in err and not (tmp_path / "mx").exists()
+
+
+@pytest.mark.timeout(120)
+def test_c2_contact_sheet_memory_checked_first(tmp_path):
+    from aerial_synth.errors import ConfigError
+    from aerial_synth.vehicles.preview import check_sheet_memory
+
+    with pytest.raises(ConfigError, match=r"needs about 43\.\d GB of memory, 8\.0 GB are available"):
+        check_sheet_memory(190.3, 95.06, 0.01, available=8_000_000_000)
+    check_sheet_memory(190.3, 95.06, 0.04, available=8_000_000_000)  # 2.7 GB: fits
+    r = cli("assets", "preview", "--out", tmp_path / "a.png", "--gsd", "0.005",
+            preexec_fn=_limited(), timeout=100)
+    err = r.stderr.decode()
+    assert r.returncode == 2 and err.count("\n") == 1 and "ulimit -v" in err, err
+    assert not (tmp_path / "a.png").exists()
+
+
+def test_a3_altitude_and_gsd_bounds(capsys, tmp_path):
+    from aerial_synth.camera import CameraConfig
+    from aerial_synth.dataset.config import ExportConfig
+    from aerial_synth.errors import CameraError, ExportError
+
+    for argv in (["--altitude", "1e-9:1"], ["--altitude", "0.001"], ["--gsd", "1e-9"]):
+        err = one_line(*run(capsys, "export", *argv, "--images", "1", "--out", tmp_path / "ds"))
+        assert argv[0] in err and ">=" in err
+    with pytest.raises(CameraError, match="altitude_m"):
+        CameraConfig(altitude_m=9.0)
+    with pytest.raises(CameraError, match="focal_px: at altitude 60 m it gives a nadir GSD"):
+        CameraConfig(focal_px=1e6)  # 0.06 mm per pixel
+    with pytest.raises(ExportError, match="--gsd: the range's lens"):
+        ExportConfig(gsd_range=(0.005, 1.0))  # the lens puts 0.005 m/px at 4 m altitude
+    assert ExportConfig(gsd_range=(0.05, 0.3)).camera_config().altitude_m == pytest.approx(0.3 * 60 / (0.05 * 0.3) ** 0.5)
+    assert not (tmp_path / "ds").exists()
