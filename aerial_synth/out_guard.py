@@ -2,10 +2,12 @@
 
 - :func:`out_lock`: one writer per output. An exclusive ``flock`` on
   ``.<name>.aerial-synth-lock`` beside the output, the same lock file ``export`` takes
-  (:func:`aerial_synth.dataset.output.output_lock`), so two runs of ``mix``, ``show``,
-  ``stats``, ``eval``, ``scene from-osm`` or ``export`` into one ``--out`` never replace
-  each other's files: the second is refused in one line. The kernel releases the lock
-  when its process dies, so a killed run never blocks the next one.
+  (:func:`aerial_synth.dataset.output.output_lock`), so two runs of any writing command
+  into one ``--out`` never replace each other's files: the second is refused in one line.
+  The CLI takes it around every command that has ``--out`` (``aerial_synth.cli``), so no
+  command can forget it; a command taking it again inside is a no-op (re-entrant within a
+  process). The kernel releases the lock when its process dies, so a killed run never
+  blocks the next one.
 - :func:`remove_dead_temps`: while the lock is held, the temporary folders a killed run
   left beside ``--out`` (``.<name>.*.tmp``, ``.<name>.*.old``) belong to no live run and
   are removed.
@@ -31,6 +33,9 @@ __all__ = ["LOCK_SUFFIX", "lock_path", "out_lock", "remove_dead_temps", "refuse_
            "refuse_here", "INPUT_OPTIONS"]
 
 LOCK_SUFFIX = ".aerial-synth-lock"
+#: Lock files the CLI holds around the running command (``out_lock(..., outer=True)``): the
+#: command's own out_lock of the same output, inside it, is then a no-op.
+_HELD: set[str] = set()
 
 #: argparse destinations that name input files or folders, per the commands that have them.
 INPUT_OPTIONS = ("scene", "file", "dir", "labels", "catalog", "real", "synthetic", "gt", "pred",
@@ -45,10 +50,11 @@ def lock_path(out) -> Path:
 
 @contextmanager
 def out_lock(out, command: str, option: str = "--out", busy: str | None = None,
-             error: type = OutputError) -> Iterator[None]:
+             error: type = OutputError, outer: bool = False) -> Iterator[None]:
     """Hold the exclusive lock on ``out`` for the body; a second holder is refused with
     one line naming ``option`` (``busy``, raised as ``error``, when given). The lock file is
-    removed at the end; export's lock is this one too (dataset/output.py)."""
+    removed at the end; export's lock is this one too (dataset/output.py). ``outer``: the
+    CLI's lock around a whole command; an out_lock of the same output inside it is a no-op."""
     try:
         import fcntl
     except ImportError:  # pragma: no cover - no flock on this platform: no lock
@@ -57,6 +63,9 @@ def out_lock(out, command: str, option: str = "--out", busy: str | None = None,
     if os.fspath(out) == "":
         raise OutputError(f"{option}: expected a path, got ''")
     lock = lock_path(out)
+    if str(lock) in _HELD:  # this process holds it already (the CLI took it)
+        yield
+        return
     missing = []  # folders made for the lock: removed again when the run leaves them empty
     p = lock.parent
     while not os.path.lexists(p) and p.parent != p:
@@ -75,9 +84,13 @@ def out_lock(out, command: str, option: str = "--out", busy: str | None = None,
             raise error(busy or
                         f"{option} {shown(out)}: another aerial-synth run is writing it right now; "
                         f"wait for it to finish or choose another {option}") from None
+        if outer:
+            _HELD.add(str(lock))
         try:
             yield
         finally:
+            if outer:
+                _HELD.discard(str(lock))
             try:
                 os.unlink(lock)
             except OSError:
