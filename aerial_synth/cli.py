@@ -259,9 +259,14 @@ def _main(argv: list[str] | None) -> int:
         raise
     except KeyboardInterrupt as exc:
         return _interrupted(exc)
-    except Exception:
+    except Exception as exc:
         if _PENDING:  # trimesh, having swallowed Terminated on an import, failed later
             return _interrupted(_signal_exc(_PENDING[0]))
+        if isinstance(exc, RuntimeError) and str(exc).startswith("Symlink loop from "):
+            # pathlib's resolve() in a library: the path is the user's to fix
+            print(f"aerial-synth: error: {str(exc)[len('Symlink loop from '):].strip(chr(39))}: "
+                  "a loop of symbolic links", file=sys.stderr)
+            return 2
         raise
 
 

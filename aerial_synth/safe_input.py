@@ -65,6 +65,7 @@ __all__ = [
     "check_link",
     "class_name",
     "MAX_TEXT_BYTES",
+    "MAX_IMAGE_FILE_BYTES",
     "MAX_REPEAT",
     "read_bytes",
     "read_text",
@@ -93,6 +94,8 @@ LABEL_GSD_RANGE_M = (1e-4, 1000.0)
 QUOTE_CHARS = 40
 #: Largest text file (YAML, JSON, label rules, a scene mix) read whole into memory.
 MAX_TEXT_BYTES = 256 << 20
+#: Largest image file read whole into memory before decoding (a 2^30-pixel RGB PNG, stored).
+MAX_IMAGE_FILE_BYTES = 4 << 30
 #: Largest repetition count ``{n}`` in a user's regular expression (RE2's own limit; RE2
 #: would read a larger count as literal text).
 MAX_REPEAT = 1000

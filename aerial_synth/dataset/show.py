@@ -27,7 +27,7 @@ from ..errors import ExportError, OutputError
 from ..formats import dota, meta
 from ..formats.registry import get, names
 from ..io_utils import atomic_write_bytes, check_output_dir, is_inside
-from ..safe_input import check_image_pixels, cv_text, decode_image
+from ..safe_input import MAX_IMAGE_FILE_BYTES, check_image_pixels, cv_text, decode_image, read_bytes
 
 __all__ = ["Drawn", "draw_labels", "contact_sheet", "show_dataset"]
 
@@ -129,10 +129,7 @@ def _decode(path: Path) -> np.ndarray:
     import cv2
 
     check_image_pixels(path, ExportError, f"show {path}")  # over OpenCV's limit: refused first
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise ExportError(f"show {path}: cannot read the image ({exc.strerror})") from None
+    data = read_bytes(path, f"show {path}", ExportError, max_bytes=MAX_IMAGE_FILE_BYTES)
     ext = path.suffix.lower()
     # Check the container's end first: libpng/libjpeg would print their own messages, and a
     # truncated JPEG decodes "successfully" with grey rows.

@@ -42,7 +42,7 @@ from ..errors import EvaluationError
 from ..formats import dota, yolo_obb
 from ..formats.labels import ImageLabels
 from ..io_utils import check_output_dir, dumps_json, is_inside, replace_dir
-from ..safe_input import image_file_complete, quote, read_image, shown
+from ..safe_input import image_file_complete, quote, read_bytes, read_image, shown
 from .ap import to_polygons
 from .labels import (
     IMAGE_EXTS,
@@ -373,6 +373,15 @@ def _plan_real(items: list[ImageLabels], cfg: MixConfig) -> list[list[_Item]]:
     return plans
 
 
+def _head(path: Path) -> str:
+    """The first 4 KiB of one of our own files, as text ('' when it cannot be read)."""
+    try:
+        return read_bytes(path, str(path), EvaluationError, max_bytes=1 << 30)[:4096].decode(
+            "utf-8", "replace")
+    except EvaluationError:
+        return ""
+
+
 def _link(src: Path, dst: Path) -> str:
     try:
         os.link(src, dst)
@@ -491,7 +500,7 @@ def _check_out(cfg: MixConfig) -> Path:
     check_output_dir(out, "--out")
     if out.exists() and any(out.iterdir()):
         man = out / "manifest.json"
-        is_mix = man.is_file() and f'"{MANIFEST_FORMAT}"' in man.read_text(encoding="utf-8", errors="replace")
+        is_mix = man.is_file() and f'"{MANIFEST_FORMAT}"' in _head(man)
         if not is_mix:
             raise EvaluationError(f"--out {out}: exists, is not empty and is not a mix; choose a new folder")
         if not cfg.force:

@@ -33,7 +33,14 @@ import numpy as np
 
 from ..errors import EvaluationError
 from ..io_utils import atomic_write_bytes, atomic_write_json, atomic_write_text
-from ..safe_input import check_image_pixels, decode_image, image_file_complete
+from ..safe_input import (
+    MAX_IMAGE_FILE_BYTES,
+    check_image_pixels,
+    decode_image,
+    image_file_complete,
+    read_bytes,
+    shown,
+)
 from .labels import image_size, read_dataset
 from .plots import grid, histogram_chart, line_chart, png_bytes
 
@@ -101,7 +108,9 @@ def _load_bgr(path: Path) -> np.ndarray | None:
     check_image_pixels(path, EvaluationError)  # over OpenCV's limit: refused, naming it
     if not image_file_complete(path):  # cut short: listed as unreadable, not half decoded
         return None
-    data = np.fromfile(path, np.uint8)  # bytes to OpenCV, never a file name (undecodable names)
+    # bytes to OpenCV, never a file name (undecodable names); a regular file only
+    data = np.frombuffer(read_bytes(path, shown(path), EvaluationError,
+                                    max_bytes=MAX_IMAGE_FILE_BYTES), np.uint8)
     img = decode_image(data, cv2.IMREAD_UNCHANGED)  # libpng's own messages silenced
     if img is None:
         return None

@@ -9,6 +9,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from ..errors import PlacementError
 from ..versions import versions
 
 __all__ = ["PlacedVehicle", "Placement", "footprint_corners_xy", "with_lonlat"]
@@ -187,7 +188,9 @@ class Placement:
 
     @classmethod
     def from_json(cls, text: str) -> "Placement":
-        return cls.from_dict(json.loads(text))
+        from ..safe_input import load_json
+
+        return cls.from_dict(load_json(text, "placement JSON", PlacementError))
 
     def by_id(self) -> dict[int, PlacedVehicle]:
         return {v.id: v for v in self.vehicles}

@@ -8,7 +8,7 @@ aerial-synth export with ``yolo-obb/`` or a YOLO-OBB folder (``data.yaml``, ``im
 
 from __future__ import annotations
 
-import json
+import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import EvaluationError
 from ..evaluate.labels import IMAGE_EXTS, find_data_yaml, parse_names
+from ..safe_input import load_json_file
 
 __all__ = ["Sim2RealError", "Arm", "SyntheticSet", "Sim2RealConfig", "parse_arm", "parse_arms",
            "inspect_synthetic", "parse_real_scale", "DEFAULT_MODEL", "REAL_SCALES"]
@@ -46,7 +47,7 @@ def parse_arm(text: str) -> Arm:
         dirs = tuple(Path(d.strip()) for d in rest.split(",") if d.strip())
         return Arm(name.strip(), dirs)
     p = Path(text)
-    nm = p.resolve().name if str(text).strip() else ""
+    nm = Path(os.path.realpath(p)).name if str(text).strip() else ""  # a link loop: no RuntimeError
     if not nm or not _NAME.match(nm):
         raise Sim2RealError(f"--synthetic: expected DIR or NAME=DIR[,DIR] (NAME of letters, digits, "
                             f"_ . -), got {text!r}")
@@ -101,16 +102,16 @@ def _export_gsd(d: Path) -> float | None:
         if not m.is_file():
             continue
         try:
-            g = json.loads(m.read_text(encoding="utf-8")).get("parameters", {}).get("gsd_m")
-        except (OSError, ValueError, AttributeError):
+            g = load_json_file(m, str(m), Sim2RealError).get("parameters", {}).get("gsd_m")
+        except (EvaluationError, AttributeError):  # unreadable: as if absent
             g = None
         if isinstance(g, (int, float)) and g > 0:
             return float(g)
         vals = []
         for f in sorted((base / "meta").glob("*.json")) if (base / "meta").is_dir() else ():
             try:
-                v = json.loads(f.read_text(encoding="utf-8")).get("gsd_m")
-            except (OSError, ValueError, AttributeError):
+                v = load_json_file(f, str(f), Sim2RealError).get("gsd_m")
+            except (EvaluationError, AttributeError):
                 continue
             if isinstance(v, (int, float)) and v > 0:
                 vals.append(float(v))

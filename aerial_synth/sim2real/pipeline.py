@@ -36,6 +36,7 @@ from ..io_utils import (
     is_inside,
     replace_dir,
 )
+from ..safe_input import read_image
 from . import report as rep
 from . import ultra
 from .config import Sim2RealConfig, Sim2RealError, SyntheticSet, inspect_synthetic
@@ -317,7 +318,7 @@ def _write_figures(tmp: Path, report, curves, sheets, items, contact_images: int
                                     [res.border_px[groups[i]] for i in chosen])
         imgs, dsel, hbb = [], [], []
         for k, i in enumerate(chosen):
-            imgs.append(cv2.imread(str(items[i].image_path), cv2.IMREAD_COLOR))
+            imgs.append(read_image(items[i].image_path, cv2.IMREAD_COLOR, Sim2RealError))
             m = np.asarray(kept.image) == k
             dsel.append((np.asarray(kept.polygons_xy_px)[m], np.asarray(kept.scores)[m]))
             hbb.append(res.iou_type[groups[i]] == "hbb")

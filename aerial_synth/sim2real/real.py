@@ -18,6 +18,7 @@ from ..evaluate.ap import candidate_pairs, quad_pair_iou, quads
 from ..evaluate.labels import IMAGE_EXTS, ImageLabels, image_size
 from ..evaluate.mix import check_scaled_plan, tile_origins
 from ..evaluate.scoring import read_gt
+from ..safe_input import read_image
 from .config import Sim2RealError
 
 __all__ = ["RealImage", "read_real", "plan_image", "load_scaled", "tiles_of", "tile_to_original",
@@ -100,9 +101,7 @@ def load_scaled(r: RealImage) -> np.ndarray:
     enlarge, as ``mix``)."""
     import cv2
 
-    img = cv2.imread(str(r.labels.image_path), cv2.IMREAD_COLOR)
-    if img is None:
-        raise Sim2RealError(f"{r.labels.image_path}: expected an image, cannot decode it")
+    img = read_image(r.labels.image_path, cv2.IMREAD_COLOR, Sim2RealError)  # checked, then decoded
     if r.scale != (1.0, 1.0):
         interp = cv2.INTER_AREA if r.scale[0] < 1 else cv2.INTER_CUBIC
         img = cv2.resize(img, r.scaled_wh, interpolation=interp)

@@ -23,6 +23,7 @@ from pathlib import Path
 
 from ...errors import SceneError
 from ...io_utils import atomic_write_bytes
+from ...safe_input import check_link
 from ..model import Scene
 from .build import ATTRIBUTION, build_scene
 from .read import OSM_SUFFIXES, is_osm_path, read_osm
@@ -189,6 +190,7 @@ def load_osm_scene(path, bbox=None, crs=None, seed: int = 0, cache: Path | str |
     path = Path(path)
     if not path.is_file():
         raise SceneError(f"OSM file {path}: file not found")
+    check_link(path, SceneError)  # a FIFO, a device or a link out of an input folder: refused
     bb = parse_bbox(bbox)
     if crs is not None:
         resolve_crs(crs, 0.0, 0.0)
