@@ -15,6 +15,9 @@
   input folder) is refused before anything is read or written.
 - :func:`refuse_here`: a folder output that is ``''``, the current folder or one of its
   parents is refused (a build beside ``--out`` cannot replace the folder one stands in).
+- :func:`staged_dir`: a folder output is built in a temporary sibling and put in place only
+  when the command succeeds; a failure (a full disk, a name too long, a signal) leaves
+  ``--out`` as it was, with nothing half-written.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
+import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -30,7 +34,7 @@ from .errors import OutputError
 from .safe_input import shown
 
 __all__ = ["LOCK_SUFFIX", "lock_path", "out_lock", "remove_dead_temps", "refuse_out_is_input",
-           "refuse_here", "INPUT_OPTIONS"]
+           "refuse_here", "staged_dir", "INPUT_OPTIONS"]
 
 LOCK_SUFFIX = ".aerial-synth-lock"
 #: Lock files the CLI holds around the running command (``out_lock(..., outer=True)``): the
@@ -165,3 +169,45 @@ def refuse_here(out, option: str = "--out") -> Path:
         raise OutputError(f"{option} {shown(out)}: expected a new folder, got the current folder "
                           "(or one above it); choose a folder name")
     return Path(out)
+
+
+@contextmanager
+def staged_dir(out, option: str = "--out") -> Iterator[Path]:
+    """Yield a temporary sibling folder ``.<name>.XXXXXXXX.tmp`` of the folder output
+    ``out`` to write into (call while holding :func:`out_lock`). When the body succeeds, a
+    new ``out`` is the sibling renamed; into an existing folder, each file written is moved
+    in (``os.replace``, files already there that this run did not write are kept). When it
+    fails, the sibling and any folder made for it are removed: ``out`` stays as it was."""
+    out = Path(out)
+    remove_dead_temps(out)  # a killed run's build: no live run owns it under the lock
+    missing = []
+    p = out.parent
+    while not os.path.lexists(p) and p.parent != p:
+        missing.append(p)
+        p = p.parent
+    out.parent.mkdir(parents=True, exist_ok=True)
+    name = os.fsdecode(os.fsencode(out.name)[:200])  # the temporary's name within 255 bytes
+    tmp = Path(tempfile.mkdtemp(prefix=f".{name}.", suffix=".tmp", dir=out.parent))
+    try:
+        yield tmp
+        _publish(tmp, out, option)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        _remove_empty(missing)
+        raise
+
+
+def _publish(tmp: Path, out: Path, option: str) -> None:
+    if not os.path.lexists(out):
+        os.rename(tmp, out)
+        return
+    files = sorted(q for q in tmp.rglob("*") if not q.is_dir())
+    for f in files:  # every conflict found before the first move
+        dst = out / f.relative_to(tmp)
+        if os.path.lexists(dst) and (dst.is_symlink() or not dst.is_file()):
+            raise OutputError(f"{option} {shown(out)}: {shown(dst)} exists and is not a file")
+    for f in files:
+        dst = out / f.relative_to(tmp)
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        os.replace(f, dst)
+    shutil.rmtree(tmp, ignore_errors=True)

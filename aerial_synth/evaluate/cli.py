@@ -6,11 +6,10 @@ Imports nothing heavy at import time (``aerial-synth --help`` stays instant).
 from __future__ import annotations
 
 import sys
-from contextlib import nullcontext
 from pathlib import Path
 
 from ..errors import EvaluationError
-from ..out_guard import out_lock, refuse_here, remove_dead_temps
+from ..out_guard import out_lock, refuse_here, remove_dead_temps, staged_dir
 from ..safe_input import LABEL_GSD_RANGE_M
 from ..validators import arg_choice, arg_float, arg_int
 from .scoring_cli import add_scoring_args, cmd_scored_eval, uses_scoring
@@ -135,13 +134,16 @@ def _cmd_eval(args) -> int:
     out = None
     if args.out is not None:
         out = check_report_dir(args.out, [("--gt", Path(args.gt)), ("--pred", Path(args.pred))])
-    with out_lock(args.out, "eval") if out is not None else nullcontext():
+    if out is None:
+        return cmd_scored_eval(args, None) if uses_scoring(args) else _eval(args, None)
+    # the report is built beside --out and put in place at the end: a failure leaves nothing
+    with out_lock(args.out, "eval"), staged_dir(out) as build:
         if uses_scoring(args):  # --merge-classes, --iou-type, --ignore-border, --group
-            return cmd_scored_eval(args, out)
-        return _eval(args, out)
+            return cmd_scored_eval(args, build, out)
+        return _eval(args, build, out)
 
 
-def _eval(args, out) -> int:
+def _eval(args, out, report_as=None) -> int:
     from .evaluation import run_eval, summary_table, write_eval_report  # lazy: shapely
 
     res = run_eval(args.gt, args.pred, iou=args.iou, metric=args.metric, pred_format=args.pred_format,
@@ -151,7 +153,7 @@ def _eval(args, out) -> int:
     if out is not None:
         write_eval_report(res, out, {"gt": str(args.gt), "pred": str(args.pred), "iou": args.iou,
                                      "metric": args.metric, "pred_format": args.pred_format})
-        print(f"report: {out}/eval.json, summary.txt, pr_<class>.png")
+        print(f"report: {report_as or out}/eval.json, summary.txt, pr_<class>.png")
     return 0
 
 
@@ -195,8 +197,8 @@ def _cmd_stats(args) -> int:
                               "give --compare too, or drop --compare-gsd")
     inputs = [("DIR", Path(args.dir))] + ([("--compare", Path(args.compare))] if args.compare else [])
     out = evaluation.check_report_dir(args.out, inputs)
-    with out_lock(args.out, "stats"):
-        text = stats.run_stats(Path(args.dir), out,
+    with out_lock(args.out, "stats"), staged_dir(out) as build:  # nothing half-written
+        text = stats.run_stats(Path(args.dir), build, report_as=out,
                                compare=Path(args.compare) if args.compare else None,
                                gsd=args.gsd, compare_gsd=args.compare_gsd,
                                max_images=args.max_images, seed=args.seed,

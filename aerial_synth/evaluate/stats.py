@@ -411,8 +411,9 @@ def _fmt(v) -> str:
 
 def run_stats(path: Path, out: Path, *, compare: Path | None = None, gsd: float | None = None,
               compare_gsd: float | None = None, max_images: int = 500, seed: int = 0,
-              classes=VEHICLE_CLASSES) -> str:
-    """Compute, write ``stats.json`` and PNG plots into ``out``; return the summary text."""
+              classes=VEHICLE_CLASSES, report_as: Path | None = None) -> str:
+    """Compute, write ``stats.json`` and PNG plots into ``out``; return the summary text
+    (naming the report folder ``report_as``, default ``out``)."""
 
     sa, da, ha = dataset_stats(path, gsd=gsd, max_images=max_images, seed=seed, classes=classes,
                                option="DIR")
@@ -494,7 +495,7 @@ def run_stats(path: Path, out: Path, *, compare: Path | None = None, gsd: float 
     report["plots"] = sorted(p.name for p in written)
     atomic_write_json(out / "stats.json", _clean(report))
     atomic_write_text(out / "summary.txt", text + "\n")
-    return text + f"\nreport: {out}/stats.json, summary.txt, {len(written)} PNG plots"
+    return text + f"\nreport: {report_as or out}/stats.json, summary.txt, {len(written)} PNG plots"
 
 
 def _relative(a, b):

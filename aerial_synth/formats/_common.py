@@ -59,7 +59,7 @@ def parse_gsd(token: str, where: str) -> float:
     v = parse_number(token, where, "gsd")
     lo, hi = LABEL_GSD_RANGE_M
     if not lo <= v <= hi:
-        raise LabelFormatError(f"{where}: expected gsd (metres per pixel) in {lo:g}..{hi:g}, "
+        raise LabelFormatError(f"{where}: expected gsd in {lo:g}..{hi:g} metres per pixel, "
                                f"got {quote(token)}")
     return v
 

@@ -31,6 +31,7 @@ from ..camera import (
     sample_pose_targeted,
 )
 from ..io_utils import atomic_write_json, atomic_write_text, check_output_dir
+from ..out_guard import staged_dir
 from ..scene.cli import add_scene_args, scene_from_args
 from ..scene.raycast import RayScene
 from ..validators import arg_choice, arg_float, arg_int
@@ -204,31 +205,34 @@ def run(args) -> int:
         world.add_placement(rs, pl)
         return pl
 
-    placement = None
-    if not args.placement_per_image:
-        placement = make_placement([args.seed, PLACEMENT_KEY])
-        atomic_write_text(out / "placement.json", placement.to_json())
-    atomic_write_json(out / "distractors.json", {"per_hectare": args.distractors,
-                                                 "distractors": extras})
-    n_veh = 0
-    for i in range(args.images):
-        if args.placement_per_image:
-            placement = make_placement([args.seed, i, PLACEMENT_KEY])
-            atomic_write_text(out / f"{i:06d}" / "placement.json", placement.to_json())
-        rng = np.random.default_rng(np.random.SeedSequence([args.seed, i]))
-        if grid is not None:
-            cam = grid[i % len(grid)]
-        else:
-            cam = sample_pose_targeted(cam_cfg, placement, rng, within_xy=scene.bounds()[:, :2],
-                                       clear=lambda c: rs.open_above(c.center))
-        fr = frame.render_frame(rs, cam, placement, rng, rcfg)
-        io.write_frame(fr, out / f"{i:06d}", depth_format=args.depth_format, extra_meta={
-            "seed": args.seed, "image_index": i, "scene": scene.name,
-            "scenario": placement.scenario, "sampler": args.sampler,
-            "render_config": rcfg.to_dict(),
-            "distractors": {"per_hectare": args.distractors, "count": len(extras)},
-        })
-        n_veh += len(fr.visibility)
+    # frames are written beside --out and put in place at the end: a failure (a full disk, a
+    # signal) leaves --out as it was
+    with staged_dir(out) as build:
+        placement = None
+        if not args.placement_per_image:
+            placement = make_placement([args.seed, PLACEMENT_KEY])
+            atomic_write_text(build / "placement.json", placement.to_json())
+        atomic_write_json(build / "distractors.json", {"per_hectare": args.distractors,
+                                                       "distractors": extras})
+        n_veh = 0
+        for i in range(args.images):
+            if args.placement_per_image:
+                placement = make_placement([args.seed, i, PLACEMENT_KEY])
+                atomic_write_text(build / f"{i:06d}" / "placement.json", placement.to_json())
+            rng = np.random.default_rng(np.random.SeedSequence([args.seed, i]))
+            if grid is not None:
+                cam = grid[i % len(grid)]
+            else:
+                cam = sample_pose_targeted(cam_cfg, placement, rng, within_xy=scene.bounds()[:, :2],
+                                           clear=lambda c: rs.open_above(c.center))
+            fr = frame.render_frame(rs, cam, placement, rng, rcfg)
+            io.write_frame(fr, build / f"{i:06d}", depth_format=args.depth_format, extra_meta={
+                "seed": args.seed, "image_index": i, "scene": scene.name,
+                "scenario": placement.scenario, "sampler": args.sampler,
+                "render_config": rcfg.to_dict(),
+                "distractors": {"per_hectare": args.distractors, "count": len(extras)},
+            })
+            n_veh += len(fr.visibility)
     dt = time.perf_counter() - t0
     print(f"rendered {args.images} frame(s) of {scene.name} ({placement.scenario}), "
           f"{n_veh} vehicles in view in total, {dt:.1f} s -> {out}", file=sys.stdout)
