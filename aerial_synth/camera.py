@@ -65,6 +65,9 @@ MAX_ALTITUDE_M = 100_000.0
 MIN_GSD_M = 0.005
 MAX_GSD_M = 1000.0
 MAX_FOCAL_PX = 1e7
+#: Largest world coordinate (metres) a pose may take: ten times the Earth's circumference
+#: (projected CRS coordinates stay far below it); infinite bounds gave OverflowError.
+MAX_COORD_M = 4e8
 
 
 def _finite(name: str, value, lo=None, hi=None, lo_open=True, hi_open=False) -> float:
@@ -486,14 +489,21 @@ def grid_poses(
     Poses are nadir with yaw ``yaw_deg``; with ``rng`` yaw and tilt are sampled per tile as
     in :func:`sample_pose_targeted`.
     """
-    ov = float(overlap)
-    if not 0.0 <= ov < 1.0:
-        raise CameraError(f"grid poses overlap: expected 0 <= overlap < 1, got {overlap!r}")
-    b = np.asarray(bounds_xy, dtype=np.float64)
+    ov = _finite("grid poses overlap", overlap, lo=0.0, lo_open=False, hi=1.0, hi_open=True)
+    ground_z = _finite("grid poses ground_z", ground_z, lo=-MAX_COORD_M, lo_open=False, hi=MAX_COORD_M)
+    yaw_deg = _finite("grid poses yaw_deg", yaw_deg)
+    try:
+        b = np.asarray(bounds_xy, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise CameraError(f"grid poses bounds: expected [[xmin, ymin], [xmax, ymax]] of numbers, "
+                          f"got {bounds_xy!r:.60}") from None
     if b.shape not in ((2, 2), (2, 3)):
         raise CameraError(
             f"grid poses bounds: expected [[xmin, ymin], [xmax, ymax]], got shape {b.shape}"
         )
+    if not (np.isfinite(b).all() and np.abs(b).max() <= MAX_COORD_M):
+        raise CameraError(f"grid poses bounds: expected finite coordinates within +-{MAX_COORD_M:g} m, "
+                          f"got {b[:, :2].tolist()}")
     (x0, y0), (x1, y1) = b[0, :2], b[1, :2]
     if not (x1 > x0 and y1 > y0):
         raise CameraError(f"grid poses bounds: empty area {b[:, :2].tolist()}")

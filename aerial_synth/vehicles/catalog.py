@@ -235,10 +235,9 @@ class Catalog:
         without options.
         """
         if not isinstance(rng, np.random.Generator):
-            raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
-        n = int(n)
-        if n < 0:
-            raise ValueError(f"n must be >= 0, got {n}")
+            raise AssetError(f"catalog sample rng: expected a numpy.random.Generator, got "
+                             f"{type(rng).__name__}")
+        n = v.integer("catalog sample n", n, 0, 100_000_000, error=AssetError)
         key = stream_key(rng) if n else 0
         mi = rng.choice(len(self.models), size=n, p=self.model_probabilities)
         ci = rng.choice(len(self.colors), size=n, p=self.color_probabilities)
