@@ -440,3 +440,53 @@ def test_w2_export_full_disk_names_the_partial(tmp_path, monkeypatch, capsys):
     one_line(code, err)
     assert "No space left on device" in err and ".ds.aerial-synth-partial" in err and "--resume" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == [".ds.aerial-synth-partial"]
+
+
+# -- A1, A2: the Python API refuses what the CLI refuses -----------------------------------------
+
+
+@pytest.mark.parametrize("kw,field", [
+    (dict(epochs=float("nan"), minutes=None), "--epochs"), (dict(epochs=float("inf"), minutes=None), "--epochs"),
+    (dict(epochs=1.5, minutes=None), "--epochs"), (dict(seed=float("nan")), "--seed"),
+    (dict(batch=float("nan")), "--batch"), (dict(ignore_border={None: -5}), "--ignore-border *"),
+    (dict(ignore_border={"car": float("nan")}), "--ignore-border car"), (dict(arms=()), "--synthetic"),
+    (dict(minutes="soon"), "--minutes"), (dict(imgsz="big"), "--imgsz"), (dict(conf="high"), "--conf"),
+    (dict(minutes=float("nan")), "--minutes"), (dict(gsd=1e300), "--gsd"), (dict(group="(a)\\1"), "--group"),
+])
+def test_a1_sim2real_config_checks_every_field(tmp_path, kw, field):
+    from aerial_synth.sim2real.config import Arm, Sim2RealConfig, Sim2RealError
+
+    base = dict(arms=(Arm("syn", (tmp_path,)),), real=tmp_path, out=tmp_path / "o")
+    with pytest.raises(Sim2RealError) as e:
+        Sim2RealConfig(**{**base, **kw})
+    assert str(e.value).startswith(field + ":") and "\n" not in str(e.value)
+    ok = Sim2RealConfig(**base, conf="0.01", imgsz=640.0)
+    assert ok.conf == 0.01 and ok.imgsz == 640 and isinstance(ok.imgsz, int)
+
+
+def test_a2_public_api_refuses_nan_and_wrong_types():
+    from aerial_synth.camera import CameraConfig, grid_poses
+    from aerial_synth.errors import AssetError, CameraError, SceneError
+    from aerial_synth.scene.mapview import render_map
+    from aerial_synth.vehicles.catalog import load_catalog
+    from aerial_synth.vehicles.meshes import build_mesh
+
+    cat = load_catalog(None)
+    mesh = build_mesh(cat.models[0], cat.colors[0])
+    cases = [
+        (lambda: grid_poses(CameraConfig(), [[0, 0], [100, 100]], ground_z=float("nan")), CameraError, "ground_z"),
+        (lambda: grid_poses(CameraConfig(), [[0, 0], [float("inf"), 100]]), CameraError, "bounds"),
+        (lambda: grid_poses(CameraConfig(), [[0, 0], [1e300, 1e300]]), CameraError, "bounds"),
+        (lambda: grid_poses(CameraConfig(), "nonsense"), CameraError, "bounds"),
+        (lambda: mesh.to_world(float("nan"), 0.0, 0.0, 0.0), AssetError, "x_m"),
+        (lambda: mesh.to_world(0.0, 0.0, 0.0, float("inf")), AssetError, "heading_rad"),
+        (lambda: cat.sample(np.random.default_rng(0), -1), AssetError, "catalog sample n"),
+        (lambda: render_map(None), SceneError, "expected a Scene"),
+    ]
+    for f, err, field in cases:
+        with pytest.raises(err, match=field):
+            f()
+    poses = grid_poses(CameraConfig(), [[0, 0], [300, 300]], ground_z=2.0)
+    assert len(poses) == 9 and all(np.isfinite(c.cam_to_world).all() for c in poses)
+    v, _ = mesh.to_world(1.0, 2.0, 0.0, 0.5)
+    assert np.isfinite(v).all()
