@@ -462,7 +462,7 @@ class _Writer:
                 ok, buf = cv2.imencode(".png", arr)
                 if not ok:  # pragma: no cover
                     raise EvaluationError(f"{src.image_path}: cannot encode a tile as PNG")
-                dst.write_bytes(buf.tobytes())
+                dst.write_bytes(buf.tobytes())  # guard: inside the staged build
                 how = "written"
             first = first or dst
             images.append(str(dst.relative_to(self.root)))
@@ -474,7 +474,7 @@ class _Writer:
                     yolo_obb.YoloObbObject(self.classes.index(c) if self.classes else 0,
                                            tuple(map(tuple, np.clip(p / (w, h), 0.0, 1.0))))
                     for p, c in zip(P, C))
-            (lab_dir / (item.out_stem + ".txt")).write_text(text, encoding="utf-8")
+            (lab_dir / (item.out_stem + ".txt")).write_text(text, encoding="utf-8")  # guard: inside the staged build
         return {
             "split": split, "origin": item.origin, "image": images[0], "images": images,
             "file": how, "objects": len(C), "clipped": int(clipped.sum()),
@@ -596,7 +596,7 @@ def make_mix(cfg: MixConfig) -> dict:
             val_dir = "images/val" if val_items else "images/train"
             (tmp / "yolo-obb").mkdir(parents=True, exist_ok=True)
             (tmp / "yolo-obb" / "images" / "train").mkdir(parents=True, exist_ok=True)
-            (tmp / "yolo-obb" / "data.yaml").write_text(yaml.safe_dump(
+            (tmp / "yolo-obb" / "data.yaml").write_text(yaml.safe_dump(  # guard: inside the staged build
                 {"train": "images/train", "val": val_dir, "nc": len(classes),
                  "names": dict(enumerate(classes))}, sort_keys=False), encoding="utf-8")
         counts = _counts(entries)
@@ -620,7 +620,7 @@ def make_mix(cfg: MixConfig) -> dict:
             "sources": [{"source_image": k, "outputs": v} for k, v in used.items()],
             "images": entries,
         }
-        (tmp / "manifest.json").write_text(dumps_json(manifest), encoding="utf-8")
+        (tmp / "manifest.json").write_text(dumps_json(manifest), encoding="utf-8")  # guard: inside the staged build
         os.chmod(tmp, 0o777 & ~_umask())
         replace_dir(tmp, out)
     except BaseException:

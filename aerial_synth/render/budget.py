@@ -35,7 +35,7 @@ def frame_gb(width_px: int, height_px: int) -> float:
 
 def _read_int(path: Path) -> int | None:
     try:
-        text = path.read_text().strip()
+        text = path.read_text().strip()  # guard: cgroup files
     except OSError:
         return None
     return int(text) if text.isdigit() else None  # "max" (no limit) -> None
@@ -44,7 +44,7 @@ def _read_int(path: Path) -> int | None:
 def _cgroup_room() -> int | None:
     """Bytes this process's cgroup may still take (v2, else v1), None without a limit."""
     try:
-        lines = Path("/proc/self/cgroup").read_text().splitlines()
+        lines = Path("/proc/self/cgroup").read_text().splitlines()  # guard: /proc
     except OSError:
         return None
     for line in lines:
@@ -88,7 +88,7 @@ def address_space_room() -> int | None:
         return None
     used = 0
     try:
-        for line in Path("/proc/self/status").read_text().splitlines():
+        for line in Path("/proc/self/status").read_text().splitlines():  # guard: /proc
             if line.startswith("VmSize:"):
                 used = int(line.split()[1]) * 1024
                 break
@@ -103,7 +103,7 @@ def available_memory_bytes() -> int | None:
     container's). None where neither can be read."""
     avail = None
     try:
-        for line in Path("/proc/meminfo").read_text().splitlines():
+        for line in Path("/proc/meminfo").read_text().splitlines():  # guard: /proc
             if line.startswith("MemAvailable:"):
                 avail = int(line.split()[1]) * 1024
                 break
