@@ -11,13 +11,12 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from aerial_synth.cli import main
-from tests.evaluate.conftest import make_dota, write_dota_image
+from tests.evaluate.conftest import make_dota
 from tests.helpers import REPO, tree_bytes, write_crossing_obj
 
 SECRET = "root:$6$s3cr3tHASHvalue:19000:0:99999:7:::"
@@ -202,7 +201,12 @@ def test_c1_t1_huge_label_gsd_is_refused_before_memory(tmp_path):
 
 def test_c1_rescaled_image_and_tiles_bounded(tmp_path):
     from aerial_synth.errors import EvaluationError
-    from aerial_synth.evaluate.mix import MAX_TILES_PER_IMAGE, check_scaled_plan, tile_count, tile_origins
+    from aerial_synth.evaluate.mix import (
+        MAX_TILES_PER_IMAGE,
+        check_scaled_plan,
+        tile_count,
+        tile_origins,
+    )
 
     with pytest.raises(EvaluationError, match="OpenCV's limit"):
         check_scaled_plan("x.png", 400, 300, 1e7, 64, 16)  # gsd 1000 -> 1e-4
