@@ -380,8 +380,8 @@ def _judge(r: Result, before, after, out, full: Path | None, log_text: str) -> N
                      if before.get(k) != after.get(k) and not _allowed(k, out))
     if changed:
         r.problems.append("changed outside --out: " + ", ".join(changed[:5]))
-    if full is not None and full.exists():
-        left = [p for p in os.listdir(full) if p != "filler"]
+    if full is not None and full.exists():  # this case's entries (cases run side by side)
+        left = [p for p in os.listdir(full) if p == f"c{r.case}" or p.startswith(f".c{r.case}.")]
         for p in left:
             if not (p.endswith(".aerial-synth-partial") and p in r.stderr):
                 r.problems.append(f"left on the full disk: {p}")
