@@ -192,21 +192,22 @@ def draw_cases(n: int, seed: int, specs=None) -> list[tuple[tuple[str, ...], dic
 
     specs = specs or command_specs()
     out: dict[str, tuple] = {}
-    round_ = 0
-    while len(out) < n and round_ < 20:
-        got = []
+    sink: list = []
+    for round_ in range(20):
+        if len(out) >= n:
+            break
+        sink.clear()
 
         @hseed(seed * 1000 + round_)
         @settings(max_examples=n, database=None, phases=[Phase.generate], deadline=None,
                   suppress_health_check=list(HealthCheck))
         @given(case_strategy(specs))
         def collect(c):
-            got.append(c)
+            sink.append(c)
 
         collect()
-        for cmd, argv in got:
+        for cmd, argv in sink:
             out.setdefault(json.dumps([cmd, argv], sort_keys=True), (cmd, argv))
-        round_ += 1
     return list(out.values())[:n]
 
 
