@@ -127,8 +127,10 @@ class Terminated(KeyboardInterrupt):
 #: The signal being delivered as :class:`Terminated`, until the CLI has caught it. A library
 #: that catches BaseException around its own imports (trimesh does, for its optional
 #: dependencies) swallowed it once: ``scene from-osm`` then finished, wrote its output and
-#: exited 0. While it is pending, SIGALRM raises it again every :data:`REMIND_S`.
+#: exited 0. While it is pending, SIGALRM raises it again every :data:`REMIND_S` (the
+#: SIGALRM handler and timer in place before, a test runner's for one, come back after).
 _PENDING: list[int] = []
+_SAVED_ALARM: list[tuple] = []
 REMIND_S = 0.25
 
 
@@ -156,7 +158,8 @@ def _on_terminate(main_pid: int):
         if not _PENDING:
             _PENDING.append(int(signum))
             try:
-                signal.setitimer(signal.ITIMER_REAL, REMIND_S, REMIND_S)
+                old = signal.signal(signal.SIGALRM, _remind)
+                _SAVED_ALARM.append((old, signal.setitimer(signal.ITIMER_REAL, REMIND_S, REMIND_S)))
             except (AttributeError, ValueError, OSError):  # pragma: no cover - no timers
                 pass
         _raise(signum)
@@ -165,14 +168,20 @@ def _on_terminate(main_pid: int):
 
 
 def _disarm() -> None:
-    """The pending termination has reached the CLI: no more reminders."""
+    """The pending termination has reached the CLI: no more reminders; the SIGALRM handler
+    and timer from before come back."""
     import signal
 
     _PENDING.clear()
-    try:
-        signal.setitimer(signal.ITIMER_REAL, 0, 0)
-    except (AttributeError, ValueError, OSError):  # pragma: no cover
-        pass
+    while _SAVED_ALARM:
+        handler, (delay, interval) = _SAVED_ALARM.pop()
+        try:
+            signal.setitimer(signal.ITIMER_REAL, 0, 0)
+            signal.signal(signal.SIGALRM, handler)
+            if delay:
+                signal.setitimer(signal.ITIMER_REAL, delay, interval)
+        except (AttributeError, ValueError, OSError, TypeError):  # pragma: no cover
+            pass
 
 
 @contextmanager
@@ -190,8 +199,6 @@ def _terminate_as_interrupt():
     try:
         for s in sigs:
             previous[s] = signal.signal(s, _on_terminate(os.getpid()))
-        if hasattr(signal, "SIGALRM") and previous:
-            previous[signal.SIGALRM] = signal.signal(signal.SIGALRM, _remind)
     except ValueError:  # not the main thread: leave signals alone
         pass
     try:

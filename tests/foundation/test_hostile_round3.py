@@ -294,7 +294,10 @@ def test_h3_from_osm_stops_on_a_signal_during_its_build(tmp_path, town_osm, sig,
         out = tmp_path / f"o{delay}.glb"
         code, err = _signalled(["scene", "from-osm", town_osm, "--out", out, "--no-cache"], sig,
                                delay, tmp_path)
-        assert code == status and err.strip().splitlines() == [f"aerial-synth: {word}"], err
+        # after Ctrl-C inside a C extension's PyRun_String (pybind11), CPython itself ends the
+        # process by SIGINT once main() has returned 130: both say "interrupted" to a shell
+        assert code in (status, -sig if sig == signal.SIGINT else status), (code, err)
+        assert err.strip().splitlines() == [f"aerial-synth: {word}"], err
         assert not out.exists()
         assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
 
@@ -306,6 +309,9 @@ def test_t5_signal_during_start_up_is_one_line(tmp_path, sig):
         code, err = _signalled(["stats", tmp_path / "nosuch", "--out", tmp_path / "st"], sig, delay,
                                tmp_path)
         if code == 2:  # the run was over before the signal: nothing to see
+            continue
+        if code == -sig:  # still in the interpreter's start, before any handler: killed
+            assert err == "", err  # by the signal's default action, silently
             continue
         assert code == 128 + sig, err
         assert err.strip().splitlines() == [f"aerial-synth: terminated ({sig.name})"], err
@@ -494,3 +500,32 @@ def test_a2_public_api_refuses_nan_and_wrong_types():
     assert len(poses) == 9 and all(np.isfinite(c.cam_to_world).all() for c in poses)
     v, _ = mesh.to_world(1.0, 2.0, 0.0, 0.5)
     assert np.isfinite(v).all()
+
+
+def test_h3_reminders_leave_a_caller_s_alarm_alone(capsys):
+    """The re-raising timer is armed only while a signal is pending, and the SIGALRM handler
+    and timer in place before (pytest-timeout's, say) come back after."""
+    from aerial_synth import cli
+
+    def mine(signum, frame):
+        pass
+
+    old = signal.signal(signal.SIGALRM, mine)
+    signal.setitimer(signal.ITIMER_REAL, 500.0)
+    try:
+        assert cli.main(["assets", "list"]) == 0
+        assert signal.getsignal(signal.SIGALRM) is mine and signal.getitimer(signal.ITIMER_REAL)[0] > 400
+        # a pending termination: raised again until caught, then everything is restored
+        with cli._terminate_as_interrupt():
+            with pytest.raises(cli.Terminated):
+                os.kill(os.getpid(), signal.SIGTERM)
+                time.sleep(1)
+            assert cli._PENDING == [signal.SIGTERM]
+            with pytest.raises(cli.Terminated):  # swallowed once: it comes back
+                time.sleep(2)
+            cli._disarm()
+        assert signal.getsignal(signal.SIGALRM) is mine and signal.getitimer(signal.ITIMER_REAL)[0] > 400
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+    capsys.readouterr()
