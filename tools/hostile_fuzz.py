@@ -86,6 +86,7 @@ class Option:
 class Spec:
     command: tuple[str, ...]
     options: list[Option] = field(default_factory=list)
+    out_default: str | None = None  # where the command writes without --out
 
 
 def _edges(conv) -> tuple:
@@ -127,6 +128,8 @@ def command_specs(parser=None) -> dict[tuple[str, ...], Spec]:
             if isinstance(a, (argparse._HelpAction, argparse._VersionAction)):
                 continue
             key = a.option_strings[-1] if a.option_strings else f"#{a.dest}"
+            if a.dest == "out" and isinstance(a.default, str):
+                spec.out_default = a.default
             tname = getattr(a.type, "__name__", "")
             metavar = str(a.metavar or "")
             if a.nargs == 0:
@@ -315,7 +318,7 @@ def _allowed(rel: str, out: str | None) -> bool:
     return sib_dir == head and sib.startswith(f".{name}.")
 
 
-def _child(argv: list[str], case_dir: Path, log: Path) -> None:  # pragma: no cover - forked
+def _child(argv: list[str], case_dir: Path, log: Path, err: Path) -> None:  # pragma: no cover - forked
     try:
         import resource
 
@@ -326,10 +329,11 @@ def _child(argv: list[str], case_dir: Path, log: Path) -> None:  # pragma: no co
             os.environ[k] = str(case_dir / d)
         tempfile.tempdir = None
         fd = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        fd2 = os.open(err, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         null = os.open(os.devnull, os.O_RDWR)
         os.dup2(null, 0)
         os.dup2(fd, 1)
-        os.dup2(fd, 2)
+        os.dup2(fd2, 2)
         sys.stdout = os.fdopen(1, "w", closefd=False)
         sys.stderr = os.fdopen(2, "w", closefd=False)
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
@@ -422,6 +426,7 @@ def run_cases(cases, work: Path, jobs: int = 2, timeout: float = 30.0, verbose=F
     import shapely  # noqa: F401
     import trimesh  # noqa: F401
 
+    specs = command_specs()
     template = make_template(work)
     full = _mount_full(work)
     results: list[Result] = []
@@ -437,13 +442,13 @@ def run_cases(cases, work: Path, jobs: int = 2, timeout: float = 30.0, verbose=F
                 for d in (".cache", ".xdg", ".tmp", ".home"):
                     (case_dir / d).mkdir()
                 argv = argv_of(cmd, spec, full, k)
-                log = work / f"case{k}.log"
+                log, err = work / f"case{k}.out", work / f"case{k}.err"
                 skip = {".cache", ".xdg", ".tmp", ".home"}
                 before = _snapshot(case_dir, skip)
                 pid = os.fork()
                 if pid == 0:  # pragma: no cover
-                    _child(argv, case_dir, log)
-                running[pid] = (k, argv, case_dir, log, before, time.monotonic(), False)
+                    _child(argv, case_dir, log, err)
+                running[pid] = (k, argv, case_dir, (log, err), before, time.monotonic(), False)
             pid, status = os.waitpid(-1, os.WNOHANG)
             if pid == 0:
                 now = time.monotonic()
@@ -456,17 +461,22 @@ def run_cases(cases, work: Path, jobs: int = 2, timeout: float = 30.0, verbose=F
                 time.sleep(0.02)
                 continue
             k, argv, case_dir, log, before, t0, termed = running.pop(pid)
+            cmd = cases[k][0]
             code = os.waitstatus_to_exitcode(status)
-            text = log.read_text(errors="replace") if log.exists() else ""
-            r = Result(k, argv, code, round(time.monotonic() - t0, 2), text, [], termed)
+            out_text, err_text = (p.read_text(errors="replace") if p.exists() else "" for p in log)
+            r = Result(k, argv, code, round(time.monotonic() - t0, 2), err_text, [], termed)
             after = _snapshot(case_dir, {".cache", ".xdg", ".tmp", ".home"})
-            _judge(r, before, after, _out_names(argv), full, text)
+            out = _out_names(argv)
+            if out is None and "--out" not in argv:
+                out = specs[cmd].out_default  # the command's default output
+            _judge(r, before, after, out, full, out_text + err_text)
             results.append(r)
             if verbose:
                 print(f"{k:5d} {r.status:4d} {r.seconds:6.1f}s {'FAIL ' + '; '.join(r.problems) if r.problems else 'ok'}"
                       f"  {' '.join(argv)[:150]!r}", flush=True)
             shutil.rmtree(case_dir, ignore_errors=True)
-            log.unlink(missing_ok=True)
+            for p in log:
+                p.unlink(missing_ok=True)
     finally:
         for p in running:
             try:
