@@ -80,6 +80,9 @@ def out_lock(out, command: str, option: str = "--out", busy: str | None = None,
         fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
     except OSError as exc:
         _remove_empty(missing)
+        if os.path.lexists(p) and not os.path.isdir(p):  # a path below a file
+            raise OutputError(f"{option} {shown(out)}: expected a folder at {shown(p)}, found a "
+                              "file") from None
         raise OutputError(f"{option} {shown(out)}: cannot lock it ({exc.strerror})") from None
     try:
         try:

@@ -1,3 +1,4 @@
+# size: every guard on reading user input in one module, the only one the guard scan lets read
 """Guards for reading files a hostile user may hand us.
 
 Every reader of user files goes through these, so each limit has one home:
@@ -711,9 +712,16 @@ def read_text(path, where: str | None = None, error: type[Exception] = ConfigErr
 
 def load_yaml_file(path, where: str | None = None, error: type[Exception] = ConfigError, *,
                    root=None) -> Any:
-    """:func:`load_yaml` of the user's file ``path`` read by :func:`read_text`."""
+    """:func:`load_yaml` of the user's file ``path`` read by :func:`read_text`. Every YAML
+    file the project reads is a mapping or a list (or empty): a document that is one scalar
+    (the first line of a password file reads as one) is refused by its type, its text never
+    quoted."""
     label = where if where is not None else shown(path)
-    return load_yaml(read_text(path, label, error, root=root), label, error)
+    data = load_yaml(read_text(path, label, error, root=root), label, error)
+    if data is not None and not isinstance(data, (dict, list)):
+        kind = "text" if isinstance(data, str) else f"a single {type(data).__name__}"
+        raise error(f"{label}: expected a YAML mapping or list, got {kind} (not shown)")
+    return data
 
 
 def load_json_file(path, where: str | None = None, error: type[Exception] = ConfigError, *,

@@ -10,6 +10,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..errors import PlacementError
+from ..safe_input import load_json
 from ..versions import versions
 
 __all__ = ["PlacedVehicle", "Placement", "footprint_corners_xy", "with_lonlat"]
@@ -188,8 +189,6 @@ class Placement:
 
     @classmethod
     def from_json(cls, text: str) -> "Placement":
-        from ..safe_input import load_json
-
         return cls.from_dict(load_json(text, "placement JSON", PlacementError))
 
     def by_id(self) -> dict[int, PlacedVehicle]:

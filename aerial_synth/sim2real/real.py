@@ -16,8 +16,8 @@ import numpy as np
 
 from ..evaluate.ap import candidate_pairs, quad_pair_iou, quads
 from ..evaluate.labels import IMAGE_EXTS, ImageLabels, image_size
-from ..evaluate.mix import check_scaled_plan, tile_origins
 from ..evaluate.scoring import read_gt
+from ..evaluate.tiling import check_scaled_plan, tile_origins
 from ..safe_input import read_image
 from .config import Sim2RealError
 

@@ -12,7 +12,10 @@ import math
 
 import numpy as np
 
+from ..errors import ConfigError
 from ..io_utils import atomic_write_bytes, check_output_file
+from ..memory import check_memory
+from ..safe_input import MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE
 from ..scene.model import Scene, SceneObject
 from ..scene.raycast import RayScene
 from .catalog import Catalog, load_catalog
@@ -108,10 +111,6 @@ SHEET_BYTES_PER_PX = 240
 def check_sheet_memory(width_m: float, height_m: float, gsd_m: float, available=None) -> None:
     """Refuse a sheet of ``width_m`` x ``height_m`` at ``gsd_m`` whose ray grid cannot fit in
     memory (or exceeds OpenCV's image size), before anything is allocated."""
-    from ..errors import ConfigError
-    from ..render.budget import check_memory
-    from ..safe_input import MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE
-
     w, h = width_m / gsd_m, height_m / gsd_m
     coarsest = max(gsd_m * math.sqrt(w * h / MAX_IMAGE_PIXELS), width_m / MAX_IMAGE_SIDE)
     if w * h > MAX_IMAGE_PIXELS or max(w, h) > MAX_IMAGE_SIDE:

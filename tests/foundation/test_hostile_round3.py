@@ -201,7 +201,7 @@ def test_c1_t1_huge_label_gsd_is_refused_before_memory(tmp_path):
 
 def test_c1_rescaled_image_and_tiles_bounded(tmp_path):
     from aerial_synth.errors import EvaluationError
-    from aerial_synth.evaluate.mix import (
+    from aerial_synth.evaluate.tiling import (
         MAX_TILES_PER_IMAGE,
         check_scaled_plan,
         tile_count,
