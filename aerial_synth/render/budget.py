@@ -10,14 +10,15 @@ refuses it first, in one line, before anything is written.
 from __future__ import annotations
 
 from ..errors import RenderError
-from ..memory import (
+from ..memory import (  # their home since issue 37; here for the frame checks and callers
+    RENDER_PROCESS_VM_BYTES,
     address_space_room,
     available_memory_bytes,
     check_memory,
 )
 
 __all__ = ["FRAME_BYTES_PER_PX", "frame_bytes", "frame_gb", "available_memory_bytes", "check_frame_memory",
-           "check_memory"]
+           "check_memory", "RENDER_PROCESS_VM_BYTES", "address_space_room"]
 
 #: Peak resident memory a frame adds per pixel: 112 B measured for ``aerial-synth render``
 #: (peak RSS 0.97 GB at 2048 x 2048 px, 2.35 GB at 4096 x 4096), 102 B for one export
