@@ -275,10 +275,13 @@ def town_osm(tmp_path_factory):
 
 
 def _unblocked():
-    """A child's signal mask is its parent's: a test process that has SIGTERM/SIGINT blocked
-    at that moment (multiprocessing blocks them while it starts its helper processes) would
-    hand its children a mask no shell gives."""
+    """A child inherits its parent's signal mask and ignored signals: a test process that
+    has SIGTERM/SIGINT blocked at that moment (multiprocessing blocks them while it starts
+    its helpers) or SIGINT ignored (a pool's initializer run in-process) would hand its
+    children what no interactive shell gives. Reset both, as a terminal would."""
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGTERM, signal.SIGINT, signal.SIGHUP})
+    for s in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
+        signal.signal(s, signal.SIG_DFL)
 
 
 def _signalled(argv, sig, delay, cwd):
@@ -293,7 +296,6 @@ def _signalled(argv, sig, delay, cwd):
 
 SWALLOWING_RUN = """
 import os, signal, sys, time
-signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGTERM, signal.SIGINT})  # see _unblocked
 from aerial_synth import cli
 from aerial_synth.scene import commands
 
@@ -321,7 +323,7 @@ def test_h3_from_osm_stops_on_a_signal_a_library_swallowed(tmp_path, town_osm, s
     out = tmp_path / "o.glb"
     r = subprocess.run([sys.executable, "-c", SWALLOWING_RUN, sig.name, "scene", "from-osm", str(town_osm),
                         "--out", str(out), "--no-cache"], capture_output=True, text=True, timeout=120,
-                       env=dict(os.environ, PYTHONPATH=str(REPO)), cwd=tmp_path)
+                       env=dict(os.environ, PYTHONPATH=str(REPO)), cwd=tmp_path, preexec_fn=_unblocked)
     # after Ctrl-C, CPython may itself end the process by SIGINT once main() returned 130
     assert r.returncode in (status, -sig if sig == signal.SIGINT else status), (r.returncode, r.stderr)
     assert r.stderr.strip().splitlines() == [f"aerial-synth: {word}"], r.stderr
