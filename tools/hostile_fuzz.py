@@ -497,6 +497,8 @@ def main(argv=None) -> int:
     ap.add_argument("--report", type=Path, default=None, help="write every result as JSON here")
     ap.add_argument("--verbose", action="store_true")
     a = ap.parse_args(argv)
+    # a SIGTERM to the runner unwinds it (children killed, the tmpfs unmounted, folders removed)
+    signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
     t0 = time.monotonic()
     cases = draw_cases(a.cases, a.seed)
     with tempfile.TemporaryDirectory(prefix="aerial-synth-fuzz-") as tmp:
