@@ -18,7 +18,7 @@ LOCK_DATE ?= 2026-11-27T00:00:00Z
 LOCK_ARGS := --upgrade --python-version 3.11 --python-platform $(LOCK_PLATFORM) --generate-hashes \
 	--format pylock.toml --exclude-newer $(LOCK_DATE) --quiet
 
-.PHONY: pycheck demo test test-exact lint test-all test-latest test-train lock dist sysdeps sysdeps-egl venv install install-test clean bench
+.PHONY: pycheck demo test test-exact lint test-all test-latest test-train test-hostile lock dist sysdeps sysdeps-egl venv install install-test clean bench
 
 # open3d's Linux wheel links against libusb-1.0; pip cannot provide it.
 sysdeps:
@@ -125,6 +125,14 @@ $(TRAIN_VENV)/.installed: pylock.test.toml pyproject.toml requirements/uv.txt | 
 
 test-train: sysdeps $(TRAIN_VENV)/.installed
 	$(TRAIN_VENV)/bin/python -m pytest -q -p no:cacheprovider -m train tests/sim2real tests/stream
+
+# The hostile-input fuzzer of the whole CLI (tools/hostile_fuzz.py, issue 37): 2,000 cases
+# from every subcommand's argparse definition, each in a child process under a 4 GB
+# address-space limit and a time limit. Prints the cases, failures and run time (a sample of
+# 40 runs in make test).
+HOSTILE_CASES ?= 2000
+test-hostile: install-test
+	nice $(BIN)/python tools/hostile_fuzz.py --cases $(HOSTILE_CASES) --jobs 2
 
 install: sysdeps $(VENV)/.installed
 install-test: sysdeps sysdeps-egl $(VENV)/.installed-test

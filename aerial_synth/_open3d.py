@@ -55,7 +55,7 @@ def _installed_fits() -> bool:
         return False
     init = Path(list(spec.submodule_search_locations)[0]) / "visualization" / "__init__.py"
     try:
-        return stub_fits(init.read_text(encoding="utf-8"))
+        return stub_fits(init.read_text(encoding="utf-8"))  # guard: open3d's own __init__.py
     except OSError:
         return False
 

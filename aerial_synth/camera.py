@@ -44,7 +44,9 @@ __all__ = [
     "rotation_nadir",
     "DEFAULT_GSD_M",
     "MAX_IMAGE_PX",
+    "MIN_ALTITUDE_M",
     "MAX_ALTITUDE_M",
+    "MIN_GSD_M",
     "MAX_GSD_M",
     "MAX_FOCAL_PX",
 ]
@@ -52,10 +54,20 @@ __all__ = [
 DEFAULT_GSD_M = 0.12
 MAX_IMAGE_PX = 16384
 MAX_TILT_LIMIT_DEG = 89.0
-#: The one set of camera bounds (CameraConfig, and every command's camera options from it)
+#: The one set of camera bounds (CameraConfig, and every command's camera options from it).
+#: The lowest altitude keeps the camera above every vehicle (the tallest, a bus or a truck,
+#: is under 5 m) and street object it looks down on: below it a "nadir view" is a view from
+#: inside the traffic. The smallest GSD is the detail of the vehicle meshes (5 mm: the
+#: contact sheet of ``assets preview`` at its finest); finer pixels show nothing new and
+#: only multiply the rays a frame casts.
+MIN_ALTITUDE_M = 10.0
 MAX_ALTITUDE_M = 100_000.0
+MIN_GSD_M = 0.005
 MAX_GSD_M = 1000.0
 MAX_FOCAL_PX = 1e7
+#: Largest world coordinate (metres) a pose may take: ten times the Earth's circumference
+#: (projected CRS coordinates stay far below it); infinite bounds gave OverflowError.
+MAX_COORD_M = 4e8
 
 
 def _finite(name: str, value, lo=None, hi=None, lo_open=True, hi_open=False) -> float:
@@ -68,9 +80,11 @@ def _finite(name: str, value, lo=None, hi=None, lo_open=True, hi_open=False) -> 
 class CameraConfig:
     """Camera settings (validated at construction; bad values raise :class:`CameraError`).
 
-    altitude_m   : camera height above the ground at its target, metres, in (0, 1e5]
+    altitude_m   : camera height above the ground at its target, metres, in [10, 1e5]
     width_px, height_px : image size, 1..16384
-    gsd_m        : ground sampling distance at nadir, metres per pixel, in (0, 1e3]
+    gsd_m        : ground sampling distance at nadir, metres per pixel, in [0.005, 1e3]
+                   (whichever of gsd_m / focal_px / fov_deg is given, the nadir GSD it
+                   implies must lie in this range)
     focal_px     : focal length in pixels (square pixels), in (0, 1e7]
     fov_deg      : horizontal field of view across ``width_px``, degrees, in (0, 180)
                    Give at most one of gsd_m / focal_px / fov_deg; none = gsd 0.12 m.
@@ -87,7 +101,8 @@ class CameraConfig:
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
-        set_(self, "altitude_m", _finite("altitude_m", self.altitude_m, lo=0.0, hi=MAX_ALTITUDE_M))
+        set_(self, "altitude_m", _finite("altitude_m", self.altitude_m, lo=MIN_ALTITUDE_M,
+                                         lo_open=False, hi=MAX_ALTITUDE_M))
         for name in ("width_px", "height_px"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) and not (
@@ -105,11 +120,17 @@ class CameraConfig:
                 f"focal length), got {' and '.join(given)}"
             )
         if self.gsd_m is not None:
-            set_(self, "gsd_m", _finite("gsd_m", self.gsd_m, lo=0.0, hi=MAX_GSD_M))
+            set_(self, "gsd_m", _finite("gsd_m", self.gsd_m, lo=MIN_GSD_M, lo_open=False,
+                                        hi=MAX_GSD_M))
         if self.focal_px is not None:
             set_(self, "focal_px", _finite("focal_px", self.focal_px, lo=0.0, hi=MAX_FOCAL_PX))
         if self.fov_deg is not None:
             set_(self, "fov_deg", _finite("fov_deg", self.fov_deg, lo=0.0, hi=180.0, hi_open=True))
+        g = self.nadir_gsd_m  # what a focal length or a field of view implies at this altitude
+        if not MIN_GSD_M * (1 - 1e-9) <= g <= MAX_GSD_M * (1 + 1e-9):
+            lens = "focal_px" if self.focal_px is not None else "fov_deg"
+            raise CameraError(f"camera {lens}: at altitude {self.altitude_m:g} m it gives a nadir GSD "
+                              f"of {g:.3g} m/px, expected {MIN_GSD_M:g}..{MAX_GSD_M:g} m/px")
         set_(
             self,
             "max_tilt_deg",
@@ -468,14 +489,21 @@ def grid_poses(
     Poses are nadir with yaw ``yaw_deg``; with ``rng`` yaw and tilt are sampled per tile as
     in :func:`sample_pose_targeted`.
     """
-    ov = float(overlap)
-    if not 0.0 <= ov < 1.0:
-        raise CameraError(f"grid poses overlap: expected 0 <= overlap < 1, got {overlap!r}")
-    b = np.asarray(bounds_xy, dtype=np.float64)
+    ov = _finite("grid poses overlap", overlap, lo=0.0, lo_open=False, hi=1.0, hi_open=True)
+    ground_z = _finite("grid poses ground_z", ground_z, lo=-MAX_COORD_M, lo_open=False, hi=MAX_COORD_M)
+    yaw_deg = _finite("grid poses yaw_deg", yaw_deg)
+    try:
+        b = np.asarray(bounds_xy, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise CameraError(f"grid poses bounds: expected [[xmin, ymin], [xmax, ymax]] of numbers, "
+                          f"got {bounds_xy!r:.60}") from None
     if b.shape not in ((2, 2), (2, 3)):
         raise CameraError(
             f"grid poses bounds: expected [[xmin, ymin], [xmax, ymax]], got shape {b.shape}"
         )
+    if not (np.isfinite(b).all() and np.abs(b).max() <= MAX_COORD_M):
+        raise CameraError(f"grid poses bounds: expected finite coordinates within +-{MAX_COORD_M:g} m, "
+                          f"got {b[:, :2].tolist()}")
     (x0, y0), (x1, y1) = b[0, :2], b[1, :2]
     if not (x1 > x0 and y1 > y0):
         raise CameraError(f"grid poses bounds: empty area {b[:, :2].tolist()}")

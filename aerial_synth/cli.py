@@ -19,7 +19,7 @@ from contextlib import contextmanager
 from . import __version__
 from ._open3d import stub_viewer
 from .errors import AerialSynthError
-from .out_guard import INPUT_OPTIONS, refuse_out_is_input
+from .out_guard import INPUT_OPTIONS, out_lock, refuse_out_is_input
 from .safe_input import input_roots
 
 _ARG_PREFIX = re.compile(r"^argument (?P<opt>[^:]+): (?P<msg>.*)$", re.S)
@@ -158,26 +158,77 @@ class Terminated(KeyboardInterrupt):
         self.signum = int(signum)
 
 
+#: The signal being delivered as :class:`Terminated`, until the CLI has caught it. A library
+#: that catches BaseException around its own imports (trimesh does, for its optional
+#: dependencies) swallowed it once: ``scene from-osm`` then finished, wrote its output and
+#: exited 0. While it is pending, SIGALRM raises it again every :data:`REMIND_S` (the
+#: SIGALRM handler and timer in place before, a test runner's for one, come back after).
+_PENDING: list[int] = []
+_SAVED_ALARM: list[tuple] = []
+REMIND_S = 0.25
+
+
+def _raise(signum: int):
+    import signal
+
+    if signum == signal.SIGINT:
+        raise KeyboardInterrupt
+    raise Terminated(signum)
+
+
+def _remind(signum, frame):
+    if _PENDING:
+        _raise(_PENDING[0])
+
+
 def _on_terminate(main_pid: int):
     def handler(signum, frame):
-        if os.getpid() != main_pid:  # a forked worker that kept this handler: as before
-            import signal
+        import signal
 
+        if os.getpid() != main_pid:  # a forked worker that kept this handler: as before
             signal.signal(signum, signal.SIG_DFL)
             os.kill(os.getpid(), signum)
             return
-        raise Terminated(signum)
+        if not _PENDING:
+            _PENDING.append(int(signum))
+            try:
+                old = signal.signal(signal.SIGALRM, _remind)
+                _SAVED_ALARM.append((old, signal.setitimer(signal.ITIMER_REAL, REMIND_S, REMIND_S)))
+            except (AttributeError, ValueError, OSError):  # pragma: no cover - no timers
+                pass
+        _raise(signum)
 
     return handler
 
 
+def _disarm() -> None:
+    """The pending termination has reached the CLI: no more reminders; the SIGALRM handler
+    and timer from before come back."""
+    import signal
+
+    _PENDING.clear()
+    while _SAVED_ALARM:
+        handler, (delay, interval) = _SAVED_ALARM.pop()
+        try:
+            signal.setitimer(signal.ITIMER_REAL, 0, 0)
+            signal.signal(signal.SIGALRM, handler)
+            if delay:
+                signal.setitimer(signal.ITIMER_REAL, delay, interval)
+        except (AttributeError, ValueError, OSError, TypeError):  # pragma: no cover
+            pass
+
+
 @contextmanager
 def _terminate_as_interrupt():
-    """SIGTERM and SIGHUP raise :class:`Terminated` in this process for the body (the
-    previous handlers come back after it)."""
+    """SIGTERM and SIGHUP raise :class:`Terminated` in this process for the body, SIGINT
+    KeyboardInterrupt (unless it is ignored, as in a shell's background job); until the CLI
+    catches it, it is raised again every :data:`REMIND_S` (the previous handlers come back
+    after the body)."""
     import signal
 
     sigs = [getattr(signal, n) for n in ("SIGTERM", "SIGHUP") if hasattr(signal, n)]
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        sigs.append(signal.SIGINT)
     previous = {}
     try:
         for s in sigs:
@@ -187,6 +238,8 @@ def _terminate_as_interrupt():
     try:
         yield
     finally:
+        if previous:
+            _disarm()
         for s, h in previous.items():
             signal.signal(s, h)
 
@@ -204,14 +257,16 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None) -> int:
-    parser = build_parser(sys.argv[1:] if argv is None else list(argv))
-    try:
+    try:  # a signal during the imports of build_parser: one line too
+        parser = build_parser(sys.argv[1:] if argv is None else list(argv))
         args = parser.parse_args(argv)
     except SystemExit as exc:  # usage error (one line, printed) or --help/--version
         return int(exc.code or 0) if not isinstance(exc.code, str) else 2
+    except KeyboardInterrupt as exc:
+        return _interrupted(exc)
     try:
         refuse_out_is_input(args)
-        with input_roots(getattr(args, d, None) for d in INPUT_OPTIONS):
+        with _out_locked(args), input_roots(getattr(args, d, None) for d in INPUT_OPTIONS):
             code = int(args.func(args) or 0)
         sys.stdout.flush()
         return code
@@ -224,9 +279,13 @@ def _main(argv: list[str] | None) -> int:
         os.dup2(devnull, sys.stdout.fileno())
         return 141
     except AerialSynthError as exc:
+        if _PENDING:  # a library swallowed the signal and failed on: it was the signal
+            return _interrupted(_signal_exc(_PENDING[0]))
         print(f"aerial-synth: error: {_one_line(str(exc))}", file=sys.stderr)
         return 2
     except OSError as exc:
+        if _PENDING:
+            return _interrupted(_signal_exc(_PENDING[0]))
         # A file-system refusal on an output or input path is the user's to fix: one line.
         if exc.errno in _USER_ERRNOS:
             where = exc.filename if exc.filename is not None else ""
@@ -239,15 +298,53 @@ def _main(argv: list[str] | None) -> int:
                   file=sys.stderr)
             return 2
         raise
-    except Terminated as exc:
-        import signal
+    except KeyboardInterrupt as exc:
+        return _interrupted(exc)
+    except Exception as exc:
+        if _PENDING:  # trimesh, having swallowed Terminated on an import, failed later
+            return _interrupted(_signal_exc(_PENDING[0]))
+        if isinstance(exc, RuntimeError) and str(exc).startswith("Symlink loop from "):
+            # pathlib's resolve() in a library: the path is the user's to fix
+            print(f"aerial-synth: error: {str(exc)[len('Symlink loop from '):].strip(chr(39))}: "
+                  "a loop of symbolic links", file=sys.stderr)
+            return 2
+        raise
 
-        name = signal.Signals(exc.signum).name
-        print(f"aerial-synth: terminated ({name})", file=sys.stderr)
+
+#: The one-line refusal of a second writer, per command (default: out_guard's own).
+_BUSY = {"export": "--out {out}: another aerial-synth export is writing this folder right now; "
+                   "wait for it to finish or choose another folder"}
+
+
+def _out_locked(args):
+    """The ``--out`` lock of every command that writes (:func:`out_guard.out_lock`): taken
+    here, around the command, so no writing command can forget it (issue 37 K1)."""
+    from contextlib import nullcontext
+
+    out = getattr(args, "out", None)
+    if not isinstance(out, (str, os.PathLike)):
+        return nullcontext()
+    busy = _BUSY.get(getattr(args, "command", None) or "")
+    return out_lock(out, str(getattr(args, "command", "aerial-synth")),
+                    busy=busy.format(out=out) if busy else None, outer=True)
+
+
+def _signal_exc(signum: int) -> KeyboardInterrupt:
+    import signal
+
+    return KeyboardInterrupt() if signum == signal.SIGINT else Terminated(signum)
+
+
+def _interrupted(exc: KeyboardInterrupt) -> int:
+    """Ctrl-C, SIGTERM or SIGHUP reached the CLI: one line, the shell's status."""
+    import signal
+
+    _disarm()
+    if isinstance(exc, Terminated):
+        print(f"aerial-synth: terminated ({signal.Signals(exc.signum).name})", file=sys.stderr)
         return 128 + exc.signum
-    except KeyboardInterrupt:
-        print("aerial-synth: interrupted", file=sys.stderr)
-        return 130
+    print("aerial-synth: interrupted", file=sys.stderr)
+    return 130
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -123,9 +123,11 @@ def check_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:
 
 
 def is_inside(child: str | os.PathLike, parent: str | os.PathLike) -> bool:
-    """True when ``child`` is ``parent`` or lies below it (after resolving links)."""
-    c = Path(child).resolve()
-    p = Path(parent).resolve()
+    """True when ``child`` is ``parent`` or lies below it (after resolving links). A loop of
+    links resolves as far as it goes (``os.path.realpath``; ``Path.resolve`` raised
+    RuntimeError, a traceback for ``stats loop/x``)."""
+    c = Path(os.path.realpath(child))
+    p = Path(os.path.realpath(parent))
     return c == p or p in c.parents
 
 

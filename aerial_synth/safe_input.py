@@ -1,3 +1,4 @@
+# size: every guard on reading user input in one module, the only one the guard scan lets read
 """Guards for reading files a hostile user may hand us.
 
 Every reader of user files goes through these, so each limit has one home:
@@ -12,7 +13,17 @@ Every reader of user files goes through these, so each limit has one home:
 - :func:`image_header_size` reads width and height from an image file's header, and
   :func:`check_image_pixels` refuses images above OpenCV's decoding limits before any decode;
 - :func:`refuse_escaping_link` refuses a file inside an input folder that is a symbolic link
-  to somewhere outside it (as glTF buffer URIs that leave their folder are refused).
+  to somewhere outside it (as glTF buffer URIs that leave their folder are refused);
+- :func:`read_bytes` / :func:`read_text` / :func:`load_yaml_file` / :func:`load_json_file`
+  read a user's file with all of the above: a regular file (not a FIFO, a device, a link
+  loop), at most ``MAX_TEXT_BYTES``, inside the folder it was found in (``root=``: a file found
+  automatically, such as a mesh's ``.labels.yaml``, never leads out of its folder);
+- :func:`user_regex` compiles a user's regular expression with RE2 (linear time: no
+  pattern and no name makes a match backtrack for minutes).
+
+Every module under ``aerial_synth/`` and ``tools/`` reads user files through these
+(``tests/foundation/test_guard_scan.py`` fails on a module that parses YAML/JSON, opens a
+file or compiles a regular expression it was given in any other way).
 """
 
 from __future__ import annotations
@@ -37,6 +48,7 @@ __all__ = [
     "MAX_IMAGE_SIDE",
     "QUOTE_CHARS",
     "MAX_COORD_PX",
+    "LABEL_GSD_RANGE_M",
     "quote",
     "shown",
     "load_yaml",
@@ -53,6 +65,14 @@ __all__ = [
     "input_roots",
     "check_link",
     "class_name",
+    "MAX_TEXT_BYTES",
+    "MAX_IMAGE_FILE_BYTES",
+    "MAX_REPEAT",
+    "read_bytes",
+    "read_text",
+    "load_yaml_file",
+    "load_json_file",
+    "user_regex",
 ]
 
 #: Deepest nesting of lists and mappings a YAML or JSON input may have (ours need < 10).
@@ -66,8 +86,20 @@ MAX_IMAGE_SIDE = 1 << 20
 #: largest image side. 1e300 passed as "finite" and overflowed in box areas, where numpy's
 #: warnings named no file.
 MAX_COORD_PX = 1e7
+#: The GSD a label's ``gsd:`` header, or a real set's ``--gsd``/``--real-gsd``, may give,
+#: metres per pixel: from 0.1 mm (a close-up) to the camera's largest (1 km,
+#: :data:`aerial_synth.camera.MAX_GSD_M`). ``gsd:1e300`` made mix's rescaled image (and its
+#: tile list) larger than any memory.
+LABEL_GSD_RANGE_M = (1e-4, 1000.0)
 #: Characters of an input line quoted in an error message.
 QUOTE_CHARS = 40
+#: Largest text file (YAML, JSON, label rules, a scene mix) read whole into memory.
+MAX_TEXT_BYTES = 256 << 20
+#: Largest image file read whole into memory before decoding (a 2^30-pixel RGB PNG, stored).
+MAX_IMAGE_FILE_BYTES = 4 << 30
+#: Largest repetition count ``{n}`` in a user's regular expression (RE2's own limit; RE2
+#: would read a larger count as literal text).
+MAX_REPEAT = 1000
 
 
 def quote(text: Any, limit: int = QUOTE_CHARS) -> str:
@@ -146,6 +178,10 @@ def _loader_class():
             _expanded_size(node, self.max_nodes)
             return node
 
+        def construct_mapping(self, node, deep=False):
+            _refuse_duplicate_keys(self, node)
+            return super().construct_mapping(node, deep=deep)
+
     return BudgetLoader
 
 
@@ -182,6 +218,26 @@ def _expanded_size(root, budget: int) -> int:
             if id(c) not in size:
                 stack.append((c, False))
     return size[id(root)]
+
+
+def _refuse_duplicate_keys(loader, node) -> None:
+    """A mapping that names one key twice (PyYAML keeps the last silently) is refused; the
+    keys a ``<<`` merge brings in may be overridden, as YAML intends."""
+    from yaml.nodes import ScalarNode
+
+    seen: dict = {}
+    for key_node, _ in node.value:
+        if not isinstance(key_node, ScalarNode) or key_node.tag == "tag:yaml.org,2002:merge":
+            continue
+        key = loader.construct_object(key_node)
+        try:
+            hash(key)
+        except TypeError:
+            continue
+        if (type(key), key) in seen:
+            raise _Budget(f"each key once in a mapping, got {quote(key_node.value)} twice "
+                          f"(lines {seen[(type(key), key)]} and {key_node.start_mark.line + 1})")
+        seen[(type(key), key)] = key_node.start_mark.line + 1
 
 
 def _children(node, SequenceNode, MappingNode) -> list:
@@ -571,3 +627,135 @@ def class_name(text: Any, where: str, error: type[Exception] = ConfigError) -> s
         raise error(f"{where}: expected a class name of printable UTF-8 text without spaces, "
                     f"got {quote(s if s is not None else repr(text))}")
     return s
+
+
+# -- reading a user's file -------------------------------------------------------------------
+
+
+def _open_error(exc: OSError) -> str:
+    import errno
+
+    if exc.errno == errno.ENOENT:
+        return "file not found"
+    if exc.errno == errno.ELOOP:
+        return "a loop of symbolic links"
+    return f"cannot read it ({exc.strerror or type(exc).__name__})"
+
+
+def _check_root(path, root, where: str, error: type[Exception]) -> None:
+    """A file found automatically in ``root`` must resolve inside ``root``."""
+    try:
+        real = os.path.realpath(path)
+        base = os.path.realpath(root)
+    except (OSError, ValueError, RuntimeError):
+        raise error(f"{where}: cannot resolve the path") from None
+    if not _below(real, base):
+        raise error(f"{where}: a symbolic link to a place outside its folder {shown(root)}; "
+                    "copy the file in instead")
+
+
+def read_bytes(path, where: str | None = None, error: type[Exception] = ConfigError, *,
+               root=None, max_bytes: int = MAX_TEXT_BYTES) -> bytes:
+    """The bytes of the user's file ``path``: refused in one line starting with ``where``
+    (default: the path) when it is missing, not a regular file (a FIFO would block forever,
+    a device never ends), a link out of an input folder (:func:`check_link`) or out of
+    ``root`` (the folder it was found in), or larger than ``max_bytes``. The size is checked
+    on the open file, before anything is read."""
+    label = where if where is not None else shown(path)
+    if root is not None:
+        _check_root(path, root, label, error)
+    try:
+        check_link(path, error)
+    except error as exc:  # the same refusal under the caller's label
+        msg, head = str(exc), f"{shown(path)}: "
+        raise error(f"{label}: {msg[len(head):] if msg.startswith(head) else msg}") from None
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
+    except (OSError, ValueError) as exc:
+        raise error(f"{label}: {_open_error(exc) if isinstance(exc, OSError) else 'bad path'}") from None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):  # swapped in after the check
+            raise error(f"{label}: expected a regular file")
+        if st.st_size > max_bytes:
+            raise error(f"{label}: expected a file of at most {max_bytes >> 20} MiB "
+                        f"(aerial-synth's limit for text inputs), got {st.st_size / 2**20:.1f} MiB")
+        chunks = []
+        total = 0
+        while True:
+            b = os.read(fd, 1 << 20)
+            if not b:
+                break
+            total += len(b)
+            if total > max_bytes:
+                raise error(f"{label}: expected a file of at most {max_bytes >> 20} MiB "
+                            "(aerial-synth's limit for text inputs), it grew while read")
+            chunks.append(b)
+        return b"".join(chunks)
+    except OSError as exc:
+        raise error(f"{label}: {_open_error(exc)}") from None
+    finally:
+        os.close(fd)
+
+
+def read_text(path, where: str | None = None, error: type[Exception] = ConfigError, *,
+              root=None, max_bytes: int = MAX_TEXT_BYTES) -> str:
+    """:func:`read_bytes` decoded as UTF-8 (one line naming the file otherwise)."""
+    label = where if where is not None else shown(path)
+    data = read_bytes(path, label, error, root=root, max_bytes=max_bytes)
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise error(f"{label}: expected UTF-8 text, got byte 0x{data[exc.start]:02x} at "
+                    f"offset {exc.start}") from None
+
+
+def load_yaml_file(path, where: str | None = None, error: type[Exception] = ConfigError, *,
+                   root=None) -> Any:
+    """:func:`load_yaml` of the user's file ``path`` read by :func:`read_text`. Every YAML
+    file the project reads is a mapping or a list (or empty): a document that is one scalar
+    (the first line of a password file reads as one) is refused by its type, its text never
+    quoted."""
+    label = where if where is not None else shown(path)
+    data = load_yaml(read_text(path, label, error, root=root), label, error)
+    if data is not None and not isinstance(data, (dict, list)):
+        kind = "text" if isinstance(data, str) else f"a single {type(data).__name__}"
+        raise error(f"{label}: expected a YAML mapping or list, got {kind} (not shown)")
+    return data
+
+
+def load_json_file(path, where: str | None = None, error: type[Exception] = ConfigError, *,
+                   root=None) -> Any:
+    """:func:`load_json` of the user's file ``path`` read by :func:`read_bytes`."""
+    label = where if where is not None else shown(path)
+    return load_json(read_bytes(path, label, error, root=root), label, error)
+
+
+def user_regex(pattern: Any, option: str, error: type[Exception] = ConfigError, *,
+               ignore_case: bool = False):
+    """A user's regular expression compiled by RE2 (``google-re2``): matching takes time
+    linear in the text, so ``(a+)+$`` against ``aaa...a!`` is as quick as any other
+    pattern. Python syntax RE2 lacks (back-references, look-around) and repetition counts
+    above ``MAX_REPEAT`` are refused in one line naming ``option``."""
+    import re
+
+    if not isinstance(pattern, str):
+        raise error(f"{option}: expected a regular expression (text), got {quote(repr(pattern))}")
+    if any("\ud800" <= ch <= "\udfff" for ch in pattern) or "\x00" in pattern:
+        raise error(f"{option}: expected a regular expression of UTF-8 text, got {quote(pattern)}")
+    for m in re.finditer(r"\{\s*(\d+)\s*(?:,\s*(\d*)\s*)?\}", pattern):
+        if any(g and int(g) > MAX_REPEAT for g in m.groups()):
+            raise error(f"{option}: expected repetition counts of at most {MAX_REPEAT}, got "
+                        f"{quote(m.group(0))} in {quote(pattern)}")
+    import re2
+
+    opts = re2.Options()
+    opts.case_sensitive = not ignore_case
+    opts.log_errors = False
+    try:
+        return re2.compile(pattern, opts)
+    except (re2.error, ValueError, TypeError, OverflowError) as exc:
+        why = exc.args[0] if exc.args else exc
+        why = why.decode("utf-8", "replace") if isinstance(why, bytes) else str(why)
+        raise error(f"{option}: expected a regular expression RE2 accepts (no back-references "
+                    f"or look-around), got {quote(pattern)} ({quote(why, 80)[1:-1]})") from None

@@ -20,11 +20,11 @@ from pathlib import Path
 
 from .. import validators as v
 from ..annotate.boxes import BoxConfig
-from ..camera import MAX_ALTITUDE_M, MAX_GSD_M, CameraConfig
-from ..errors import ConfigError, ExportError
+from ..camera import MAX_ALTITUDE_M, MAX_GSD_M, MIN_ALTITUDE_M, MIN_GSD_M, CameraConfig
+from ..errors import CameraError, ConfigError, ExportError
 from ..formats.registry import parse_names
 from ..render.config import RenderOptions
-from .gsd import parse_range, widest_camera_config
+from .gsd import GsdRange, parse_range, widest_camera_config
 from .scene_mix import parse_mix
 from .seeds import PLACEMENT_STREAM
 
@@ -153,16 +153,31 @@ class ExportConfig:
         elif self.margin_m is not None:
             raise E(f"--margin-m: only with --tile-m (a tiled export), got --margin-m {v.show(self.margin_m)}")
         self._check_ranges_and_mix()
-        self.camera_config()  # a range's widest camera within the camera's bounds, checked now
+        self._check_range_cameras()  # both ends of a range within the camera's bounds
+
+    def _check_range_cameras(self) -> None:
+        """The cameras at both ends of a GSD or altitude range (lens fixed, altitude = GSD x
+        focal) must lie within :mod:`aerial_synth.camera`'s bounds: ``--gsd 0.005:1`` at
+        60 m implies an altitude of 4 m at its low end."""
+        r = GsdRange.of(self)
+        if r is None:
+            return
+        opt = "--gsd" if self.gsd_range is not None else "--altitude"
+        for g in (r.gsd_lo_m, r.gsd_hi_m):
+            try:
+                r.camera_config(self, g)
+            except CameraError as exc:
+                raise ExportError(f"{opt}: the range's lens (focal {r.focal_px:.4g} px) at "
+                                  f"{g:.3g} m/px: {exc}") from None
 
     def _check_ranges_and_mix(self) -> None:
         E = ExportError
         s = object.__setattr__
-        for name, opt, hi in (("gsd_range", "--gsd", MAX_GSD_M),
-                              ("altitude_range", "--altitude", MAX_ALTITUDE_M)):
+        for name, opt, lo, hi in (("gsd_range", "--gsd", MIN_GSD_M, MAX_GSD_M),
+                                  ("altitude_range", "--altitude", MIN_ALTITUDE_M, MAX_ALTITUDE_M)):
             val = getattr(self, name)
             if val is not None:  # the camera's bounds (aerial_synth.camera) hold for ranges too
-                r = parse_range(opt, val, error=E, hi=hi)
+                r = parse_range(opt, val, error=E, hi=hi, lo=lo)
                 if not isinstance(r, tuple):
                     raise E(f"{opt}: expected a range LO:HI for {name}, got {v.show(val)}")
                 s(self, name, r)

@@ -40,6 +40,7 @@ from ..errors import ExportError
 from ..io_utils import atomic_write_json
 from ..placement import load_scenario
 from ..render.budget import check_frame_memory
+from ..safe_input import shown
 from ..vehicles import load_catalog
 from . import engines
 from .aggregate import aggregate_pool, write_aggregates
@@ -151,11 +152,15 @@ def export_dataset(
     with closing(eng), output_lock(out_dir):
         plan = plan_output(cfg, out_dir, resume, force)
         eng.connect()  # before any write: an unreachable scheduler writes nothing
-        prepare_build(plan)
         build = plan.build
-        if plan.mode == "resume":
-            remove_stray_temps(build)
-        atomic_write_json(build / "manifest.json", manifest(cfg, "incomplete", geo))
+        try:
+            prepare_build(plan)
+            if plan.mode == "resume":
+                remove_stray_temps(build)
+            atomic_write_json(build / "manifest.json", manifest(cfg, "incomplete", geo))
+        except BaseException:
+            discard_build(plan)  # a fresh build with nothing in it (a full disk): no trace
+            raise
 
         todo = [i for i in range(cfg.images) if not (plan.mode == "resume" and is_done(cfg, build, i))]
         skipped = cfg.images - len(todo)
@@ -171,10 +176,17 @@ def export_dataset(
                     bar.update(n)
             summary = write_aggregates(cfg, build, geo)
             atomic_write_json(build / "manifest.json", manifest(cfg, "complete", geo))
-        except Exception:
+        except Exception as exc:
             # pool and Dask workers report only at the end: look at the disk too
             if done == 0 and skipped == 0 and not any(is_done(cfg, build, i) for i in todo):
                 discard_build(plan)  # nothing worth resuming: leave no trace
+                raise
+            if isinstance(exc, OSError) and build != Path(out_dir):  # a full disk, mostly
+                where = f" ({shown(exc.filename)})" if exc.filename else ""
+                raise ExportError(
+                    f"--out {shown(out_dir)}: {exc.strerror or type(exc).__name__}{where}; the "
+                    f"images made so far are kept in {shown(build)}: make room, then run the same "
+                    "command with --resume to finish (or --force to start over)") from None
             raise
         finally:
             bar.close()

@@ -57,9 +57,9 @@ DISTRIBUTIONS = ("log-uniform", "uniform")
 
 
 def parse_range(option: str, value, *, error=ExportError,
-                hi: float = math.inf) -> float | tuple[float, float]:
+                hi: float = math.inf, lo: float = 0.0) -> float | tuple[float, float]:
     """``"0.12"`` -> 0.12; ``"0.05:0.3"`` -> (0.05, 0.3); numbers and 2-sequences pass
-    through checked. Values must be finite, > 0 and <= ``hi``, and a range's LO < HI;
+    through checked. Values must be finite, > 0, >= ``lo`` and <= ``hi``, and a range's LO < HI;
     anything else raises ``error`` with one line naming ``option``."""
     if isinstance(value, (list, tuple)):
         parts = list(value)
@@ -84,6 +84,8 @@ def parse_range(option: str, value, *, error=ExportError,
             raise error(f"{option}: expected values > 0 (metres), got {text!r}")
         if x > hi:
             raise error(f"{option}: expected values <= {hi:g} (metres), got {text!r}")
+        if x < lo:
+            raise error(f"{option}: expected values >= {lo:g} (metres), got {text!r}")
         nums.append(x)
     if len(nums) == 1:
         return nums[0]
@@ -93,19 +95,19 @@ def parse_range(option: str, value, *, error=ExportError,
     return (lo, hi)
 
 
-def camera_range(option: str, hi: float):
-    """argparse ``type=`` of :func:`parse_range` with the camera's bound ``hi`` (its one-line
-    error, exit status 2): ``render.cli.add_camera_args(..., ranges=camera_range)``."""
-    return arg_range(option, hi)
+def camera_range(option: str, hi: float, lo: float = 0.0):
+    """argparse ``type=`` of :func:`parse_range` with the camera's bounds ``lo``, ``hi`` (its
+    one-line error, exit status 2): ``render.cli.add_camera_args(..., ranges=camera_range)``."""
+    return arg_range(option, hi, lo)
 
 
-def arg_range(option: str, hi: float = math.inf):
+def arg_range(option: str, hi: float = math.inf, lo: float = 0.0):
     """argparse ``type=`` of :func:`parse_range` (its one-line error, exit status 2)."""
     import argparse
 
     def conv(text: str):
         try:
-            return parse_range(option, text, hi=hi)
+            return parse_range(option, text, hi=hi, lo=lo)
         except ExportError as exc:
             raise argparse.ArgumentTypeError(str(exc)) from None
 

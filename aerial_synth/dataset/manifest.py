@@ -8,10 +8,11 @@ Keys: ``format`` ("aerial-synth-dataset"), ``version``, ``tool``, ``tool_version
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from .. import __version__
+from ..errors import ConfigError
+from ..safe_input import load_json_file
 from ..versions import versions
 from .config import PLACEMENT_STREAM, ExportConfig
 
@@ -27,8 +28,8 @@ def read_manifest(out) -> dict | None:
     try:
         if not p.is_file():
             return None
-        d = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, ValueError, RecursionError):  # nested past the parser's depth: no manifest
+        d = load_json_file(p, str(p))  # a regular file within the budgets
+    except (OSError, ConfigError):  # unreadable, broken or nested too deep: no manifest
         return None
     return d if isinstance(d, dict) and d.get("format") == MANIFEST_FORMAT else None
 

@@ -161,13 +161,10 @@ _MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".osm", ".pbf", ".bz2")
 
 
 def _from_yaml(path: Path) -> tuple[MixEntry, ...]:
-    import yaml
+    from ..safe_input import load_yaml_file, shown
 
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
-        raise ExportError(f"--scene-mix {path}: cannot read the YAML file "
-                          f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})") from None
+    # budgets on nesting and aliases, duplicate keys refused, a regular file only
+    data = load_yaml_file(path, f"--scene-mix {shown(path)}", ExportError)
     if isinstance(data, dict):
         unknown = sorted(set(data) - {"entries"})
         if unknown:

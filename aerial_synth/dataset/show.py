@@ -13,10 +13,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import shutil
-import tempfile
-from contextlib import contextmanager
 from dataclasses import dataclass
 from itertools import islice
 from pathlib import Path
@@ -27,7 +23,8 @@ from ..errors import ExportError, OutputError
 from ..formats import dota, meta
 from ..formats.registry import get, names
 from ..io_utils import atomic_write_bytes, check_output_dir, is_inside
-from ..safe_input import check_image_pixels, cv_text, decode_image
+from ..out_guard import staged_dir
+from ..safe_input import MAX_IMAGE_FILE_BYTES, check_image_pixels, cv_text, decode_image, read_bytes
 from ..vehicles.model import CLASSES
 
 __all__ = ["Drawn", "draw_labels", "contact_sheet", "show_dataset"]
@@ -130,10 +127,7 @@ def _decode(path: Path) -> np.ndarray:
     import cv2
 
     check_image_pixels(path, ExportError, f"show {path}")  # over OpenCV's limit: refused first
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise ExportError(f"show {path}: cannot read the image ({exc.strerror})") from None
+    data = read_bytes(path, f"show {path}", ExportError, max_bytes=MAX_IMAGE_FILE_BYTES)
     ext = path.suffix.lower()
     # Check the container's end first: libpng/libjpeg would print their own messages, and a
     # truncated JPEG decodes "successfully" with grey rows.
@@ -146,37 +140,6 @@ def _decode(path: Path) -> np.ndarray:
     if bgr is None:
         raise ExportError(f"show {path}: cannot decode the image")
     return bgr
-
-
-@contextmanager
-def _staged(out: Path):
-    """A temporary folder inside ``out`` whose files are moved into ``out`` on success; on
-    failure it is removed, with every folder this created (``out`` is left as it was)."""
-    missing = []
-    p = out
-    while not p.exists():
-        missing.append(p)
-        p = p.parent
-    for d in reversed(missing):
-        d.mkdir()
-    tmp = Path(tempfile.mkdtemp(prefix=".show-", dir=out))
-    try:
-        yield tmp
-        for f in sorted(tmp.iterdir()):
-            dst = out / f.name
-            if dst.exists() and not dst.is_file():
-                raise OutputError(f"--out {out}: {dst} exists and is not a file")
-        for f in sorted(tmp.iterdir()):
-            os.replace(f, out / f.name)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        for d in missing:  # innermost first
-            try:
-                d.rmdir()
-            except OSError:
-                break
-        raise
-    tmp.rmdir()
 
 
 def show_dataset(root, out_dir, limit: int | None = None, thumb_px: int = 256) -> list[Path]:
@@ -205,7 +168,7 @@ def show_dataset(root, out_dir, limit: int | None = None, thumb_px: int = 256) -
         if img_path is None:
             raise ExportError(f"show {root}: no image found for {name}")
     names, thumbs = [], []
-    with _staged(out) as tmp:
+    with staged_dir(out) as tmp:  # nothing half-written, files already in --out kept
         for name, img_path, boxes in items:
             drawn = draw_labels(_decode(img_path), boxes)
             ok, buf = cv2.imencode(".jpg", drawn, [cv2.IMWRITE_JPEG_QUALITY, 90])

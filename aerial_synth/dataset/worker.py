@@ -295,7 +295,7 @@ def _link_or_copy(src: Path, dst: Path) -> None:
             tmp.unlink()
         except OSError:
             pass
-        atomic_write_bytes(dst, src.read_bytes())
+        atomic_write_bytes(dst, src.read_bytes())  # guard: an image file of its own build
 
 
 def write_image_files(cfg: ExportConfig, out: Path, record, rgb: np.ndarray) -> None:

@@ -6,11 +6,11 @@ Imports nothing heavy at import time (``aerial-synth --help`` stays instant).
 from __future__ import annotations
 
 import sys
-from contextlib import nullcontext
 from pathlib import Path
 
 from ..errors import EvaluationError
-from ..out_guard import out_lock, refuse_here, remove_dead_temps
+from ..out_guard import out_lock, refuse_here, remove_dead_temps, staged_dir
+from ..safe_input import LABEL_GSD_RANGE_M
 from ..validators import arg_choice, arg_float, arg_int
 from .scoring_cli import add_scoring_args, cmd_scored_eval, uses_scoring
 
@@ -82,9 +82,9 @@ def register(sub) -> None:
     m.add_argument("--keep-threshold", type=arg_float("--keep-threshold", 0.0, 1.0, lo_open=True),
                    default=0.7, metavar="F",
                    help="keep a cut box when this share of its area is inside the tile (0.7)")
-    m.add_argument("--gsd", type=arg_float("--gsd", 0.0, lo_open=True), default=None, metavar="M",
+    m.add_argument("--gsd", type=arg_float("--gsd", *LABEL_GSD_RANGE_M), default=None, metavar="M",
                    help="rescale real images to M metres per pixel first (their gsd: header)")
-    m.add_argument("--real-gsd", type=arg_float("--real-gsd", 0.0, lo_open=True), default=None,
+    m.add_argument("--real-gsd", type=arg_float("--real-gsd", *LABEL_GSD_RANGE_M), default=None,
                    metavar="M", help="GSD of real images whose labels carry none (YOLO-OBB folders)")
     m.add_argument("--gsd-missing", type=arg_choice("--gsd-missing", ("error", "keep", "skip")),
                    default="error", metavar="error|keep|skip",
@@ -107,9 +107,9 @@ def register(sub) -> None:
                    "VEDAI folder or a folder of images")
     s.add_argument("--compare", default=None, metavar="DIR2", help="second dataset")
     s.add_argument("--out", required=True, metavar="DIR", help="report folder (stats.json, PNGs)")
-    s.add_argument("--gsd", type=arg_float("--gsd", 0.0, lo_open=True), default=None, metavar="M",
+    s.add_argument("--gsd", type=arg_float("--gsd", *LABEL_GSD_RANGE_M), default=None, metavar="M",
                    help="GSD of DIR where its labels carry none")
-    s.add_argument("--compare-gsd", type=arg_float("--compare-gsd", 0.0, lo_open=True), default=None,
+    s.add_argument("--compare-gsd", type=arg_float("--compare-gsd", *LABEL_GSD_RANGE_M), default=None,
                    metavar="M", help="GSD of DIR2 where its labels carry none")
     s.add_argument("--max-images", type=arg_int("--max-images", 1), default=500, metavar="N",
                    help="pixel statistics on at most N images per dataset, drawn by --seed (500)")
@@ -134,13 +134,16 @@ def _cmd_eval(args) -> int:
     out = None
     if args.out is not None:
         out = check_report_dir(args.out, [("--gt", Path(args.gt)), ("--pred", Path(args.pred))])
-    with out_lock(args.out, "eval") if out is not None else nullcontext():
+    if out is None:
+        return cmd_scored_eval(args, None) if uses_scoring(args) else _eval(args, None)
+    # the report is built beside --out and put in place at the end: a failure leaves nothing
+    with out_lock(args.out, "eval"), staged_dir(out) as build:
         if uses_scoring(args):  # --merge-classes, --iou-type, --ignore-border, --group
-            return cmd_scored_eval(args, out)
-        return _eval(args, out)
+            return cmd_scored_eval(args, build, out)
+        return _eval(args, build, out)
 
 
-def _eval(args, out) -> int:
+def _eval(args, out, report_as=None) -> int:
     from .evaluation import run_eval, summary_table, write_eval_report  # lazy: shapely
 
     res = run_eval(args.gt, args.pred, iou=args.iou, metric=args.metric, pred_format=args.pred_format,
@@ -150,7 +153,7 @@ def _eval(args, out) -> int:
     if out is not None:
         write_eval_report(res, out, {"gt": str(args.gt), "pred": str(args.pred), "iou": args.iou,
                                      "metric": args.metric, "pred_format": args.pred_format})
-        print(f"report: {out}/eval.json, summary.txt, pr_<class>.png")
+        print(f"report: {report_as or out}/eval.json, summary.txt, pr_<class>.png")
     return 0
 
 
@@ -194,8 +197,8 @@ def _cmd_stats(args) -> int:
                               "give --compare too, or drop --compare-gsd")
     inputs = [("DIR", Path(args.dir))] + ([("--compare", Path(args.compare))] if args.compare else [])
     out = evaluation.check_report_dir(args.out, inputs)
-    with out_lock(args.out, "stats"):
-        text = stats.run_stats(Path(args.dir), out,
+    with out_lock(args.out, "stats"), staged_dir(out) as build:  # nothing half-written
+        text = stats.run_stats(Path(args.dir), build, report_as=out,
                                compare=Path(args.compare) if args.compare else None,
                                gsd=args.gsd, compare_gsd=args.compare_gsd,
                                max_images=args.max_images, seed=args.seed,

@@ -18,9 +18,8 @@ from ..formats import dota, vedai, yolo_obb
 from ..formats.labels import ImageLabels, read_lines
 from ..safe_input import (
     check_image_pixels,
-    check_link,
     class_name,
-    load_yaml,
+    load_yaml_file,
     quote,
     read_image,
     shown,
@@ -47,14 +46,8 @@ def parse_names(text: str, option: str = "--names") -> list[str]:
     """Class names from a data YAML (``names:`` list or {index: name}) or a comma list."""
     p = Path(text)
     if text.endswith((".yaml", ".yml")) or p.is_file():
-        try:
-            check_link(p, EvaluationError)
-            raw = p.read_text(encoding="utf-8-sig")
-        except FileNotFoundError:
-            raise EvaluationError(f"{option} {shown(text)}: no such file") from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise EvaluationError(f"{option} {shown(text)}: cannot read it as YAML ({type(exc).__name__})") from None
-        data = load_yaml(raw, f"{option} {shown(text)}", EvaluationError)  # nesting, alias budgets
+        # nesting and alias budgets, duplicate keys, a regular file inside the input folder
+        data = load_yaml_file(p, f"{option} {shown(text)}", EvaluationError)
         names = data.get("names") if isinstance(data, dict) else None
         if isinstance(names, dict):
             try:

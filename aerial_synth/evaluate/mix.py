@@ -42,7 +42,7 @@ from ..errors import EvaluationError
 from ..formats import CATEGORIES, dota, yolo_obb
 from ..formats.labels import ImageLabels
 from ..io_utils import check_output_dir, dumps_json, is_inside, replace_dir
-from ..safe_input import image_file_complete, quote, read_image, shown
+from ..safe_input import image_file_complete, quote, read_bytes, read_image, shown
 from .ap import to_polygons
 from .labels import (
     IMAGE_EXTS,
@@ -52,6 +52,7 @@ from .labels import (
     read_dota_folder,
     read_yolo_labels,
 )
+from .tiling import check_scaled_plan, tile_origins
 
 __all__ = ["MixConfig", "make_mix", "tile_origins", "clip_to_tile", "rescale_polygons",
            "mix_counts"]
@@ -111,19 +112,6 @@ class MixConfig:
 
 
 # -- geometry (pure) ----------------------------------------------------------------------------
-
-
-def tile_origins(size: int, tile: int, overlap: int) -> list[int]:
-    """Tile starts along one axis, as the DOTA devkit: every ``tile - overlap`` px; the last
-    tile ends at ``size`` (one tile at 0 when ``size <= tile``)."""
-    slide = tile - overlap
-    out, left = [], 0
-    while True:
-        if left + tile >= size:
-            out.append(max(size - tile, 0))
-            return out
-        out.append(left)
-        left += slide
 
 
 def rescale_polygons(polygons_xy_px, sx: float, sy: float) -> np.ndarray:
@@ -315,7 +303,7 @@ def _plan_real(items: list[ImageLabels], cfg: MixConfig) -> list[list[_Item]]:
                             f"m/px) would shrink to {w * f:.3g} x {h * f:.3g} px, less than "
                             + (f"one --tile ({cfg.tile} px)" if cfg.tile else "1 px")
                             + "; choose a smaller --gsd")
-                    nw, nh = max(1, int(round(w * f))), max(1, int(round(h * f)))
+                    nw, nh = check_scaled_plan(shown(it.image_path), w, h, f, cfg.tile, cfg.overlap)
                     sx, sy = nw / w, nh / h
                     w, h = nw, nh
                     # the GSD the rounded size gives (the labels' gsd: header must be true)
@@ -325,6 +313,7 @@ def _plan_real(items: list[ImageLabels], cfg: MixConfig) -> list[list[_Item]]:
         if cfg.tile is None:
             out.append(_Item("real", it, (sx, sy), (w, h), None, f"real-{it.name}{scale_tag}"))
         else:
+            check_scaled_plan(shown(it.image_path), w, h, 1.0, cfg.tile, cfg.overlap)
             for y in tile_origins(h, cfg.tile, cfg.overlap):
                 for x in tile_origins(w, cfg.tile, cfg.overlap):
                     tw, th = min(cfg.tile, w - x), min(cfg.tile, h - y)
@@ -334,6 +323,15 @@ def _plan_real(items: list[ImageLabels], cfg: MixConfig) -> list[list[_Item]]:
             o.src.extra["gsd_out"] = gsd
         plans.append(out)
     return plans
+
+
+def _head(path: Path) -> str:
+    """The first 4 KiB of one of our own files, as text ('' when it cannot be read)."""
+    try:
+        return read_bytes(path, str(path), EvaluationError, max_bytes=1 << 30)[:4096].decode(
+            "utf-8", "replace")
+    except EvaluationError:
+        return ""
 
 
 def _link(src: Path, dst: Path) -> str:
@@ -416,7 +414,7 @@ class _Writer:
                 ok, buf = cv2.imencode(".png", arr)
                 if not ok:  # pragma: no cover
                     raise EvaluationError(f"{src.image_path}: cannot encode a tile as PNG")
-                dst.write_bytes(buf.tobytes())
+                dst.write_bytes(buf.tobytes())  # guard: inside the staged build
                 how = "written"
             first = first or dst
             images.append(str(dst.relative_to(self.root)))
@@ -428,7 +426,7 @@ class _Writer:
                     yolo_obb.YoloObbObject(self.classes.index(c) if self.classes else 0,
                                            tuple(map(tuple, np.clip(p / (w, h), 0.0, 1.0))))
                     for p, c in zip(P, C))
-            (lab_dir / (item.out_stem + ".txt")).write_text(text, encoding="utf-8")
+            (lab_dir / (item.out_stem + ".txt")).write_text(text, encoding="utf-8")  # guard: inside the staged build
         return {
             "split": split, "origin": item.origin, "image": images[0], "images": images,
             "file": how, "objects": len(C), "clipped": int(clipped.sum()),
@@ -454,7 +452,7 @@ def _check_out(cfg: MixConfig) -> Path:
     check_output_dir(out, "--out")
     if out.exists() and any(out.iterdir()):
         man = out / "manifest.json"
-        is_mix = man.is_file() and f'"{MANIFEST_FORMAT}"' in man.read_text(encoding="utf-8", errors="replace")
+        is_mix = man.is_file() and f'"{MANIFEST_FORMAT}"' in _head(man)
         if not is_mix:
             raise EvaluationError(f"--out {out}: exists, is not empty and is not a mix; choose a new folder")
         if not cfg.force:
@@ -550,7 +548,7 @@ def make_mix(cfg: MixConfig) -> dict:
             val_dir = "images/val" if val_items else "images/train"
             (tmp / "yolo-obb").mkdir(parents=True, exist_ok=True)
             (tmp / "yolo-obb" / "images" / "train").mkdir(parents=True, exist_ok=True)
-            (tmp / "yolo-obb" / "data.yaml").write_text(yaml.safe_dump(
+            (tmp / "yolo-obb" / "data.yaml").write_text(yaml.safe_dump(  # guard: inside the staged build
                 {"train": "images/train", "val": val_dir, "nc": len(classes),
                  "names": dict(enumerate(classes))}, sort_keys=False), encoding="utf-8")
         counts = _counts(entries)
@@ -574,7 +572,7 @@ def make_mix(cfg: MixConfig) -> dict:
             "sources": [{"source_image": k, "outputs": v} for k, v in used.items()],
             "images": entries,
         }
-        (tmp / "manifest.json").write_text(dumps_json(manifest), encoding="utf-8")
+        (tmp / "manifest.json").write_text(dumps_json(manifest), encoding="utf-8")  # guard: inside the staged build
         os.chmod(tmp, 0o777 & ~_umask())
         replace_dir(tmp, out)
     except BaseException:

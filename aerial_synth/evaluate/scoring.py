@@ -24,13 +24,13 @@ Geometry: (n, 4, 2) float64 pixels, image frame. Image names of a collection are
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import EvaluationError
+from ..safe_input import user_regex
 from .ap import Detections, EvalResult, evaluate
 from .labels import ImageLabels, find_image, image_size, read_dota_folder, resolve_dota_folder
 
@@ -98,10 +98,7 @@ class ScoringOptions:
         if self.iou_type not in IOU_TYPES:
             raise EvaluationError(f"--iou-type: expected one of {', '.join(IOU_TYPES)}, got {self.iou_type!r}")
         if self.group is not None:
-            try:
-                re.compile(self.group)
-            except re.error as exc:
-                raise EvaluationError(f"--group: expected a regular expression, got {self.group!r} ({exc})") from None
+            user_regex(self.group, "--group", EvaluationError)  # RE2: no backtracking
 
     @classmethod
     def from_text(cls, merge: str | None = None, iou_type: str = "obb", border=(), group=None):
@@ -205,7 +202,7 @@ def image_groups(gt: list[ImageLabels], regex: str | None = None) -> list[str]:
     """The group of each image: ``regex`` (first matched capture group, else the whole match), else
     the collection's sub-folder (``extra['group']``), else ``all``."""
     if regex is not None:
-        pat = re.compile(regex)
+        pat = user_regex(regex, "--group", EvaluationError)
         out = []
         for g in gt:
             m = pat.search(g.name)

@@ -97,7 +97,7 @@ def scored_summary(res) -> str:
     return "\n".join(lines)
 
 
-def cmd_scored_eval(args, out) -> int:
+def cmd_scored_eval(args, out, report_as=None) -> int:
     """``aerial-synth eval`` with scoring options (called by the eval command)."""
     from ..io_utils import atomic_write_json, atomic_write_text  # lazy: the scorer, not for --help
     from .evaluation import write_eval_report  # lazy: the scorer, not for --help
@@ -120,5 +120,5 @@ def cmd_scored_eval(args, out) -> int:
         data["inputs"] = inputs
         atomic_write_json(out / "eval.json", data)
         atomic_write_text(out / "summary.txt", text + "\n")
-        print(f"report: {out}/eval.json, summary.txt, pr_<class>.png")
+        print(f"report: {report_as or out}/eval.json, summary.txt, pr_<class>.png")
     return 0

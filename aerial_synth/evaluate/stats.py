@@ -34,7 +34,14 @@ import numpy as np
 from ..errors import EvaluationError
 from ..formats import CATEGORIES
 from ..io_utils import atomic_write_bytes, atomic_write_json, atomic_write_text
-from ..safe_input import check_image_pixels, decode_image, image_file_complete
+from ..safe_input import (
+    MAX_IMAGE_FILE_BYTES,
+    check_image_pixels,
+    decode_image,
+    image_file_complete,
+    read_bytes,
+    shown,
+)
 from .labels import image_size, read_dataset
 from .plots import grid, histogram_chart, line_chart, png_bytes
 
@@ -102,7 +109,9 @@ def _load_bgr(path: Path) -> np.ndarray | None:
     check_image_pixels(path, EvaluationError)  # over OpenCV's limit: refused, naming it
     if not image_file_complete(path):  # cut short: listed as unreadable, not half decoded
         return None
-    data = np.fromfile(path, np.uint8)  # bytes to OpenCV, never a file name (undecodable names)
+    # bytes to OpenCV, never a file name (undecodable names); a regular file only
+    data = np.frombuffer(read_bytes(path, shown(path), EvaluationError,
+                                    max_bytes=MAX_IMAGE_FILE_BYTES), np.uint8)
     img = decode_image(data, cv2.IMREAD_UNCHANGED)  # libpng's own messages silenced
     if img is None:
         return None
@@ -403,8 +412,9 @@ def _fmt(v) -> str:
 
 def run_stats(path: Path, out: Path, *, compare: Path | None = None, gsd: float | None = None,
               compare_gsd: float | None = None, max_images: int = 500, seed: int = 0,
-              classes=VEHICLE_CLASSES) -> str:
-    """Compute, write ``stats.json`` and PNG plots into ``out``; return the summary text."""
+              classes=VEHICLE_CLASSES, report_as: Path | None = None) -> str:
+    """Compute, write ``stats.json`` and PNG plots into ``out``; return the summary text
+    (naming the report folder ``report_as``, default ``out``)."""
 
     sa, da, ha = dataset_stats(path, gsd=gsd, max_images=max_images, seed=seed, classes=classes,
                                option="DIR")
@@ -486,7 +496,7 @@ def run_stats(path: Path, out: Path, *, compare: Path | None = None, gsd: float 
     report["plots"] = sorted(p.name for p in written)
     atomic_write_json(out / "stats.json", _clean(report))
     atomic_write_text(out / "summary.txt", text + "\n")
-    return text + f"\nreport: {out}/stats.json, summary.txt, {len(written)} PNG plots"
+    return text + f"\nreport: {report_as or out}/stats.json, summary.txt, {len(written)} PNG plots"
 
 
 def _relative(a, b):

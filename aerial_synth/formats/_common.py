@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from ..errors import LabelFormatError
-from ..safe_input import MAX_COORD_PX, check_link, load_json, quote
+from ..safe_input import LABEL_GSD_RANGE_M, MAX_COORD_PX, load_json, quote, shown
+from ..safe_input import read_text as safe_read_text
 from ..vehicles import CLASSES
 
 __all__ = ["CATEGORIES", "fmt_num", "parse_float", "parse_number", "polygon4", "read_text",
@@ -55,6 +54,16 @@ def parse_number(token: str, where: str, what: str) -> float:
     return v
 
 
+def parse_gsd(token: str, where: str) -> float:
+    """A ``gsd:`` header's value within :data:`LABEL_GSD_RANGE_M`; LabelFormatError otherwise."""
+    v = parse_number(token, where, "gsd")
+    lo, hi = LABEL_GSD_RANGE_M
+    if not lo <= v <= hi:
+        raise LabelFormatError(f"{where}: expected gsd in {lo:g}..{hi:g} metres per pixel, "
+                               f"got {quote(token)}")
+    return v
+
+
 def polygon4(points) -> tuple[tuple[float, float], ...]:
     """(4, 2) array-like -> tuple of 4 (x, y) float tuples."""
     p = np.asarray(points, dtype=float).reshape(4, 2)
@@ -63,12 +72,8 @@ def polygon4(points) -> tuple[tuple[float, float], ...]:
 
 def read_text(path) -> str:
     """A label file's UTF-8 text; a file that is not UTF-8 text raises LabelFormatError."""
-    check_link(path, LabelFormatError)  # a link out of the input folder is never read
-    try:
-        return Path(path).read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise LabelFormatError(f"{path}: expected UTF-8 text, found byte {exc.object[exc.start]:#04x} "
-                               f"at offset {exc.start}") from None
+    # a link out of the input folder, a FIFO or a device is never read
+    return safe_read_text(path, shown(path), LabelFormatError)
 
 
 def read_json(path):

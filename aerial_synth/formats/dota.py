@@ -23,14 +23,14 @@ import numpy as np
 
 from ..errors import LabelFormatError
 from ..io_utils import atomic_write_text
-from ..safe_input import quote
+from ..safe_input import LABEL_GSD_RANGE_M, quote
 from ._common import (
     CATEGORIES,
     MAX_COORD_PX,
     fmt_num,
     parse_coordinate,
     parse_float,
-    parse_number,
+    parse_gsd,
     polygon4,
     read_text,
 )
@@ -100,7 +100,7 @@ def from_lines(lines, where: str = "<labelTxt>", categories=CATEGORIES) -> DotaL
     if not lines[1].startswith("gsd:"):
         raise LabelFormatError(f"{where}:2: expected 'gsd:<metres per pixel>', got {quote(lines[1])}")
     g = lines[1][4:].strip()
-    gsd = None if g in ("null", "") else parse_float(g, f"{where}:2 gsd")
+    gsd = None if g in ("null", "") else parse_gsd(g, f"{where}:2")
     objects = []
     for n, ln in enumerate(lines[2:], start=3):
         f = ln.split(" ")
@@ -155,9 +155,7 @@ def labels_from_lines(lines, where: str = "<labelTxt>", name: str = "") -> Image
         if ln.startswith("gsd:"):
             g = ln[4:].strip()
             if g not in ("", "null", "None", "none"):
-                gsd = parse_number(g, f"{where}:{n}", "gsd")
-                if gsd <= 0:
-                    raise LabelFormatError(f"{where}:{n}: expected gsd > 0, got {quote(g)}")
+                gsd = parse_gsd(g, f"{where}:{n}")
             continue
         f = ln.split()
         if len(f) not in (9, 10):
@@ -197,8 +195,8 @@ def _lenient_fast(lines):
                     gsd = float(g)
                 except ValueError:
                     return None
-                if not (np.isfinite(gsd) and gsd > 0):
-                    return None
+                if not LABEL_GSD_RANGE_M[0] <= gsd <= LABEL_GSD_RANGE_M[1]:  # NaN too
+                    return None  # the line-by-line parser names it
         else:
             body.append(ln.split())
     if any(len(f) != 10 for f in body) or any(f[9] not in ("0", "1", "2") for f in body):

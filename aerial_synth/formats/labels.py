@@ -14,18 +14,15 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import LabelFormatError
-from ..safe_input import check_link
+from ..safe_input import read_text, shown
 
 __all__ = ["ImageLabels", "read_lines"]
 
 
 def read_lines(path) -> list[str]:
     """Text lines of a real-world label or prediction file (UTF-8, a byte-order mark ignored)."""
-    check_link(path, LabelFormatError)  # a link out of the input folder is never read
-    try:
-        return Path(path).read_text(encoding="utf-8-sig").splitlines()
-    except UnicodeDecodeError:
-        raise LabelFormatError(f"{path}: expected UTF-8 text, got undecodable bytes") from None
+    # a link out of the input folder, a FIFO or a device is never read
+    return read_text(path, shown(path), LabelFormatError).removeprefix("\ufeff").splitlines()
 
 
 @dataclass

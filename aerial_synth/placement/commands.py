@@ -12,12 +12,12 @@ import resource
 import sys
 import time
 import warnings
-from pathlib import Path
 
 import numpy as np
 
 from ..errors import ConfigError, PlacementError
 from ..io_utils import atomic_write_bytes, check_output_dir
+from ..out_guard import staged_dir
 from ..scene.commands import scene_from_args
 from ..scene.mapview import render_map
 from ..scene.raycast import RayScene
@@ -91,10 +91,10 @@ def run_place(args: argparse.Namespace) -> int:
                              f"{len(placement.vehicles)} vehicles")
         ok, buf = cv2.imencode(".png", img)
         png = buf.tobytes()
-    files = [(out / "placement.json", placement.to_json().encode("utf-8"))]
-    if png is not None:
-        files.append((out / "placement.png", png))
-    _write_all(out, files)
+    with staged_dir(out) as build:  # both files, or neither (existing files kept)
+        atomic_write_bytes(build / "placement.json", placement.to_json().encode("utf-8"))
+        if png is not None:
+            atomic_write_bytes(build / "placement.png", png)
     st = placement.stats
     sp = st["spacing_m"]
     val = st["validation"]
@@ -131,28 +131,6 @@ def run_place(args: argparse.Namespace) -> int:
     return 0
 
 
-def _write_all(out: Path, files: list[tuple[Path, bytes]]) -> None:
-    """Write every file atomically; if one fails, remove the ones this run wrote before it
-    (and the folder if this run made it), so a failed run leaves nothing new behind."""
-    made = not out.exists()
-    done: list[Path] = []
-    try:
-        for path, data in files:
-            existed = path.exists()
-            atomic_write_bytes(path, data)
-            if not existed:
-                done.append(path)
-    except BaseException:
-        for path in done:
-            path.unlink(missing_ok=True)
-        if made:
-            try:
-                out.rmdir()
-            except OSError:
-                pass
-        raise
-
-
 def run_place_tiled(args: argparse.Namespace) -> int:
     """``aerial-synth place-tiled``: tiled placement of a large world into placement.json."""
     out = check_output_dir(args.out, "--out")
@@ -179,8 +157,8 @@ def run_place_tiled(args: argparse.Namespace) -> int:
     wall = time.perf_counter() - t0
     if sys.stderr.isatty():
         print(file=sys.stderr)
-    out.mkdir(parents=True, exist_ok=True)
-    atomic_write_bytes(out / "placement.json", pl.to_json().encode("utf-8"))
+    with staged_dir(out) as build:  # a failed write leaves --out as it was
+        atomic_write_bytes(build / "placement.json", pl.to_json().encode("utf-8"))
     t = pl.stats["tiles"]
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     print(f"world {world.name}: {t['grid'][0]} x {t['grid'][1]} tiles of {t['tile_m']:g} m (margin "

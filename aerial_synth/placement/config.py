@@ -22,7 +22,7 @@ import numpy as np
 
 from .. import validators as V
 from ..errors import ConfigError, PlacementError
-from ..safe_input import load_yaml
+from ..safe_input import load_yaml, read_text
 from .parking_config import PARKING_KINDS, ParkingConfig, parse_parking
 from .spacing import SpacingSampler
 
@@ -393,7 +393,6 @@ def parse_overrides(items: list[str] | None, option: str = "--set") -> dict:
     Keys are dotted names (letters, digits, underscores); a later item wins over an earlier
     one. A malformed item raises :class:`ConfigError` naming it.
     """
-    import yaml
 
     out: dict = {}
     for item in items or []:
@@ -407,11 +406,9 @@ def parse_overrides(items: list[str] | None, option: str = "--set") -> dict:
         if "\n" in raw or "\r" in raw:
             val: Any = raw
         else:
-            try:
-                val = yaml.safe_load(raw)
-            except yaml.YAMLError:
-                val = raw
-            except (ValueError, TypeError, OverflowError, RecursionError):
+            try:  # a YAML scalar or flow value, within the budgets; else the text itself
+                val = load_yaml(raw, f"{option} {key}", ConfigError)
+            except ConfigError:
                 val = raw
         node = out
         for p in parts[:-1]:
@@ -479,10 +476,7 @@ def load_scenario(name_or_path: str | ScenarioConfig, overrides: Mapping | None 
                     f"or a .yaml file"
                 )
             source = _bundled_label(p)
-        try:
-            text = p.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ConfigError(f"{source}: cannot read it ({getattr(exc, 'strerror', None) or exc})") from None
+        text = read_text(p, source, ConfigError)  # a regular file, size-capped, UTF-8
         key = (str(p), source, text, override_label)
         if not overrides and key in _PARSED:
             return _PARSED[key]

@@ -9,6 +9,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from ..errors import PlacementError
+from ..safe_input import load_json
 from ..versions import versions
 
 __all__ = ["PlacedVehicle", "Placement", "footprint_corners_xy", "with_lonlat"]
@@ -187,7 +189,7 @@ class Placement:
 
     @classmethod
     def from_json(cls, text: str) -> "Placement":
-        return cls.from_dict(json.loads(text))
+        return cls.from_dict(load_json(text, "placement JSON", PlacementError))
 
     def by_id(self) -> dict[int, PlacedVehicle]:
         return {v.id: v for v in self.vehicles}

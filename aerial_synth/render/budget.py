@@ -9,12 +9,16 @@ refuses it first, in one line, before anything is written.
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
-
 from ..errors import RenderError
+from ..memory import (  # their home since issue 37; here for the frame checks and callers
+    RENDER_PROCESS_VM_BYTES,
+    address_space_room,
+    available_memory_bytes,
+    check_memory,
+)
 
-__all__ = ["FRAME_BYTES_PER_PX", "frame_bytes", "frame_gb", "available_memory_bytes", "check_frame_memory"]
+__all__ = ["FRAME_BYTES_PER_PX", "frame_bytes", "frame_gb", "available_memory_bytes", "check_frame_memory",
+           "check_memory", "RENDER_PROCESS_VM_BYTES", "address_space_room"]
 
 #: Peak resident memory a frame adds per pixel: 112 B measured for ``aerial-synth render``
 #: (peak RSS 0.97 GB at 2048 x 2048 px, 2.35 GB at 4096 x 4096), 102 B for one export
@@ -30,93 +34,6 @@ def frame_bytes(width_px: int, height_px: int) -> int:
 def frame_gb(width_px: int, height_px: int) -> float:
     """:func:`frame_bytes` in GB (10^9 bytes), as the error messages give it."""
     return frame_bytes(width_px, height_px) / 1e9
-
-
-def _read_int(path: Path) -> int | None:
-    try:
-        text = path.read_text().strip()
-    except OSError:
-        return None
-    return int(text) if text.isdigit() else None  # "max" (no limit) -> None
-
-
-def _cgroup_room() -> int | None:
-    """Bytes this process's cgroup may still take (v2, else v1), None without a limit."""
-    try:
-        lines = Path("/proc/self/cgroup").read_text().splitlines()
-    except OSError:
-        return None
-    for line in lines:
-        parts = line.split(":", 2)
-        if len(parts) != 3:
-            continue
-        hier, controllers, rel = parts
-        if hier == "0" and controllers == "":  # cgroup v2
-            base = Path("/sys/fs/cgroup") / rel.lstrip("/")
-            limit, used = _read_int(base / "memory.max"), _read_int(base / "memory.current")
-        elif "memory" in controllers.split(","):  # cgroup v1
-            base = Path("/sys/fs/cgroup/memory") / rel.lstrip("/")
-            limit = _read_int(base / "memory.limit_in_bytes")
-            used = _read_int(base / "memory.usage_in_bytes")
-            if limit is not None and limit >= 1 << 60:  # v1's "no limit"
-                limit = None
-        else:
-            continue
-        if limit is not None:
-            return max(0, limit - (used or 0))
-    return None
-
-
-#: Virtual size of a rendering process before its frame: 2.4 GB measured after an export's
-#: scene load (open3d alone maps 1.8 GB of address space, little of it resident).
-RENDER_PROCESS_VM_BYTES = 2_500_000_000
-
-
-def address_space_room() -> int | None:
-    """Bytes of address space a rendering process may still map under ``RLIMIT_AS``
-    (``ulimit -v``): the soft limit less the larger of this process's virtual size and
-    :data:`RENDER_PROCESS_VM_BYTES`; None without a limit. Each process has its own (a
-    pool's workers inherit it), so it caps one frame, not a pool's."""
-    try:
-        import resource
-
-        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
-    except (ImportError, OSError, ValueError, AttributeError):
-        return None
-    if soft == resource.RLIM_INFINITY or soft < 0:
-        return None
-    used = 0
-    try:
-        for line in Path("/proc/self/status").read_text().splitlines():
-            if line.startswith("VmSize:"):
-                used = int(line.split()[1]) * 1024
-                break
-    except (OSError, ValueError, IndexError):
-        used = 0
-    return max(0, int(soft) - max(used, RENDER_PROCESS_VM_BYTES))
-
-
-def available_memory_bytes() -> int | None:
-    """Memory a new allocation can take without swapping or an OOM kill: the kernel's
-    MemAvailable, capped by the room left under this process's cgroup limit (a
-    container's). None where neither can be read."""
-    avail = None
-    try:
-        for line in Path("/proc/meminfo").read_text().splitlines():
-            if line.startswith("MemAvailable:"):
-                avail = int(line.split()[1]) * 1024
-                break
-    except (OSError, ValueError, IndexError):
-        avail = None
-    if avail is None and hasattr(os, "sysconf"):
-        try:
-            avail = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-        except (OSError, ValueError):
-            avail = None
-    room = _cgroup_room()
-    if room is not None:
-        avail = room if avail is None else min(avail, room)
-    return avail
 
 
 def check_frame_memory(width_px: int, height_px: int, processes: int = 1, error=None,
@@ -146,3 +63,4 @@ def check_frame_memory(width_px: int, height_px: int, processes: int = 1, error=
             f"render smaller images{' or use fewer workers' if int(processes) > 1 else ''} "
             f"(a 1024 x 1024 frame needs {frame_bytes(1024, 1024) / 1e6:.0f} MB)"
         )
+

@@ -26,10 +26,13 @@ from ..camera import (
     MAX_GSD_M,
     MAX_IMAGE_PX,
     MAX_TILT_LIMIT_DEG,
+    MIN_ALTITUDE_M,
+    MIN_GSD_M,
     CameraConfig,
 )
 from ..errors import AerialSynthError
 from ..io_utils import atomic_write_json, atomic_write_text, check_output_dir
+from ..out_guard import staged_dir
 from ..scene.cli import add_scene_args
 from ..validators import arg_choice, arg_float, arg_int
 from .budget import check_frame_memory
@@ -45,14 +48,14 @@ def add_camera_args(p: argparse.ArgumentParser, *, size: bool = False, lens: boo
 
     size : also ``--size`` (a square image; ``--width``/``--height`` then default to it)
     lens : ``--focal`` and ``--fov`` besides ``--gsd``
-    ranges : ``ranges(option, max_value)`` -> an argparse type for ``--altitude`` and
+    ranges : ``ranges(option, max_value, min_value)`` -> an argparse type for ``--altitude`` and
              ``--gsd`` that also takes a range ``LO:HI`` (export's per-image draw,
              :func:`aerial_synth.dataset.gsd.camera_range`); the bounds stay these"""
     d = CameraConfig()
     g = p.add_argument_group("camera")
     rng = " or a range LO:HI drawn per image (docs/gsd.md)" if ranges else ""
-    g.add_argument("--altitude", type=(ranges("--altitude", MAX_ALTITUDE_M) if ranges else
-                                       arg_float("--altitude", 0.0, MAX_ALTITUDE_M, lo_open=True)),
+    g.add_argument("--altitude", type=(ranges("--altitude", MAX_ALTITUDE_M, MIN_ALTITUDE_M) if ranges
+                                       else arg_float("--altitude", MIN_ALTITUDE_M, MAX_ALTITUDE_M)),
                    default=d.altitude_m, metavar="M|LO:HI" if ranges else "M",
                    help=f"camera height above the target ground, metres ({d.altitude_m:g}){rng}")
     if size:
@@ -62,8 +65,8 @@ def add_camera_args(p: argparse.ArgumentParser, *, size: bool = False, lens: boo
                    metavar="PX", help=f"image width ({d.width_px})")
     g.add_argument("--height", type=arg_int("--height", 1, MAX_IMAGE_PX),
                    default=None if size else d.height_px, metavar="PX", help=f"image height ({d.height_px})")
-    g.add_argument("--gsd", type=(ranges("--gsd", MAX_GSD_M) if ranges else
-                                  arg_float("--gsd", 0.0, MAX_GSD_M, lo_open=True)), default=None,
+    g.add_argument("--gsd", type=(ranges("--gsd", MAX_GSD_M, MIN_GSD_M) if ranges else
+                                  arg_float("--gsd", MIN_GSD_M, MAX_GSD_M)), default=None,
                    metavar="M|LO:HI" if ranges else "M",
                    help=f"ground sampling distance at nadir, m/px ({DEFAULT_GSD_M:g}){rng}")
     if lens:
@@ -216,26 +219,30 @@ def run(args) -> int:
     r = SampleRenderer(build_plan(cfg, render=rcfg, camera=cam_plan))
     scene = r.scene(0)
     extras = scene_distractors(cfg) if cfg.distractors else []
-    if not args.placement_per_image:
-        placement = r.group(0).placement
-        atomic_write_text(out / "placement.json", placement.to_json())
-    atomic_write_json(out / "distractors.json", {"per_hectare": args.distractors,
-                                                 "distractors": extras})
-    n_veh = 0
-    for i in range(args.images):
-        if args.placement_per_image:
-            placement = r.group(i).placement
-            atomic_write_text(out / f"{i:06d}" / "placement.json", placement.to_json())
-        s = r.sample(i, frame=True)
-        fr = s.frame
-        io.write_frame(fr, out / f"{i:06d}", depth_format=args.depth_format, extra_meta={
-            "seed": args.seed, "image_index": i, "scene": scene.name,
-            "scenario": placement.scenario, "sampler": args.sampler,
-            "render_config": rcfg.to_dict(),
-            "distractors": {"per_hectare": args.distractors, "count": len(extras)},
-            "seed_streams": s.meta.seed,
-        })
-        n_veh += len(fr.visibility)
+    # frames are written beside --out and put in place at the end: a failure (a full disk, a
+    # signal) leaves --out as it was
+    with staged_dir(out) as build:
+        placement = None
+        if not args.placement_per_image:
+            placement = r.group(0).placement
+            atomic_write_text(build / "placement.json", placement.to_json())
+        atomic_write_json(build / "distractors.json", {"per_hectare": args.distractors,
+                                                       "distractors": extras})
+        n_veh = 0
+        for i in range(args.images):
+            if args.placement_per_image:
+                placement = r.group(i).placement
+                atomic_write_text(build / f"{i:06d}" / "placement.json", placement.to_json())
+            s = r.sample(i, frame=True)
+            fr = s.frame
+            io.write_frame(fr, build / f"{i:06d}", depth_format=args.depth_format, extra_meta={
+                "seed": args.seed, "image_index": i, "scene": scene.name,
+                "scenario": placement.scenario, "sampler": args.sampler,
+                "render_config": rcfg.to_dict(),
+                "distractors": {"per_hectare": args.distractors, "count": len(extras)},
+                "seed_streams": s.meta.seed,
+            })
+            n_veh += len(fr.visibility)
     dt = time.perf_counter() - t0
     print(f"rendered {args.images} frame(s) of {scene.name} ({placement.scenario}), "
           f"{n_veh} vehicles in view in total, {dt:.1f} s -> {out}", file=sys.stdout)

@@ -13,11 +13,10 @@ import warnings
 from collections import Counter
 from pathlib import Path
 
-import yaml
-
 from ..errors import OutputError, SceneError
 from ..io_utils import check_output_file
 from ..out_guard import out_lock
+from ..safe_input import load_yaml_file
 from .georef import SceneWarning
 from .io import SCENES_DIR, export_glb, list_scenes, load_scene
 from .mapview import render_map, save_png
@@ -83,10 +82,10 @@ def cmd_list(args: argparse.Namespace) -> int:
     for name in list_scenes():
         path = SCENES_DIR / f"{name}.yaml"
         try:  # the checks `scene show` applies (size_km -> size_m included), not a raw read
-            spec, seed = checked_spec(yaml.safe_load(path.read_text(encoding="utf-8")), path.name)
+            spec, seed = checked_spec(load_yaml_file(path, path.name, SceneError), path.name)
             w, h = spec["size_m"]
             desc = f"{spec['generator']}, {w:g} m x {h:g} m, seed {seed}"
-        except (OSError, yaml.YAMLError, SceneError) as exc:  # a broken bundled spec still gets listed
+        except SceneError as exc:  # a broken bundled spec still gets listed
             desc = f"(invalid spec: {str(exc).splitlines()[0][:80]})"
         print(f"{name:14s} {desc}")
     return 0

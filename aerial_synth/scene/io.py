@@ -11,6 +11,7 @@ rule matches get the label ``unknown``.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -215,8 +216,12 @@ def load_mesh_scene(path: str | Path, labels: str | Path | None = None) -> Scene
         raise SceneError(f"scene file {path}: file not found")
     if labels is None:
         sidecar = path.with_name(path.stem + ".labels.yaml")
-        labels = sidecar if sidecar.is_file() else None
-    rules = load_rules(labels)
+        if os.path.lexists(sidecar):  # found, not named: it must not lead out of the folder
+            rules = load_rules(sidecar, root=path.parent)
+        else:
+            rules = load_rules(None)
+    else:
+        rules = load_rules(labels)
     try:
         tscene = _trimesh_load(path)
     except Exception as exc:  # trimesh raises many types for corrupt input

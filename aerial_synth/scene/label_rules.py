@@ -18,7 +18,7 @@ from typing import Any, Mapping
 
 from .. import validators as V
 from ..errors import AerialSynthError, SceneError
-from ..safe_input import load_yaml, shown
+from ..safe_input import load_yaml_file, shown, user_regex
 from .georef import check_crs
 from .model import LABEL_IDS, LABELS, MATERIAL_IDS, MATERIALS, LabelConfig
 
@@ -96,12 +96,10 @@ class LabelRule:
                 f"of {', '.join(sorted(MATERIAL_IDS))}"
             )
         if self.match.startswith("re:"):
-            try:
-                pat = re.compile(self.match[3:], re.IGNORECASE)
-            except re.error as exc:
-                raise SceneError(f"label rule {self.match!r}: bad regular expression ({exc})") from None
-        else:
-            pat = re.compile(fnmatch.translate(self.match), re.IGNORECASE)
+            pat = user_regex(self.match[3:], f"label rule {self.match!r}", SceneError,
+                             ignore_case=True)
+        else:  # a glob: fnmatch's own translation, which cannot backtrack
+            pat = re.compile(fnmatch.translate(self.match), re.IGNORECASE)  # guard: a glob
         object.__setattr__(self, "_pattern", pat)
 
     def matches(self, name: str) -> bool:
@@ -146,24 +144,21 @@ def _default_rule_objects() -> tuple[LabelRule, ...]:
     return tuple(LabelRule(m, lab) for m, lab in DEFAULT_RULES)
 
 
-def read_yaml(path: Path, what: str) -> Any:
+def read_yaml(path: Path, what: str, root: str | Path | None = None) -> Any:
     """The YAML file ``path``; SceneError naming ``what`` and the file when it is missing,
-    unreadable or broken, or nests or expands aliases beyond :mod:`..safe_input`'s budgets."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise SceneError(f"{what} {shown(path)}: file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SceneError(f"{what} {shown(path)}: cannot read ({exc})") from None
-    return load_yaml(text, f"{what} {shown(path)}", SceneError)  # nesting and alias budgets
+    unreadable or broken, or nests or expands aliases beyond :mod:`..safe_input`'s budgets.
+    ``root``: the folder the file was found in without the user naming it (it must not lead
+    out of it)."""
+    return load_yaml_file(path, f"{what} {shown(path)}", SceneError, root=root)
 
 
-def load_rules(path: str | Path | None) -> LabelRules:
-    """Parse a label-rules YAML file; None gives the built-in rules."""
+def load_rules(path: str | Path | None, root: str | Path | None = None) -> LabelRules:
+    """Parse a label-rules YAML file; None gives the built-in rules. ``root``: the folder a
+    file found automatically (a mesh's ``NAME.labels.yaml``) must stay in."""
     if path is None:
         return LabelRules(rules=_default_rule_objects())
     path = Path(path)
-    data = read_yaml(path, "label rules")
+    data = read_yaml(path, "label rules", root)
     try:
         return _rules_from_mapping(data, str(path))
     except AerialSynthError as exc:

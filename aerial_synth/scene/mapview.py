@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConfigError, RenderError
+from ..errors import ConfigError, RenderError, SceneError
 from ..io_utils import atomic_write_bytes
-from ..validators import positive
+from ..validators import integer, positive
 from .model import LABEL_IDS, LABELS, Scene
 from .raycast import RayScene
 
@@ -99,8 +99,13 @@ def render_map(
     legend   : draw a scale bar and a label legend
     Returns a :class:`MapView` covering the scene's xy bounds.
     """
+    if not isinstance(scene, Scene):
+        raise SceneError(f"render_map scene: expected a Scene, got {type(scene).__name__}")
     m_per_px = positive("--m-per-px", m_per_px)
+    max_px = integer("render_map max_px", max_px, 1, 1 << 16, error=SceneError)
     b = scene.bounds()
+    if not np.isfinite(b).all():
+        raise SceneError(f"render_map scene {scene.name!r}: expected finite bounds, got {b.tolist()}")
     x0, y0, x1, y1 = b[0, 0], b[0, 1], b[1, 0], b[1, 1]
     W = max(1, int(np.ceil((x1 - x0) / m_per_px)))
     H = max(1, int(np.ceil((y1 - y0) / m_per_px)))

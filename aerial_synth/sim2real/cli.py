@@ -6,6 +6,7 @@ from __future__ import annotations
 from ..cli import Parser, one_line_usage_error
 from ..dataset.cli import config_from_args
 from ..dataset.cli import register as register_export
+from ..safe_input import LABEL_GSD_RANGE_M
 from ..validators import arg_choice, arg_float, arg_int
 from .config import Sim2RealError
 from .plan import EXPORT_SET_BY_SIM2REAL
@@ -61,9 +62,9 @@ def register(sub) -> None:
                    help="real tiles of PX x PX at the synthetic GSD (--imgsz)")
     p.add_argument("--overlap", type=arg_int("--overlap", 0), default=None, metavar="PX",
                    help="tile overlap (tile / 5)")
-    p.add_argument("--gsd", type=arg_float("--gsd", 0.0, lo_open=True), default=None, metavar="M",
+    p.add_argument("--gsd", type=arg_float("--gsd", *LABEL_GSD_RANGE_M), default=None, metavar="M",
                    help="synthetic GSD to rescale real images to (default: the export's)")
-    p.add_argument("--real-gsd", type=arg_float("--real-gsd", 0.0, lo_open=True), default=None,
+    p.add_argument("--real-gsd", type=arg_float("--real-gsd", *LABEL_GSD_RANGE_M), default=None,
                    metavar="M", help="GSD of real images whose labels carry no gsd: header")
     p.add_argument("--real-scale", default="arm", metavar="arm|native|arm,native",
                    help="arm: rescale real images to each arm's GSD; native: predict them at their "

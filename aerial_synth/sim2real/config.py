@@ -8,15 +8,18 @@ aerial-synth export with ``yolo-obb/`` or a YOLO-OBB folder (``data.yaml``, ``im
 
 from __future__ import annotations
 
-import json
+import os
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from .. import validators as V
 from ..errors import EvaluationError
 from ..evaluate.labels import IMAGE_EXTS, find_data_yaml, parse_names
+from ..safe_input import LABEL_GSD_RANGE_M, MAX_COORD_PX, load_json_file, user_regex
 
 __all__ = ["Sim2RealError", "Arm", "SyntheticSet", "Sim2RealConfig", "parse_arm", "parse_arms",
            "inspect_synthetic", "parse_real_scale", "DEFAULT_MODEL", "REAL_SCALES"]
@@ -46,7 +49,7 @@ def parse_arm(text: str) -> Arm:
         dirs = tuple(Path(d.strip()) for d in rest.split(",") if d.strip())
         return Arm(name.strip(), dirs)
     p = Path(text)
-    nm = p.resolve().name if str(text).strip() else ""
+    nm = Path(os.path.realpath(p)).name if str(text).strip() else ""  # a link loop: no RuntimeError
     if not nm or not ARM_NAME.match(nm):
         raise Sim2RealError(f"--synthetic: expected DIR or NAME=DIR[,DIR] (NAME of letters, digits, "
                             f"_ . -), got {text!r}")
@@ -101,16 +104,16 @@ def _export_gsd(d: Path) -> float | None:
         if not m.is_file():
             continue
         try:
-            g = json.loads(m.read_text(encoding="utf-8")).get("parameters", {}).get("gsd_m")
-        except (OSError, ValueError, AttributeError):
+            g = load_json_file(m, str(m), Sim2RealError).get("parameters", {}).get("gsd_m")
+        except (EvaluationError, AttributeError):  # unreadable: as if absent
             g = None
         if isinstance(g, (int, float)) and g > 0:
             return float(g)
         vals = []
         for f in sorted((base / "meta").glob("*.json")) if (base / "meta").is_dir() else ():
             try:
-                v = json.loads(f.read_text(encoding="utf-8")).get("gsd_m")
-            except (OSError, ValueError, AttributeError):
+                v = load_json_file(f, str(f), Sim2RealError).get("gsd_m")
+            except (EvaluationError, AttributeError):
                 continue
             if isinstance(v, (int, float)) and v > 0:
                 vals.append(float(v))
@@ -181,15 +184,45 @@ class Sim2RealConfig:
     contact_images: int = 6
     force: bool = False
 
+    def _check_types(self) -> None:
+        """Every number is a finite number of the right kind, in its range, before anything
+        compares it (NaN passed ``x < 1`` tests; a string gave a plain TypeError): each field
+        is converted or refused in one line naming its option (as ``ExportConfig``)."""
+        E, s = Sim2RealError, object.__setattr__
+        if not isinstance(self.arms, tuple) or not self.arms or \
+                not all(isinstance(a, Arm) for a in self.arms):
+            raise E(f"--synthetic: expected at least one synthetic set, got {V.show(self.arms)}")
+        if self.minutes is not None:
+            s(self, "minutes", V.in_range("--minutes", self.minutes, 0.0, 7 * 24 * 60.0,
+                                          lo_open=True, error=E))
+        if self.epochs is not None:
+            s(self, "epochs", V.integer("--epochs", self.epochs, 1, 100_000, error=E))
+        for name, opt, lo, hi in (("imgsz", "--imgsz", 32, 8192), ("seed", "--seed", 0, 2**32 - 1),
+                                  ("batch", "--batch", 1, 4096), ("workers", "--workers", 0, 256),
+                                  ("contact_images", "--contact-images", 0, 1000)):
+            s(self, name, V.integer(opt, getattr(self, name), lo, hi, error=E))
+        for name, opt in (("tile", "--tile"), ("overlap", "--overlap")):
+            if getattr(self, name) is not None:
+                s(self, name, V.integer(opt, getattr(self, name), 0, 1 << 20, error=E))
+        for name, opt, lo, hi in (("conf", "--conf", 0.0, 1.0), ("merge_iou", "--merge-iou", 0.0, 1.0)):
+            s(self, name, V.in_range(opt, getattr(self, name), lo, hi, error=E))
+        for name, opt in (("gsd", "--gsd"), ("real_gsd", "--real-gsd")):
+            if getattr(self, name) is not None:
+                s(self, name, V.in_range(opt, getattr(self, name), *LABEL_GSD_RANGE_M, error=E))
+        if not isinstance(self.ignore_border, Mapping):
+            raise E(f"--ignore-border: expected a mapping class: pixels, got {V.show(self.ignore_border)}")
+        s(self, "ignore_border", {k: V.in_range(f"--ignore-border {k if k is not None else '*'}", v,
+                                                0.0, MAX_COORD_PX, error=E)
+                                  for k, v in self.ignore_border.items()})
+        if self.group is not None:
+            user_regex(self.group, "--group", E)  # RE2: no match can backtrack
+
     def __post_init__(self):
         if self.minutes is not None and self.epochs is not None:
             raise Sim2RealError("sim2real: expected --minutes or --epochs, not both")
         if self.minutes is None and self.epochs is None:
             object.__setattr__(self, "minutes", 10.0)
-        if self.minutes is not None and not (np.isfinite(self.minutes) and self.minutes > 0):
-            raise Sim2RealError(f"--minutes: expected a number > 0, got {self.minutes!r}")
-        if self.epochs is not None and self.epochs < 1:
-            raise Sim2RealError(f"--epochs: expected an integer >= 1, got {self.epochs!r}")
+        self._check_types()
         if self.imgsz < 32 or self.imgsz % 32:
             raise Sim2RealError(f"--imgsz: expected a multiple of 32 (>= 32), got {self.imgsz!r}")
         tile = self.imgsz if self.tile is None else self.tile
@@ -208,9 +241,6 @@ class Sim2RealConfig:
             raise Sim2RealError(f"--model: expected a model yaml (e.g. {DEFAULT_MODEL}; built from "
                                 f"scratch, nothing downloaded), got {self.model!r}; use --weights FILE "
                                 f"for a local .pt")
-        for opt, v in (("--gsd", self.gsd), ("--real-gsd", self.real_gsd)):
-            if v is not None and not (np.isfinite(v) and v > 0):
-                raise Sim2RealError(f"{opt}: expected a number > 0, got {v!r}")
         rs = self.real_scale
         text = rs if isinstance(rs, str) else ",".join(map(str, rs)) if isinstance(rs, (tuple, list)) else repr(rs)
         object.__setattr__(self, "real_scale", parse_real_scale(text))  # a tuple, checked

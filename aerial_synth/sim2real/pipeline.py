@@ -36,6 +36,7 @@ from ..io_utils import (
     is_inside,
     replace_dir,
 )
+from ..safe_input import read_image
 from . import report as rep
 from . import ultra
 from .config import Sim2RealConfig, Sim2RealError, SyntheticSet, inspect_synthetic
@@ -125,12 +126,12 @@ def prepare_training_set(folder: Path, sets: list[SyntheticSet]) -> tuple[Path, 
                 except OSError:
                     shutil.copyfile(p, dst_img / p.name)
                 shutil.copyfile(lab_src / (p.stem + ".txt"), dst_lab / (p.stem + ".txt"))
-            (train_dirs if split == "train" else val_dirs).append(str(dst_img.resolve()))
+            (train_dirs if split == "train" else val_dirs).append(str(dst_img.resolve()))  # guard: the staged build
     val_is_train = not val_dirs
-    data = {"path": str(folder.resolve()), "train": train_dirs, "val": val_dirs or train_dirs,
+    data = {"path": str(folder.resolve()), "train": train_dirs, "val": val_dirs or train_dirs,  # guard: the staged build
             "names": dict(enumerate(sets[0].names))}
     y = folder / "data.yaml"
-    y.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    y.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")  # guard: inside the staged build
     return y, sum(s.n_train for s in sets), sum(s.n_val for s in sets), val_is_train
 
 
@@ -164,7 +165,7 @@ def run_sim2real(cfg: Sim2RealConfig) -> dict:
     out, sets, gsds, items, plans, opts = check_inputs(cfg)
     device, device_name = ultra.resolve_device(cfg.device)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)).resolve()
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)).resolve()  # guard: the temporary folder it made
     try:
         report = _run(cfg, tmp, sets, gsds, items, plans, opts, device, device_name)
         replace_dir(tmp, out)
@@ -208,9 +209,9 @@ def _run(cfg, tmp: Path, sets, gsds, items, plans, opts, device, device_name) ->
         curves[a.name] = agn
         thr = rep.best_f1_threshold(rep.agnostic(agn))
         sheets[a.name] = (dets, thr)
-        if tmp not in tr.weights.resolve().parents:
+        if tmp not in tr.weights.resolve().parents:  # guard: weights in its own build
             raise RuntimeError(f"Ultralytics wrote the weights outside the run folder: {tr.weights}")
-        weights_rel = tr.weights.resolve().relative_to(tmp)
+        weights_rel = tr.weights.resolve().relative_to(tmp)  # guard: weights in its own build
         arms.append({
             "name": a.name, "dirs": [str(d) for d in a.dirs], "gsd_m": gsds[a.name],
             "classes": list(sets[a.name][0].names), "training_images": n_train,
@@ -318,7 +319,7 @@ def write_figures(tmp: Path, report, curves, sheets, items, contact_images: int,
                                     [res.border_px[groups[i]] for i in chosen])
         imgs, dsel, hbb = [], [], []
         for k, i in enumerate(chosen):
-            imgs.append(cv2.imread(str(items[i].image_path), cv2.IMREAD_COLOR))
+            imgs.append(read_image(items[i].image_path, cv2.IMREAD_COLOR, Sim2RealError))
             m = np.asarray(kept.image) == k
             dsel.append((np.asarray(kept.polygons_xy_px)[m], np.asarray(kept.scores)[m]))
             hbb.append(res.iou_type[groups[i]] == "hbb")

@@ -16,8 +16,9 @@ import numpy as np
 
 from ..evaluate.ap import candidate_pairs, quad_pair_iou, quads
 from ..evaluate.labels import IMAGE_EXTS, ImageLabels, image_size
-from ..evaluate.mix import tile_origins
 from ..evaluate.scoring import read_gt
+from ..evaluate.tiling import check_scaled_plan, tile_origins
+from ..safe_input import read_image
 from .config import Sim2RealError
 
 __all__ = ["RealImage", "read_real", "plan_image", "load_scaled", "tiles_of", "tile_to_original",
@@ -86,8 +87,10 @@ def plan_image(g: ImageLabels, target_gsd: float | None, real_gsd: float | None,
                                 f"for images without one")
         f = gsd / target_gsd
         if abs(f - 1.0) > 1e-9:
-            nw, nh = max(1, int(round(w * f))), max(1, int(round(h * f)))
+            nw, nh = check_scaled_plan(str(g.label_path), w, h, f, tile, overlap, Sim2RealError)
             sx, sy = nw / w, nh / h
+    else:
+        check_scaled_plan(str(g.label_path), w, h, 1.0, tile, overlap, Sim2RealError)
     tiles = [(x, y, min(tile, nw - x), min(tile, nh - y))
              for y in tile_origins(nh, tile, overlap) for x in tile_origins(nw, tile, overlap)]
     return RealImage(g, gsd, (sx, sy), (w, h), (nw, nh), tiles)
@@ -98,9 +101,7 @@ def load_scaled(r: RealImage) -> np.ndarray:
     enlarge, as ``mix``)."""
     import cv2
 
-    img = cv2.imread(str(r.labels.image_path), cv2.IMREAD_COLOR)
-    if img is None:
-        raise Sim2RealError(f"{r.labels.image_path}: expected an image, cannot decode it")
+    img = read_image(r.labels.image_path, cv2.IMREAD_COLOR, Sim2RealError)  # checked, then decoded
     if r.scale != (1.0, 1.0):
         interp = cv2.INTER_AREA if r.scale[0] < 1 else cv2.INTER_CUBIC
         img = cv2.resize(img, r.scaled_wh, interpolation=interp)

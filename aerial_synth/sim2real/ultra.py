@@ -150,7 +150,7 @@ def resolve_device(device: str) -> tuple[str, str]:
 
 def _cpu_name() -> str:
     try:
-        for ln in Path("/proc/cpuinfo").read_text().splitlines():
+        for ln in Path("/proc/cpuinfo").read_text().splitlines():  # guard: /proc
             if ln.lower().startswith("model name"):
                 return f"CPU: {ln.split(':', 1)[1].strip()} ({os.cpu_count()} cores)"
     except OSError:
@@ -204,7 +204,7 @@ def _trainer_class():
 
         def read_results_csv(self):
             try:
-                with open(self.csv, newline="", encoding="utf-8") as fh:
+                with open(self.csv, newline="", encoding="utf-8") as fh:  # guard: the trainer's own results.csv
                     rows = list(csv.DictReader(fh))
             except OSError:
                 return {}
@@ -241,7 +241,7 @@ def train(data_yaml: Path, run_dir: Path, *, model: str | None, weights: Path | 
     src = str(weights) if weights is not None else str(model)
     net = YOLO(src, task="obb")
     kw = dict(data=str(data_yaml), imgsz=imgsz, device=device, seed=seed, deterministic=True,
-              batch=batch, workers=workers, plots=False, amp=device != "cpu", project=str(run_dir.parent.resolve()),
+              batch=batch, workers=workers, plots=False, amp=device != "cpu", project=str(run_dir.parent.resolve()),  # guard: its own run folder
               name=run_dir.name, exist_ok=True, verbose=False, pretrained=False, cache=False,
               val=True, trainer=_trainer_class(), patience=0)
     if minutes is not None:

@@ -31,6 +31,7 @@ Vehicle frame (every mesh): metres, origin at the footprint centre on the ground
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
@@ -39,7 +40,7 @@ import numpy as np
 
 from .. import validators as v
 from ..errors import AssetError
-from ..safe_input import load_yaml, shown
+from ..safe_input import load_yaml_file, shown
 from .bodies import CAR_PROFILES
 from .model import (
     AXES,
@@ -234,10 +235,9 @@ class Catalog:
         without options.
         """
         if not isinstance(rng, np.random.Generator):
-            raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
-        n = int(n)
-        if n < 0:
-            raise ValueError(f"n must be >= 0, got {n}")
+            raise AssetError(f"catalog sample rng: expected a numpy.random.Generator, got "
+                             f"{type(rng).__name__}")
+        n = v.integer("catalog sample n", n, 0, 100_000_000, error=AssetError)
         key = stream_key(rng) if n else 0
         mi = rng.choice(len(self.models), size=n, p=self.model_probabilities)
         ci = rng.choice(len(self.colors), size=n, p=self.color_probabilities)
@@ -294,11 +294,7 @@ def load_catalog(path: str | Path | None = None) -> Catalog:
     p = bundled_catalog_path() if path is None else Path(path)
     if not p.is_file():
         raise AssetError(f"{p}: catalog file not found")
-    try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise AssetError(f"{shown(p)}: cannot read it ({type(exc).__name__})") from None
-    data = load_yaml(text, shown(p), AssetError)  # nesting and alias budgets
+    data = load_yaml_file(p, shown(p), AssetError)  # nesting and alias budgets, a regular file
     return catalog_from_mapping(data, path=p)
 
 
@@ -321,7 +317,7 @@ def catalog_from_mapping(data: Any, path: Path | None = None) -> Catalog:
             f"{where}: version: expected {CATALOG_VERSION} (the catalog format this aerial-synth "
             f"reads), got {data['version']!r}"
         )
-    folder = (path.parent if path is not None else Path(".")).resolve()
+    folder = Path(os.path.realpath(path.parent if path is not None else "."))
     raw_colors = data.get("colors")
     raw_models = data.get("models")
     for key, val in (("colors", raw_colors), ("models", raw_models)):
@@ -510,10 +506,10 @@ def _parse_model(where: str, folder: Path, i: int, entry: Any) -> VehicleModel:
 def resolve_inside(folder: Path, rel: str, what: str) -> Path:
     """Resolve ``rel`` inside ``folder``; refuse absolute paths and paths that escape it
     (``..``, or symlinks that lead outside)."""
-    folder = folder.resolve()
+    folder = Path(os.path.realpath(folder))  # a link loop resolves as far as it goes
     if Path(rel).is_absolute():
         raise AssetError(f"{what}: expected a path relative to {folder}, got absolute {rel!r}")
-    p = (folder / rel).resolve()
+    p = Path(os.path.realpath(folder / rel))
     if not p.is_relative_to(folder):
         raise AssetError(f"{what}: expected a path inside {folder}, got {rel!r} which escapes it")
     return p

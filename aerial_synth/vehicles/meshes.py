@@ -20,6 +20,7 @@ import numpy as np
 
 from ..errors import AssetError
 from ..scene.model import DEFAULT_COLOR_FOR_MATERIAL, MATERIAL_IDS
+from ..validators import finite
 from ._hull import box as _box
 from ._hull import convex_hull as _hull
 from .bodies import CAR_PROFILES, car_kwargs
@@ -97,14 +98,12 @@ class VehicleMesh:
         used, inv = np.unique(f.ravel(), return_inverse=True)
         return self.vertices[used].copy(), inv.reshape(-1, 3).astype(np.int64)
 
-    def to_world(
-        self, x_m: float, y_m: float, z_m: float, heading_rad: float
-    ) -> tuple[np.ndarray, np.ndarray]:
+    def to_world(self, x_m: float, y_m: float, z_m: float, heading_rad: float) -> tuple[np.ndarray, np.ndarray]:
         """Place the vehicle: rotate about z by ``heading_rad`` (0 = +x, counter-clockwise),
-        then translate its origin to (x_m, y_m, z_m) in the world frame.
-
-        Returns (vertices_world (n, 3) float64 metres, faces (m, 3) int64, a copy).
-        """
+        then translate its origin to (x_m, y_m, z_m) in the world frame (finite numbers).
+        Returns (vertices_world (n, 3) float64 metres, faces (m, 3) int64, a copy)."""
+        for name, val in (("x_m", x_m), ("y_m", y_m), ("z_m", z_m), ("heading_rad", heading_rad)):
+            finite(f"vehicle to_world {name}", val, error=AssetError)
         c, s = np.cos(heading_rad), np.sin(heading_rad)
         rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         v = self.vertices @ rot.T + np.array([x_m, y_m, z_m], dtype=np.float64)

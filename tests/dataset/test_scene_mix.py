@@ -55,7 +55,7 @@ def test_bad_text_is_one_line(spec, says):
     ("- city_park", "entries[0]: expected a mapping"),
     ("- {scene: city_park, weight: 0}", "entries[0]: expected a weight > 0"),
     ("nope: 1", "unknown key(s) nope"),
-    ("- [unclosed", "cannot read the YAML file"),
+    ("- [unclosed", "broken YAML (line 1"),
 ])
 def test_bad_yaml_names_the_entry(tmp_path, body, says):
     p = tmp_path / "mix.yaml"

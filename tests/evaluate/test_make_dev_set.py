@@ -154,12 +154,95 @@ def test_existing_out_needs_force(tmp_path):
     (tmp_path / "dev" / "keep.txt").write_text("x")
     r = _run(src, tmp_path / "dev")
     assert r.returncode == 2 and "exists" in r.stderr and (tmp_path / "dev" / "keep.txt").is_file()
+    # --force replaces only this tool's own collections (issue 37 L1): a user's folder stays
     r = _run(src, tmp_path / "dev", "--force")
-    assert r.returncode == 0 and not (tmp_path / "dev" / "keep.txt").exists()
+    assert r.returncode == 2 and "not a collection made by make_dev_set.py" in r.stderr
+    assert (tmp_path / "dev" / "keep.txt").read_text() == "x"
+    assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
 
 
-def test_tool_module_imports_cleanly():
+def test_force_replaces_own_collection_and_empty_folder(tmp_path):
+    src = _source(tmp_path / "src")
+    (tmp_path / "empty").mkdir()
+    assert _run(src, tmp_path / "empty", "--force").returncode == 0
+    assert (tmp_path / "empty" / "dev_set.json").is_file()
+    (tmp_path / "empty" / "uav" / "stale.txt").write_text("old")
+    r = _run(src, tmp_path / "empty", "--force")
+    assert r.returncode == 0, r.stderr
+    assert not (tmp_path / "empty" / "uav" / "stale.txt").exists()
+
+
+def test_label_linked_out_of_src_is_refused_unread(tmp_path):
+    # issue 37 D2: the CLI's link guard now covers the tool
+    src = _source(tmp_path / "src")
+    secret = tmp_path / "secret.txt"
+    secret.write_text("root:$6$secretpassword:19000\n")
+    lab = src / "uav" / "labelTxt" / "a.txt"
+    lab.unlink()
+    lab.symlink_to(secret)
+    r = _run(src, tmp_path / "dev")
+    assert r.returncode == 2 and "outside the input folder" in r.stderr, r.stderr
+    assert "secretpassword" not in r.stderr and "root:" not in r.stderr
+    assert r.stderr.count("\n") == 1 and not (tmp_path / "dev").exists()
+
+
+def test_image_linked_out_of_src_is_not_copied(tmp_path):
+    src = _source(tmp_path / "src")
+    img = src / "uav" / "images" / "a.png"
+    outside = tmp_path / "private.png"
+    img.rename(outside)
+    img.symlink_to(outside)
+    r = _run(src, tmp_path / "dev")
+    assert r.returncode == 2 and "outside the input folder" in r.stderr, r.stderr
+    assert not (tmp_path / "dev").exists()
+
+
+def test_out_is_current_folder_is_one_line(tmp_path):
+    # issue 37 T4: 'SRC . --force' raised OSError EBUSY (a folder renamed while one stands in it)
+    src = _source(tmp_path / "src")
+    here = tmp_path / "here"
+    here.mkdir()
+    r = subprocess.run([sys.executable, str(TOOL), str(src), ".", "--force"], cwd=here,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "current folder" in r.stderr and "Traceback" not in r.stderr
+    assert r.stderr.count("\n") == 1 and here.is_dir()
+
+
+def test_refusals_exit_2(tmp_path):
+    # issue 37 T4: a single dataset instead of a collection was SystemExit (status 1)
+    src = _source(tmp_path / "src")
+    r = _run(src / "uav", tmp_path / "dev")
+    assert r.returncode == 2 and "expected a folder of datasets" in r.stderr
+    r = _run(src, tmp_path / "dev", "--gsd", "nosuch=0.1")
+    assert r.returncode == 2 and "no group nosuch" in r.stderr
+    assert not (tmp_path / "dev").exists()
+
+
+def test_full_disk_is_one_line_and_leaves_nothing(tmp_path, monkeypatch, capsys):
+    # issue 37 T4: ENOSPC while copying an image was a traceback
+    import errno
+    import shutil
+
+    mod = _module()
+    src = _source(tmp_path / "src")
+
+    def full(a, b, *args, **kw):
+        raise OSError(errno.ENOSPC, "No space left on device", str(b))
+
+    monkeypatch.setattr(shutil, "copyfile", full)
+    assert mod.main([str(src), str(tmp_path / "dev")]) == 2
+    err = capsys.readouterr().err
+    assert "No space left on device" in err and err.count("\n") == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["src"]  # no OUT, no temporary, no lock
+
+
+def _module():
     spec = importlib.util.spec_from_file_location("make_dev_set", TOOL)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
+    return mod
+
+
+def test_tool_module_imports_cleanly():
+    mod = _module()
     assert mod.VEHICLES == ("small-vehicle", "large-vehicle")

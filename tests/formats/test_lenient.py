@@ -44,7 +44,8 @@ def test_dota_lenient_empty_file_and_what_we_write(tmp_path):
     (f"{BOX}", "x.txt:1: expected 'x1 y1 x2 y2 x3 y3 x4 y4 category"),
     (f"{BOX} car yes", "x.txt:1: expected difficult as an integer"),
     ("10 20 30 nan 30 30 10 30 car 0", "x.txt:1: expected coordinate 4 as a finite number"),
-    ("gsd:-1", "x.txt:1: expected gsd > 0"),
+    ("gsd:-1", "x.txt:1: expected gsd in 0.0001..1000 metres per pixel, got '-1'"),
+    ("gsd:1e300", "x.txt:1: expected gsd in 0.0001..1000 metres per pixel"),
 ])
 def test_dota_lenient_errors_name_the_line(line, msg):
     with pytest.raises(LabelFormatError, match=msg) as e:

@@ -155,8 +155,9 @@ def test_top_level_import_stays_light():
 #: The root package ``aerial_synth`` holds only ``__version__``.
 LAYERS = (
     ("aerial_synth", "errors", "numba_setup", "_open3d", "lazy", "registry"),  # leaves: import nothing of ours
-    ("validators", "io_utils", "png", "versions", "safe_input"),  # field checks, atomic
-    # writes, PNG, versions, hostile-input guards (budgeted YAML/JSON, links, image headers)
+    ("validators", "io_utils", "png", "versions", "safe_input", "memory"),  # field checks, atomic
+    # writes, PNG, versions, hostile-input guards (budgeted YAML/JSON, links, image headers),
+    # the memory a process may still take
     ("out_guard",),  # the --out lock and refusals shared by every writing command
     ("annotate", "camera_rays"),  # mask -> oriented box; pixel rays (numba)
     ("camera",),  # pinhole model, poses
@@ -173,7 +174,7 @@ LAYERS = (
 #: ``evaluate`` stands beside the pipeline: it reads label files, so it may import only
 #: these components, and only sim2real and the cli import it.
 EVALUATE_MAY_IMPORT = {"formats", "annotate", "camera_rays", "validators", "io_utils", "png",
-                       "safe_input", "out_guard",
+                       "safe_input", "out_guard", "memory",
                        "aerial_synth", "errors", "numba_setup", "_open3d", "lazy", "registry"}
 _RANK = {c: i for i, line in enumerate(LAYERS) for c in line}
 

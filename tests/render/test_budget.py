@@ -38,7 +38,9 @@ def test_available_memory_is_read():
 
 
 def test_cgroup_limit_caps_the_reading(monkeypatch):
-    monkeypatch.setattr(budget, "_cgroup_room", lambda: 5 * 2**30)
+    from aerial_synth import memory  # where the reading lives (render.budget re-exports it)
+
+    monkeypatch.setattr(memory, "_cgroup_room", lambda: 5 * 2**30)
     avail = budget.available_memory_bytes()
     assert avail is not None and avail <= 5 * 2**30
 

@@ -164,7 +164,7 @@ LABEL_CASES = [
     ("rules: [road]\n", "rules[0]: expected a mapping with 'match' and 'label', got 'road'"),
     ("rules: 5\n", "rules: expected a list of rules or a mapping pattern: label, got 5"),
     ("rules: {'a*': 7}\n", "rules['a*'].label: expected one of unknown, road"),
-    ("rules: [{match: 're:(', label: road}]\n", "label rule 're:(': bad regular expression"),
+    ("rules: [{match: 're:(', label: road}]\n", "label rule 're:(': expected a regular expression"),
     ("units: -1\n", "units: expected a number of metres per file unit (> 0) or one of cm"),
     ("units: parsecs\n", "units: expected a number of metres per file unit (> 0) or one of cm"),
     ("units: true\n", "units: expected a number of metres per file unit (> 0) or one of cm"),

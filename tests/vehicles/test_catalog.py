@@ -109,7 +109,9 @@ def test_sampling_matches_weights(cat):
 
 
 def test_sample_needs_a_generator(cat):
-    with pytest.raises(TypeError):
+    from aerial_synth.errors import AssetError
+
+    with pytest.raises(AssetError, match="numpy.random.Generator"):
         cat.sample(0, 3)
 
 

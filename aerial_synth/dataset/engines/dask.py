@@ -208,13 +208,13 @@ def _sees(path: str, token: str) -> str:
     in the file ``path`` (the client's probe in the output folder) and can write a file
     beside it, else "cannot read" or "cannot write"."""
     try:
-        if Path(path).read_text(encoding="utf-8") != token:
+        if Path(path).read_text(encoding="utf-8") != token:  # guard: its own token file
             return "cannot read"
     except (OSError, UnicodeDecodeError):
         return "cannot read"
     mine = Path(f"{path}.{os.getpid()}.tmp")
     try:
-        mine.write_text(token, encoding="utf-8")
+        mine.write_text(token, encoding="utf-8")  # guard: a token file of its own in the build
         mine.unlink()
     except OSError:
         return "cannot write"
@@ -404,7 +404,7 @@ class DaskCluster:
         threads = self.worker_threads()
         slots = host_slots(self.client.scheduler_info(n_workers=-1).get("workers", {}))
         extra = [get(n) for n in cfg.formats if n not in BUILTIN]
-        out = str(Path(build).resolve())
+        out = str(Path(build).resolve())  # guard: the build folder it made
         token = f"{os.getpid()}-{time.time_ns()}"
         shared = self._scatter(scene, catalog)
 

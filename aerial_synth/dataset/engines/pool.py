@@ -174,7 +174,7 @@ def _running(pid) -> bool:
     """Whether process ``pid`` still runs (not gone, not a zombie), read from /proc without
     reaping it (a fork-server child's exit code can be read once: the pool reads it)."""
     try:
-        with open(f"/proc/{pid}/stat", "rb") as fh:
+        with open(f"/proc/{pid}/stat", "rb") as fh:  # guard: /proc
             return fh.read().rsplit(b")", 1)[1].split()[0] not in (b"Z", b"X")
     except (OSError, IndexError):
         return False

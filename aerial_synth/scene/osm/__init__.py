@@ -23,6 +23,7 @@ from pathlib import Path
 
 from ...errors import SceneError
 from ...io_utils import atomic_write_bytes
+from ...safe_input import check_link
 from ..model import Scene
 from .build import ATTRIBUTION, build_scene
 from .read import OSM_SUFFIXES, is_osm_path, read_osm
@@ -150,7 +151,7 @@ def cache_dir() -> Path:
 def _file_hash(path: Path) -> str:
     h = hashlib.sha256()
     try:
-        with open(path, "rb") as fh:
+        with open(path, "rb") as fh:  # guard: the OSM file, check_link'ed by load_osm_scene
             for block in iter(lambda: fh.read(1 << 20), b""):
                 h.update(block)
     except FileNotFoundError:
@@ -189,6 +190,7 @@ def load_osm_scene(path, bbox=None, crs=None, seed: int = 0, cache: Path | str |
     path = Path(path)
     if not path.is_file():
         raise SceneError(f"OSM file {path}: file not found")
+    check_link(path, SceneError)  # a FIFO, a device or a link out of an input folder: refused
     bb = parse_bbox(bbox)
     if crs is not None:
         resolve_crs(crs, 0.0, 0.0)
@@ -199,8 +201,8 @@ def load_osm_scene(path, bbox=None, crs=None, seed: int = 0, cache: Path | str |
     f = folder / f"{_scene_name(path)}-{key}.pkl"
     if f.is_file():
         try:
-            with open(f, "rb") as fh:
-                scene = pickle.load(fh)
+            with open(f, "rb") as fh:  # guard: our own cache entry
+                scene = pickle.load(fh)  # guard: our own cache entry
             if _current(scene):
                 scene.meta["cache"] = str(f)
                 return scene
