@@ -95,7 +95,7 @@ def test_baseline_defaults_to_the_first_arm_and_real_options_are_keys(folder):
     (("seeds: [0, 1]", "seeds: [0, 1]\nbogus: 1"), "unknown key 'bogus'"),
     (("{epochs: 1,", "{epoch: 1,"), "train: unknown key 'epoch'"),
     (("A: {synthetic: s1}", "A: {synthetic: s1, colour: red}"), "arm A: unknown key 'colour'"),
-    (("B: {synthetic: [s2], train: {minutes: 2}}", "A: {synthetic: s2}"), "duplicate key: 'A' given twice"),
+    (("B: {synthetic: [s2], train: {minutes: 2}}", "A: {synthetic: s2}"), "expected YAML with each key once in a mapping, got 'A' twice"),
     (("baseline: A", "baseline: Z"), "baseline 'Z' is not an arm"),
     (("seeds: [0, 1]", "seeds: []"), "seeds: expected a non-empty list"),
     (("seeds: [0, 1]", "seeds: [1, 1]"), "seeds: expected distinct integers"),
@@ -131,7 +131,7 @@ def test_bad_export_option_is_the_exports_own_message(folder, capsys, extra_pres
 
 
 def test_not_a_plan(folder, capsys, extra_present):
-    assert "expected YAML" in _refused(capsys, folder, "real: [unclosed\n")
+    assert "broken YAML" in _refused(capsys, folder, "real: [unclosed\n")
     assert "expected a mapping" in _refused(capsys, folder, "- a\n- b\n")
     assert "arms: expected a mapping" in _refused(capsys, folder, "real: real\narms: {}\n")
     out = folder / "o"
