@@ -242,6 +242,24 @@ def test_auto_parallel_and_shares(monkeypatch):
     assert runs.share_out(1, None, None) == (8, 16)   # at most 8 loader workers
 
 
+def test_a_finished_run_is_reused_only_whole_and_with_its_spec(tmp_path):
+    """result.json is read through safe_input: missing, cut short by a killed run, a folder
+    or another spec's means "run it again" (None), never an exception."""
+    from aerial_synth.io_utils import atomic_write_json
+
+    spec = {"arm": "A", "seed": 0, "run_dir": str(tmp_path)}
+    res = tmp_path / "result.json"
+    assert runs.finished(tmp_path, spec) is None  # no result yet
+    atomic_write_json(res, {"spec": spec, "epochs": 3})
+    assert runs.finished(tmp_path, spec) == {"spec": spec, "epochs": 3}
+    assert runs.finished(tmp_path, dict(spec, seed=1)) is None  # another spec
+    res.write_bytes(res.read_bytes()[:20])  # killed while written
+    assert runs.finished(tmp_path, spec) is None
+    res.unlink()
+    res.mkdir()
+    assert runs.finished(tmp_path, spec) is None
+
+
 # -- confidence --------------------------------------------------------------------------------------
 
 def _truth(n_img=12):
