@@ -24,6 +24,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
+from aerial_synth.io_utils import atomic_write_text  # noqa: E402
+from aerial_synth.out_guard import out_lock  # noqa: E402
+
 
 def _world(scene_name: str, scenario: str, seed: int):
     from aerial_synth.placement import place
@@ -196,7 +199,8 @@ def main(argv=None) -> int:
     text = json.dumps(out, indent=1)
     print(text)
     if a.json:
-        Path(a.json).write_text(text + "\n")
+        with out_lock(a.json, "bench_warp", "--json"):
+            atomic_write_text(a.json, text + "\n")
     return 0
 
 

@@ -12,6 +12,8 @@ import json
 import sys
 from pathlib import Path
 
+from aerial_synth.io_utils import atomic_write_text
+from aerial_synth.out_guard import out_lock
 from aerial_synth.scene import load_scene
 from aerial_synth.scene.fingerprint import scene_fingerprint
 
@@ -21,13 +23,15 @@ BUNDLED = ("city_park", "suburb", "highway", "residential_us", "residential_eu",
 
 def main(names: list[str]) -> None:
     OUT.mkdir(parents=True, exist_ok=True)
-    for name in names or BUNDLED:
-        fp = scene_fingerprint(load_scene(name))
-        path = OUT / f"{name}.json"
-        tmp = path.with_suffix(".json.tmp")
-        tmp.write_text(json.dumps(fp, indent=1) + "\n")
-        tmp.replace(path)
-        print(f"{path}: {len(fp['objects'])} objects, layout {fp['layout']['sha256'][:16]}")
+    with out_lock(OUT, "pin_scene_fingerprints", "OUT"):
+        for name in names or BUNDLED:
+            _pin(name)
+
+
+def _pin(name: str) -> None:
+    fp = scene_fingerprint(load_scene(name))
+    path = atomic_write_text(OUT / f"{name}.json", json.dumps(fp, indent=1) + "\n")
+    print(f"{path}: {len(fp['objects'])} objects, layout {fp['layout']['sha256'][:16]}")
 
 
 if __name__ == "__main__":

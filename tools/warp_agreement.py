@@ -15,6 +15,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from aerial_synth.io_utils import atomic_write_text  # noqa: E402
+from aerial_synth.out_guard import out_lock  # noqa: E402
 from aerial_synth.render.agreement import SWEEP_PAIRS, TOLERANCES, sweep  # noqa: E402
 
 
@@ -42,7 +44,8 @@ def main(argv=None) -> int:
         print(json.dumps(r))
     print(json.dumps(s, indent=1))
     if a.json:
-        Path(a.json).write_text(json.dumps({**s, "rows": got.rows}, indent=1) + "\n")
+        with out_lock(a.json, "warp_agreement", "--json"):
+            atomic_write_text(a.json, json.dumps({**s, "rows": got.rows}, indent=1) + "\n")
     return 1 if s["failures"] else 0
 
 

@@ -13,6 +13,7 @@ export arms whose manifest matches and the runs that finished with the same spec
 
 from __future__ import annotations
 
+import os
 import shutil
 import sys
 import tempfile
@@ -150,9 +151,9 @@ def run_plan(plan_path, out, *, parallel="auto", device: str = "auto", export_wo
                 "conf": cfg.conf, "merge_iou": cfg.merge_iou, "batch": cfg.batch}
         for s in plan.seeds:
             specs.append({
-                "arm": a.name, "seed": s, "run_dir": str((out / "runs" / a.name / f"seed{s}").resolve()),
-                "dirs": [str(Path(d).resolve()) for d in built[a.name][0].dirs], "model": cfg.model,
-                "weights": None if cfg.weights is None else str(Path(cfg.weights).resolve()),
+                "arm": a.name, "seed": s, "run_dir": os.path.realpath(out / "runs" / a.name / f"seed{s}"),
+                "dirs": [os.path.realpath(d) for d in built[a.name][0].dirs], "model": cfg.model,
+                "weights": None if cfg.weights is None else os.path.realpath(cfg.weights),
                 "epochs": cfg.epochs, "minutes": cfg.minutes, "imgsz": cfg.imgsz, "batch": cfg.batch,
                 "device": dev, "workers": workers, "threads": threads, "gsd_m": gsd, "plan": str(plan.path),
                 "real": real, "targets": {sc: (gsd if sc == "arm" else None) for sc in cfg.real_scale}})
@@ -231,8 +232,8 @@ def _plan_report(plan, out, items, built, arm_info, specs, results, gpu, par, de
                       "images_per_s": r["images_per_s"], "peak_gpu_mib": r["peak_gpu_mib"],
                       "synthetic_val_map50": r["synthetic_val_map50"], "real_ap50": f["ap50"],
                       "real_recall": f["recall"], "real": f,
-                      "weights": str(Path(s["run_dir"], r["weights"]).relative_to(out.resolve())),
-                      "predictions": {k: str(Path(s["run_dir"], v).relative_to(out.resolve()))
+                      "weights": str(Path(s["run_dir"], r["weights"]).relative_to(os.path.realpath(out))),
+                      "predictions": {k: str(Path(s["run_dir"], v).relative_to(os.path.realpath(out)))
                                       for k, v in r["predictions"].items()}}
                      for (s, r), f in zip(rs, figs)],
             "images_per_s": spread([r["images_per_s"] for _, r in rs]),
@@ -325,7 +326,7 @@ def run_score(weights: list, real, out, *, device: str = "auto", real_gsd=None, 
         _real_checks(c, items, ignore_classes)
     dev, dev_name = ultra.resolve_device(device)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)).resolve()
+    tmp = Path(os.path.realpath(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)))
     try:
         opts = _options(cfgs[0])
         arms, by_arm = [], {}

@@ -24,6 +24,7 @@ registration.
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -136,49 +137,28 @@ class Plan:
         return next(a for a in self.arms if a.name == name)
 
 
-# -- YAML with duplicate keys refused -------------------------------------------------------------
-
-def _loader():
-    import yaml
-
-    class StrictLoader(yaml.SafeLoader):
-        pass
-
-    def mapping(loader, node, deep=False):
-        seen = set()
-        for k, _ in node.value:
-            key = loader.construct_object(k, deep=deep)
-            if key in seen:
-                raise _Duplicate(f"{key!r} given twice (line {k.start_mark.line + 1})")
-            seen.add(key)
-        return yaml.SafeLoader.construct_mapping(loader, node, deep)
-
-    StrictLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG,
-                                 lambda loader, node: mapping(loader, node, True))
-    return StrictLoader
-
-
-class _Duplicate(Exception):
-    pass
-
-
 def _read_yaml(path: Path) -> dict:
-    import yaml
+    """The plan's mapping, read through :func:`~aerial_synth.safe_input.load_yaml_file`
+    (regular file, size cap, nesting and alias budgets, duplicate keys refused): one line
+    naming ``--plan PATH`` otherwise."""
+    from ..safe_input import load_yaml_file
 
     where = f"--plan {path}"
     if not path.is_file():
         raise Sim2RealError(f"{where}: " + ("expected a YAML file, found a folder" if path.is_dir()
                                             else "no such file"))
-    try:
-        data = yaml.load(path.read_text(encoding="utf-8"), Loader=_loader())
-    except _Duplicate as exc:
-        raise Sim2RealError(f"{where}: duplicate key: {exc}") from None
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise Sim2RealError(f"{where}: expected YAML, cannot parse it ({' '.join(str(exc).split())[:200]})") from None
+    data = load_yaml_file(path, where, Sim2RealError)
     if not isinstance(data, dict):
         raise Sim2RealError(f"{where}: expected a mapping (real, baseline, seeds, train, arms), "
                             f"got {type(data).__name__}")
     return data
+
+
+def _as_json(obj):
+    """``obj`` as JSON gives it back (tuples as lists): how a manifest or a run's spec holds it."""
+    import json
+
+    return json.loads(json.dumps(obj))  # guard: a round trip of our own config, no input read
 
 
 def _unknown(where: str, d: dict, allowed) -> None:
@@ -290,7 +270,7 @@ def load_plan(path, *, device: str = "auto", out: Path | None = None, export_con
     data = _read_yaml(path)
     where = f"--plan {path}"
     _unknown(where, data, PLAN_KEYS)
-    plan_dir = path.resolve().parent
+    plan_dir = Path(os.path.realpath(path)).parent
     if "real" not in data:
         raise Sim2RealError(f"{where}: missing key 'real' (the real images: a DOTA folder or a folder of groups)")
     real = _path(plan_dir, data["real"], f"{where}: real")
@@ -401,13 +381,11 @@ def _export_kind():
     check = _export_check
 
     def build(cfg, folder, workers):
-        import json
-
         from ..dataset.export import export_dataset
         from ..dataset.manifest import read_manifest
 
         m = read_manifest(folder)
-        same = m is not None and m.get("parameters") == json.loads(json.dumps(cfg.to_dict()))
+        same = m is not None and m.get("parameters") == _as_json(cfg.to_dict())
         if same and m.get("status") == "complete":
             return Built((folder,), 0.0, True, cfg.images)
         t0 = time.perf_counter()
@@ -481,12 +459,10 @@ def _stream_kind():
         return StreamArm(cfg, pool, float(refresh))
 
     def build(spec, folder, workers):
-        import json
-
         from ..vehicles import CLASSES
         from .config import SyntheticSet
 
-        run = {"config": json.loads(json.dumps(spec.config.to_dict())), "pool": spec.pool,
+        run = {"config": _as_json(spec.config.to_dict()), "pool": spec.pool,
                "refresh": spec.refresh}
         n = spec.pool if spec.pool is not None else spec.config.images
         return Built((), 0.0, False, n, run, (SyntheticSet(None, None, None, tuple(CLASSES), spec.gsd_m, n, 0),))

@@ -17,7 +17,6 @@ cores / N threads each, and (cores - N) / N loader workers each, at most 8.
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import subprocess
@@ -29,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io_utils import atomic_write_json
+from ..safe_input import load_json_file
 from .config import Sim2RealError
 
 __all__ = ["auto_parallel", "share_out", "run_all", "run_one", "predict_real", "cores"]
@@ -189,7 +189,7 @@ def _train_stream(spec: dict, run_dir: Path):
 
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    spec = json.loads(Path(argv[0]).read_text(encoding="utf-8"))
+    spec = load_json_file(argv[0], error=Sim2RealError)  # spec.json, written by run_all
     run_one(spec)
     return 0
 
@@ -199,8 +199,8 @@ def main(argv=None) -> int:
 def finished(run_dir: Path, spec: dict) -> dict | None:
     """result.json of a run that finished with this very spec (a rerun reuses it)."""
     try:
-        res = json.loads((run_dir / "result.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        res = load_json_file(run_dir / "result.json", error=Sim2RealError)
+    except Sim2RealError:  # missing or cut short by a killed run: run it again
         return None
     return res if isinstance(res, dict) and res.get("spec") == spec else None
 
@@ -239,7 +239,8 @@ class _GpuSampler(threading.Thread):
 
 def _log_tail(path: Path) -> str:
     try:
-        lines = [ln for ln in path.read_text(encoding="utf-8", errors="replace").splitlines() if ln.strip()]
+        lines = [ln for ln in path.read_text(encoding="utf-8", errors="replace").splitlines()  # guard: the run's own log
+                 if ln.strip()]
     except OSError:
         return ""
     return " ".join(lines[-1].split())[:300] if lines else ""
@@ -274,7 +275,7 @@ def run_all(specs: list[dict], parallel: int, device: str, log=None) -> tuple[li
                     shutil.rmtree(rd)  # an unfinished earlier attempt: start it again
                 rd.mkdir(parents=True)
                 atomic_write_json(rd / "spec.json", s)
-                fh = open(rd / "log.txt", "w", encoding="utf-8")  # noqa: SIM115 - closed below
+                fh = open(rd / "log.txt", "w", encoding="utf-8")  # noqa: SIM115  # guard: the run's own log, streamed
                 env_i = dict(env, OMP_NUM_THREADS=str(s["threads"]))
                 p = subprocess.Popen([sys.executable, "-m", "aerial_synth.sim2real.runs", str(rd / "spec.json")],
                                      stdout=fh, stderr=subprocess.STDOUT, env=env_i)

@@ -14,6 +14,7 @@ that must stay offline sets them first (sim2real's ``ultra`` does).
 from __future__ import annotations
 
 import dataclasses
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -108,7 +109,7 @@ def _data_yaml(run_dir: Path, classes) -> Path:
 
     empty = run_dir / "stream-data"
     empty.mkdir(parents=True, exist_ok=True)
-    body = {"path": str(empty.resolve()), "train": ".", "val": ".", "names": dict(enumerate(classes))}
+    body = {"path": os.path.realpath(empty), "train": ".", "val": ".", "names": dict(enumerate(classes))}
     return atomic_write_text(run_dir / "stream.yaml", yaml.safe_dump(body, sort_keys=False))
 
 
@@ -145,7 +146,7 @@ def train_from_stream(config: ExportConfig, run_dir: Path, *, epochs: int | None
     run_dir = Path(run_dir)
     net = YOLO(model, task="obb")
     kw = dict(data=str(_data_yaml(run_dir, train_ds.classes)), imgsz=imgsz, device=device, seed=seed, deterministic=True, batch=batch,
-              workers=workers, plots=False, amp=bool(amp), project=str(run_dir.parent.resolve()), name=run_dir.name,
+              workers=workers, plots=False, amp=bool(amp), project=os.path.realpath(run_dir.parent), name=run_dir.name,
               exist_ok=True, verbose=False, pretrained=False, cache=False, val=True, patience=0,
               close_mosaic=0, mosaic=0.0, trainer=stream_trainer_class(train_ds, val_ds, trainer_base, workers))
     if minutes is not None:

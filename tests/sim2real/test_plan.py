@@ -95,7 +95,7 @@ def test_baseline_defaults_to_the_first_arm_and_real_options_are_keys(folder):
     (("seeds: [0, 1]", "seeds: [0, 1]\nbogus: 1"), "unknown key 'bogus'"),
     (("{epochs: 1,", "{epoch: 1,"), "train: unknown key 'epoch'"),
     (("A: {synthetic: s1}", "A: {synthetic: s1, colour: red}"), "arm A: unknown key 'colour'"),
-    (("B: {synthetic: [s2], train: {minutes: 2}}", "A: {synthetic: s2}"), "duplicate key: 'A' given twice"),
+    (("B: {synthetic: [s2], train: {minutes: 2}}", "A: {synthetic: s2}"), "expected YAML with each key once in a mapping, got 'A' twice"),
     (("baseline: A", "baseline: Z"), "baseline 'Z' is not an arm"),
     (("seeds: [0, 1]", "seeds: []"), "seeds: expected a non-empty list"),
     (("seeds: [0, 1]", "seeds: [1, 1]"), "seeds: expected distinct integers"),
@@ -131,7 +131,7 @@ def test_bad_export_option_is_the_exports_own_message(folder, capsys, extra_pres
 
 
 def test_not_a_plan(folder, capsys, extra_present):
-    assert "expected YAML" in _refused(capsys, folder, "real: [unclosed\n")
+    assert "broken YAML" in _refused(capsys, folder, "real: [unclosed\n")
     assert "expected a mapping" in _refused(capsys, folder, "- a\n- b\n")
     assert "arms: expected a mapping" in _refused(capsys, folder, "real: real\narms: {}\n")
     out = folder / "o"
@@ -240,6 +240,24 @@ def test_auto_parallel_and_shares(monkeypatch):
     assert runs.share_out(4, None, None) == (3, 4)    # (16 - 4) // 4 loader workers, 16 // 4 threads
     assert runs.share_out(4, 0, 1) == (0, 1)          # the plan's own values are kept
     assert runs.share_out(1, None, None) == (8, 16)   # at most 8 loader workers
+
+
+def test_a_finished_run_is_reused_only_whole_and_with_its_spec(tmp_path):
+    """result.json is read through safe_input: missing, cut short by a killed run, a folder
+    or another spec's means "run it again" (None), never an exception."""
+    from aerial_synth.io_utils import atomic_write_json
+
+    spec = {"arm": "A", "seed": 0, "run_dir": str(tmp_path)}
+    res = tmp_path / "result.json"
+    assert runs.finished(tmp_path, spec) is None  # no result yet
+    atomic_write_json(res, {"spec": spec, "epochs": 3})
+    assert runs.finished(tmp_path, spec) == {"spec": spec, "epochs": 3}
+    assert runs.finished(tmp_path, dict(spec, seed=1)) is None  # another spec
+    res.write_bytes(res.read_bytes()[:20])  # killed while written
+    assert runs.finished(tmp_path, spec) is None
+    res.unlink()
+    res.mkdir()
+    assert runs.finished(tmp_path, spec) is None
 
 
 # -- confidence --------------------------------------------------------------------------------------

@@ -69,18 +69,10 @@ def _quiet_init(wp) -> None:
     """``wp.init()`` with the native library's stderr lines silenced (a machine without a
     CUDA driver gets a warning from C on every start; :func:`resolve_device` says it in
     one line when it matters)."""
-    import os
-    import sys
+    from ...safe_input import quiet_native_stderr
 
-    sys.stderr.flush()
-    saved = os.dup(2)
-    try:
-        with open(os.devnull, "w") as null:
-            os.dup2(null.fileno(), 2)
-            wp.init()
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
+    with quiet_native_stderr():
+        wp.init()
 
 
 def resolve_device(spec="cpu") -> str:
