@@ -71,6 +71,7 @@ BASE: dict[tuple[str, ...], dict[str, str | None]] = {
     ("mix",): {"--real": "@dota", "--synthetic": "@dota2", "--real-images": "1", "--out": "mx"},
     ("stats",): {"#dir": "@dota", "--out": "st"},
     ("sim2real",): {"--synthetic": "@dota2", "--real": "@dota", "--out": "s2"},
+    ("sim2real", "score"): {"--weights": "@mesh", "--real": "@dota", "--out": "sc"},
 }
 
 
@@ -122,10 +123,12 @@ def command_specs(parser=None) -> dict[tuple[str, ...], Spec]:
         if subs:
             for name, sp in subs[0].choices.items():
                 walk(sp, path + (name,))
-            return
+            if subs[0].required or not path:
+                return  # a command that only groups others (`scene`); else also runnable (`sim2real`)
         spec = Spec(path)
         for a in p._actions:
-            if isinstance(a, (argparse._HelpAction, argparse._VersionAction)):
+            if isinstance(a, (argparse._HelpAction, argparse._VersionAction,
+                              argparse._SubParsersAction)):
                 continue
             key = a.option_strings[-1] if a.option_strings else f"#{a.dest}"
             if a.dest == "out" and isinstance(a.default, str):
