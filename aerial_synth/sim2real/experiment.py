@@ -36,7 +36,7 @@ from ..io_utils import (
 from . import report as rep
 from . import ultra
 from .confidence import BOOTSTRAP, INTERVAL, differences, spread
-from .config import Sim2RealConfig, Sim2RealError, inspect_synthetic
+from .config import Arm, Sim2RealConfig, Sim2RealError, inspect_synthetic
 from .pipeline import AGNOSTIC, REPORT_FORMAT, log, real_summary, write_figures
 from .plan import ARM_KINDS, Plan, check_export_arms, load_plan, stream_seed
 from .real import plan_image, read_real
@@ -307,10 +307,10 @@ def run_score(weights: list, real, out, *, device: str = "auto", real_gsd=None, 
         seen.add(n)
         names.append(n)
     cfgs = []
-    for w, m in zip(ws, metas):
+    for w, m, name in zip(ws, metas, names):
         imgsz = int(m.get("imgsz", 640))
-        try:
-            cfgs.append(Sim2RealConfig(arms=(), real=Path(real), out=out, epochs=1, imgsz=imgsz, device=device,
+        try:  # the arm is the weights file: nothing to train from, so no folders
+            cfgs.append(Sim2RealConfig(arms=(Arm(name, ()),), real=Path(real), out=out, epochs=1, imgsz=imgsz, device=device,
                                        tile=m.get("tile"), overlap=m.get("overlap"), gsd=m.get("gsd_m"),
                                        real_gsd=real_gsd, real_scale=real_scale, real_classes=real_classes,
                                        conf=conf, merge_iou=merge_iou, iou_type=iou_type,
