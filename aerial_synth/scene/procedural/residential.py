@@ -53,6 +53,7 @@ from ..build import polygon_object
 from ..scene_hints import DrivewayHint, NegativesHint
 from . import spec as S
 from .builder import Z_ROAD, Builder
+from .generators import Generator
 from .houses import HouseSet
 from .negatives import NEGATIVE_KINDS, add_negatives
 from .roads import Road, chaikin, offset_line, polygonal
@@ -308,6 +309,8 @@ def generate_residential(b: Builder, spec: Mapping) -> None:
               "concrete": concrete, "pads": pads}
     b.scene = functools.partial(_residential_scene, b)
 
+
+GENERATOR = Generator("residential", generate_residential)
 
 
 @dataclass

@@ -43,6 +43,7 @@ from ..model import SceneObject
 from ..scene_hints import DrivewayHint, NegativesHint
 from . import spec as S
 from .builder import Z_ROAD, Z_TRACK, Builder
+from .generators import Generator
 from .houses import HouseSet, rect_poly
 from .negatives import add_negatives
 from .residential import NEGATIVES_SECTION, VEHICLES_SECTION
@@ -170,6 +171,7 @@ def generate_rural(b: Builder, spec: Mapping) -> None:
     b.scene = functools.partial(_rural_scene, b)
 
 
+GENERATOR = Generator("rural", generate_rural)
 
 
 def _rural_roads(b: Builder, rng, rc: Mapping, W: float, H: float):
