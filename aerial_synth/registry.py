@@ -1,18 +1,20 @@
-"""The one registry helper: label formats, export engines and render backends are each a
+"""The one registry helper: label formats, export engines, render backends, procedural scene
+generators and vehicle bodies are each a
 :class:`Registry` of built-ins (name -> module, imported on first use) plus entries
 registered at run time (plugins, tests)."""
 
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 __all__ = ["Registry"]
 
 
 class Registry:
-    """Named entries: ``builtin`` maps a name to the module whose ``attr`` is the entry
-    (loaded on first :meth:`get`); :meth:`register` adds one at run time.
+    """Named entries: ``builtin`` maps a name to the module whose ``attr`` is the entry, or a
+    mapping name -> entry for a module holding several (loaded on first :meth:`get`);
+    :meth:`register` adds one at run time.
 
     noun     : what an entry is, in messages ("format", "engine", "backend")
     option   : the option an unknown name is reported under ("--format", ...)
@@ -43,6 +45,8 @@ class Registry:
             raise self.error(f"{self.option}: unknown {self.noun} {name!r}; expected one of "
                              f"{', '.join(self.names())}")
         obj = getattr(importlib.import_module(self.builtin[name]), self.attr, None)
+        if isinstance(obj, Mapping):  # a module holding several entries: {name: entry}
+            obj = obj.get(name)
         if not self.is_entry(obj) or obj.name != name:
             raise self.error(f"{self.noun} module {self.builtin[name]}: expected {self.attr} = {self.kind} "
                              f"named {name!r}, got {obj!r}")

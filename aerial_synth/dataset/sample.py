@@ -242,8 +242,8 @@ class SampleRenderer:
                 "n_vehicles": len(pl.vehicles),
                 "warnings": grp.warnings,
                 # scenes with hard negatives (procedural/negatives.py) count them here
-                **({"hard_negatives": rs.scene.meta["hard_negatives"]}
-                   if "hard_negatives" in rs.scene.meta else {}),
+                **({"hard_negatives": rs.scene.hints.negatives.to_dict()}
+                   if rs.scene.hints.negatives is not None else {}),
                 **({"scene_mix": dict(grp.mix)} if grp.mix is not None else {}),
             },
             box_config=plan.box.to_dict(),

@@ -1,7 +1,7 @@
 """Vehicles parked on driveways, side pads and farm yards (scenario kind ``driveways``).
 
 A ``residential`` or ``rural`` scene carries a hint per parking site
-(``Scene.meta["driveways"]``, procedural/residential.py and rural.py): its id, kind
+(``Scene.hints.driveways``, procedural/residential.py and rural.py): its id, kind
 (``driveway``, ``pad`` or ``yard``), the usable rectangle (centre, axis from the street
 into the site, length along and width across the axis), the bay size, an occupancy and a
 class mix. What the hint cannot tell is checked with vertical line traces: a bay is kept
@@ -69,7 +69,7 @@ class DrivewaySite:
 def _site_ids(hint) -> np.ndarray:
     """Label ids a site's vehicles may stand on: the hint's ``labels`` (an OSM driveway is
     road surface) or parking and its painted lines."""
-    names = hint.get("labels") or _SITE_LABELS
+    names = hint.labels or _SITE_LABELS
     return np.array([LABEL_IDS[n] for n in names if n in LABEL_IDS])
 
 
@@ -79,17 +79,13 @@ def _labels(rs, xy):
 
 def find_sites(rayscene) -> list[DrivewaySite]:
     """The scene's driveway hints with the bays that traces confirm (see the module doc)."""
-    hints = rayscene.scene.meta.get("driveways") or []
     sites = []
-    for h in hints:
-        try:
-            ids = _site_ids(h)
-            c = np.asarray(h["center_xy"], float)
-            a = np.radians(float(h["axis_deg"]))
-            L, Wd = float(h["long_m"]), float(h["short_m"])
-            bl, bw = (float(x) for x in h["bay_m"])
-        except (KeyError, TypeError, ValueError):
-            continue
+    for h in rayscene.scene.hints.driveways:
+        ids = _site_ids(h)
+        c = np.asarray(h.center_xy, float)
+        a = np.radians(h.axis_deg)
+        L, Wd = h.long_m, h.short_m
+        bl, bw = h.bay_m
         if not (L > 0 and Wd > 0 and bl > 0 and bw > 0):
             continue
         u = np.array([np.cos(a), np.sin(a)])
@@ -106,9 +102,8 @@ def find_sites(rayscene) -> list[DrivewaySite]:
         gu, gv = np.meshgrid(f * bl_eff, f * bw_eff, indexing="ij")
         pts = centres[:, None, :] + gu.ravel()[None, :, None] * u + gv.ravel()[None, :, None] * v
         ok = np.isin(_labels(rayscene, pts).reshape(len(centres), -1), ids).all(axis=1)
-        sites.append(DrivewaySite(int(h["id"]), str(h.get("kind", "driveway")), c, u, L, Wd,
-                                  centres[ok], bl_eff, bw_eff, float(h.get("occupancy", 0.6)),
-                                  dict(h.get("mix") or {"small-vehicle": 1.0}), ids))
+        sites.append(DrivewaySite(int(h.id), h.kind, c, u, L, Wd, centres[ok], bl_eff, bw_eff,
+                                  h.occupancy, h.mix_dict(), ids))
     return sites
 
 
@@ -213,7 +208,7 @@ def place_driveways(rayscene, cfg, rng: np.random.Generator, catalog, seed=None,
     traffic lines (placement/parking.py, as ``mixed`` without lots)."""
     t0 = time.perf_counter()
     sites = find_sites(rayscene)
-    if not sites and not rayscene.scene.meta.get("driveways"):
+    if not sites and not rayscene.scene.hints.driveways:
         import warnings
 
         warnings.warn(f"scene {rayscene.scene.name!r} carries no driveway hints (a residential or "
@@ -245,9 +240,9 @@ def place_driveways(rayscene, cfg, rng: np.random.Generator, catalog, seed=None,
     stats["driveways"] = dstats
     stats["dropped_off_drivable"] = int((~ok).sum())
     stats["dropped_near_driveways"] = len(rest.vehicles) - len(kept) - int((~ok).sum())
-    neg = rayscene.scene.meta.get("hard_negatives")
+    neg = rayscene.scene.hints.negatives
     if neg is not None:
-        stats["hard_negatives"] = dict(neg.get("counts", {}))
+        stats["hard_negatives"] = dict(neg.counts)
     pl = Placement(scene=scene_name or rayscene.scene.name, scenario=cfg.name, seed=seed,
                    parameters=cfg.to_dict(), vehicles=vehicles, stats=stats,
                    georeference=rayscene.scene.georeference())

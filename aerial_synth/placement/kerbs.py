@@ -39,7 +39,7 @@ def find_kerbs(rayscene, cfg: ParkingConfig, rng: np.random.Generator, probe=Non
     road_lut[[LABEL_IDS["road"], LABEL_IDS["lane_marking"]]] = True
     kerbs: list[Kerb] = []
     claimed = []  # shapely polygons of kerb stretches already used
-    rules = _kerb_rules(rs.scene.meta.get("kerb_parking"))
+    rules = _kerb_rules(rs.scene.hints.kerbs)
     want = cfg.kerb_lines
     tries = 0
     while len(kerbs) < want and tries < 8:
@@ -84,18 +84,11 @@ def find_kerbs(rayscene, cfg: ParkingConfig, rng: np.random.Generator, probe=Non
 
 
 def _kerb_rules(data) -> list:
-    """Kerb parking tags of mapped roads (``Scene.meta["kerb_parking"]``, from OSM
+    """Kerb parking tags of mapped roads (``Scene.hints.kerbs``, from OSM
     ``parking:left|right|both`` and ``parking:lane:*``): [(centre line, width, left, right)]."""
     import shapely
 
-    out = []
-    for r in data or []:
-        try:
-            line = shapely.LineString(np.asarray(r["coords"], float))
-            out.append((line, float(r.get("width_m", 6.0)), r.get("left"), r.get("right")))
-        except (KeyError, TypeError, ValueError):
-            continue
-    return out
+    return [(shapely.LineString(r.coords), r.width_m, r.left, r.right) for r in data]
 
 
 def _kerb_allowed(rules, edge, n_out):

@@ -6,7 +6,7 @@ narrower than ``min_lot_m``; each remaining piece is a lot candidate. Its minimu
 rectangle gives the row direction (the long side); marching traces outward in 0.05 m steps
 (the thesis's step) from seven points along each side then turn the rectangle (Theil-Sen
 slope of the edge distances) and place each edge (median). The bay layout is the scene's
-lot hint when the scene carries one for that lot (``Scene.meta["parking_lots"]``: a
+lot hint when the scene carries one for that lot (``Scene.hints.lots``: a
 procedural lot's painted layout), else it is read from the painted lines
 (:func:`_layout_from_markings`), else the scenario's default (2.5 x 5.0 m bays, 6 m aisles, rows parallel to the
 rectangle), laid out by :func:`aerial_synth.scene.parking_layout.layout_bays`, the
@@ -124,7 +124,7 @@ def find_lots(rayscene, cfg: ParkingConfig | None = None) -> list[Lot]:
     opened = cv2.morphologyEx(mask, cv2.MORPH_OPEN, kernel)
     n, comp, stats, _ = cv2.connectedComponentsWithStats(opened, connectivity=8)
     default = cfg.lot_layout()
-    hints = rs.scene.meta.get("parking_lots") or []
+    hints = rs.scene.hints.lots
     lots: list[Lot] = []
     for k in range(1, n):
         x0, y0, w, h, area = stats[k]
@@ -143,13 +143,13 @@ def find_lots(rayscene, cfg: ParkingConfig | None = None) -> list[Lot]:
             continue
         lay, src = default, "default"
         for hnt in hints:
-            hc = np.asarray(hnt.get("center_xy", (np.inf, np.inf)), float)
-            if np.hypot(hc[0] - fr.cx, hc[1] - fr.cy) < 1.5 and abs(hnt.get("long_m", 0) - fr.long_m) < 1.5:
-                lay, src = LotLayout(**hnt["layout"]), "scene"
-                fr = LotFrame(float(hc[0]), float(hc[1]), float(np.radians(hnt["row_deg"])),
-                              float(hnt["long_m"]), float(hnt["short_m"]))
+            hc = np.asarray(hnt.center_xy, float)
+            if np.hypot(hc[0] - fr.cx, hc[1] - fr.cy) < 1.5 and abs(hnt.long_m - fr.long_m) < 1.5:
+                lay, src = LotLayout(**hnt.layout_dict()), "scene"
+                fr = LotFrame(float(hc[0]), float(hc[1]), float(np.radians(hnt.row_deg)),
+                              hnt.long_m, hnt.short_m)
                 break
-        space_bays = _bays_from_spaces(rs.scene.meta.get("parking_spaces"), fr) if src == "default" else None
+        space_bays = _bays_from_spaces(rs.scene.hints.spaces, fr) if src == "default" else None
         if space_bays is not None:
             bays, src = space_bays, "osm-spaces"
         else:

@@ -7,7 +7,7 @@ driven. Scenes built from OpenStreetMap know it (``oneway=*``, ``junction=rounda
 runs in the driving direction) and its lane counts. Placement asks
 :meth:`RoadHints.direction_at` only to pick a direction where geometry is ambiguous.
 
-The hints live in ``Scene.meta["road_hints"]`` (see :func:`road_hints`) and travel through
+The hints live in ``Scene.hints.roads`` (scene_hints.py; see :func:`road_hints`) and travel through
 GLB export in the glTF scene extras (:meth:`RoadHints.to_dict` / :meth:`RoadHints.from_dict`).
 """
 
@@ -273,8 +273,7 @@ class RoadHints:
 
 def road_hints(scene) -> RoadHints | None:
     """The scene's :class:`RoadHints`, or None when it has none (procedural / mesh scenes)."""
-    meta = getattr(scene, "meta", None) or {}
-    h = meta.get(META_KEY)
+    h = getattr(getattr(scene, "hints", None), "roads", None)
     return h if isinstance(h, RoadHints) and len(h) else None
 
 

@@ -29,7 +29,7 @@ from .georef import (
     origin_fits,
     parse_origin,
 )
-from .hints import extras_for, meta_from_extras
+from .hints import META_KEY, extras_for, meta_from_extras
 from .label_rules import load_rules, read_yaml
 from .model import (
     DEFAULT_COLOR_FOR_MATERIAL,
@@ -43,6 +43,7 @@ from .model import (
 from .osm import load_osm_scene
 from .osm.read import is_osm_path
 from .procedural import generate
+from .scene_hints import SceneHints
 
 __all__ = [
     "SCENES_DIR",
@@ -265,10 +266,12 @@ def load_mesh_scene(path: str | Path, labels: str | Path | None = None) -> Scene
         "n_unmatched": len(unmatched),
     }
 
-    meta.update(meta_from_extras(getattr(tscene, "metadata", None), origin, f"scene file {path}"))
+    extra = meta_from_extras(getattr(tscene, "metadata", None), origin, f"scene file {path}")
+    roads = extra.pop(META_KEY, None)
+    meta.update(extra)
     return Scene(
         name=path.stem, objects=objects, source=str(path), label_config=lc, meta=meta,
-        origin=origin, crs=crs,
+        origin=origin, crs=crs, hints=SceneHints(roads=roads),
     )
 
 

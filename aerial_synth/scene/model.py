@@ -12,6 +12,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..validators import known_keys, mapping, show
+from .scene_hints import NO_HINTS, SceneHints
 
 __all__ = [
     "LABELS",
@@ -332,6 +333,7 @@ class Scene:
     meta: dict = field(default_factory=dict)
     origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
     crs: str | None = None
+    hints: SceneHints = NO_HINTS
 
     def to_original(self, xyz) -> np.ndarray:
         """Local scene coordinates (n, 2|3) metres -> the source frame (float64)."""

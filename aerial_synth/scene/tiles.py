@@ -282,5 +282,5 @@ def cut_scene(scene: Scene, rect: Rect) -> Scene:
         used, inv = np.unique(ff, return_inverse=True)
         objs.append(SceneObject(o.name, o.label, v[used], inv.reshape(-1, 3), material=o.material, color=o.color))
     return Scene(name=scene.name, objects=objs, source=scene.source, truth=None, label_config=scene.label_config,
-                 meta={**scene.meta, "window_m": [float(c) for c in rect]}, origin=scene.origin, crs=scene.crs)
+                 meta={**scene.meta, "window_m": [float(c) for c in rect]}, origin=scene.origin, crs=scene.crs, hints=scene.hints)
 

@@ -42,6 +42,7 @@ from .. import validators as v
 from ..errors import AssetError
 from ..safe_input import load_yaml_file, shown
 from .bodies import CAR_PROFILES
+from .body_types import REGISTRY as BODIES
 from .model import (
     AXES,
     BODY_TYPES,
@@ -434,9 +435,9 @@ def _parse_model(where: str, folder: Path, i: int, entry: Any) -> VehicleModel:
 
     if not is_mesh:
         body = entry.get("body")
-        if body not in BODY_TYPES:
+        if body not in BODIES.names():
             raise AssetError(
-                f"{where}: {ent} field body: expected one of {', '.join(BODY_TYPES)}, got {body!r}"
+                f"{where}: {ent} field body: expected one of {', '.join(BODIES.names())}, got {body!r}"
             )
         dims = {
             k: _number(where, ent, entry, k, positive=True)

@@ -24,6 +24,8 @@ from ..validators import finite
 from ._hull import box as _box
 from ._hull import convex_hull as _hull
 from .bodies import CAR_PROFILES, car_kwargs
+from .body_types import REGISTRY as BODY_REGISTRY
+from .body_types import Body
 from .catalog import OPTION_RISE_M
 from .large import LARGE_BUILDERS
 from .model import VehicleColor, VehicleModel
@@ -336,12 +338,12 @@ def _wheels(axles, half_w, r, width, inset=0.06, dual_rear=False) -> list[Part]:
 
 # ----------------------------------------------------------------- body types
 def _procedural_parts(model: VehicleModel, height_m: float | None = None) -> list[Part]:
-    builder = _BUILDERS.get(model.body)
-    if builder is None:  # the catalog validates body types; this guards hand-made models
+    if model.body not in BODY_REGISTRY.names():  # the catalog validates body types; this guards hand-made models
         raise AssetError(
-            f"model {model.name!r}: body must be one of {', '.join(_BUILDERS)}, got {model.body!r}"
+            f"model {model.name!r}: body must be one of {', '.join(BODY_REGISTRY.names())}, got {model.body!r}"
         )
-    return builder(model.length_m, model.width_m, model.height_m if height_m is None else height_m)
+    build = BODY_REGISTRY.get(model.body).build
+    return build(model.length_m, model.width_m, model.height_m if height_m is None else height_m)
 
 
 def _car(L, W, H, *, bonnet, ws_run, rw_top_from_rear, rw_base_from_rear, belt, nose_top,
@@ -597,3 +599,6 @@ def _profiled(body: str):
 
 # compact, estate, mpv, van, minibus (vehicles/bodies.py)
 _BUILDERS.update({body: _profiled(body) for body in CAR_PROFILES})
+
+#: the built-in bodies, as the body registry (vehicles/body_types.py) loads them
+BODIES = {name: Body(name, fn) for name, fn in _BUILDERS.items()}

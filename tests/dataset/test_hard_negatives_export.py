@@ -47,7 +47,7 @@ def _quads(lines, start, scale=1.0):
 
 def test_no_hard_negative_in_any_label_file(export):
     out, scene = export
-    neg = scene.meta["hard_negatives"]
+    neg = scene.hints.negatives.to_dict()
     pos = np.array([[x, y, 1.0] for k, x, y in neg["positions"] if k in STANDING])
     assert len(pos) > 20
     coco = {}

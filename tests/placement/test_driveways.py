@@ -35,11 +35,11 @@ def _placed(key):
 
 
 def _site_polygon(h, grow=0.01):
-    a = np.radians(h["axis_deg"])
+    a = np.radians(h.axis_deg)
     u = np.array([np.cos(a), np.sin(a)])
     v = np.array([-u[1], u[0]])
-    c = np.asarray(h["center_xy"])
-    L, W = h["long_m"] / 2 + grow, h["short_m"] / 2 + grow
+    c = np.asarray(h.center_xy)
+    L, W = h.long_m / 2 + grow, h.short_m / 2 + grow
     return shapely.Polygon([c - u * L - v * W, c + u * L - v * W, c + u * L + v * W, c - u * L + v * W])
 
 
@@ -49,14 +49,14 @@ def test_validator_and_driveways(key):
     rep = validate_placement(rs, pl, truth=sc.truth).summary()
     assert rep["overlaps"] == 0
     assert rep["footprint_off_drivable"] == 0 and rep["corners_drivable"] == 1.0
-    hints = {h["id"]: h for h in sc.meta["driveways"]}
+    hints = {h.id: h for h in sc.hints.driveways}
     dv = [v for v in pl.vehicles if v.driveway >= 0]
     assert len(dv) >= 5
     for v in dv:  # inside its own driveway, by the scene's geometry (not the placement's)
         assert v.state == "parked"
         assert _site_polygon(hints[v.driveway]).contains(shapely.Polygon(v.corners_xy())), v.id
     assert pl.stats["driveway_validation"]["in_site_fraction"] == 1.0
-    assert pl.stats["hard_negatives"] == sc.meta["hard_negatives"]["counts"]
+    assert pl.stats["hard_negatives"] == sc.hints.negatives.to_dict()["counts"]
     # ids unique, and the driveway id survives placement.json; other vehicles carry none
     assert len({v.id for v in pl.vehicles}) == len(pl.vehicles)
     back = Placement.from_json(pl.to_json())
@@ -67,7 +67,7 @@ def test_validator_and_driveways(key):
 
 def test_pads_hold_rvs_and_trailers():
     sc, _, pl = _placed("us")
-    kinds = {h["id"]: h["kind"] for h in sc.meta["driveways"]}
+    kinds = {h.id: h.kind for h in sc.hints.driveways}
     on_pads = [v for v in pl.vehicles if v.driveway >= 0 and kinds[v.driveway] == "pad"]
     assert on_pads
     allowed = {"campervan", "boat_trailer", "utility_trailer"}

@@ -62,10 +62,10 @@ def suburb_rs():
 def test_suburb_lots_found_by_traces(suburb_rs):
     lots = find_lots(suburb_rs)
     assert len(lots) == 2  # driveways and entrances are no lots
-    hints = suburb_rs.scene.meta["parking_lots"]
+    hints = suburb_rs.scene.hints.lots
     for lt, h in zip(sorted(lots, key=lambda x: -x.frame.cy), hints):
         assert lt.layout_source == "scene"
-        assert len(lt.bays) == h["bays"] and lt.dropped_bays == 0
+        assert len(lt.bays) == h.bays and lt.dropped_bays == 0
     # the traced rectangle (before the hint) is within 5 cm of the true one
     lots_default = find_lots(RayScene(Scene(suburb_rs.scene.name, suburb_rs.scene.objects)))
     truth = sorted((lt.frame for lt in lots_default), key=lambda f: -f.cy)
@@ -305,7 +305,7 @@ def test_bays_read_from_the_markings_without_hints(name):
     s = load_scene(name)
     bare = find_lots(RayScene(Scene(s.name, s.objects)))
     hinted = find_lots(RayScene(s))
-    assert len(bare) == len(hinted) == len(s.meta["parking_lots"])
+    assert len(bare) == len(hinted) == len(s.hints.lots)
     for a, b in zip(sorted(bare, key=lambda x: x.frame.cx), sorted(hinted, key=lambda x: x.frame.cx)):
         assert a.layout_source == "markings" and b.layout_source == "scene"
         assert (a.layout.bay_width_m, a.layout.bay_length_m, a.layout.angle_deg) == (
@@ -350,12 +350,12 @@ def test_osm_parking_spaces_are_the_bays():
               {"amenity": "parking_space"}, close=True)
     with tempfile.TemporaryDirectory() as d:
         scene = build_osm_scene(t.write(Path(d) / "spaces.osm"))
-    assert len(scene.meta["parking_spaces"]) == n
+    assert len(scene.hints.spaces) == n
     rs = RayScene(scene)
     lt, = find_lots(rs)
     assert lt.layout_source == "osm-spaces" and len(lt.bays) == n
     assert abs(lt.bays.width_m - 2.6) < 0.05 and abs(lt.bays.length_m - 5.2) < 0.05
-    cents = np.array([np.mean(r, axis=0) for r in scene.meta["parking_spaces"]])
+    cents = np.array([np.mean(r, axis=0) for r in scene.hints.spaces])
     d = np.linalg.norm(lt.bays.centre_xy[:, None, :] - cents[None, :, :], axis=2).min(axis=1)
     assert d.max() < 0.01
     p = place(rs, "parking", seed=2, overrides={"parking": {"occupancy_mean": 1.0}})
@@ -379,8 +379,8 @@ def test_osm_kerb_parking_tags_are_obeyed():
     t.way([(-150, -80), (150, -80)], {"highway": "residential", "width": "8"})
     with tempfile.TemporaryDirectory() as d:
         scene = build_osm_scene(t.write(Path(d) / "kerbs.osm"))
-    kp = scene.meta["kerb_parking"]
-    assert sorted((r["left"], r["right"]) for r in kp) == [(False, False), (False, True)]
+    kp = scene.hints.kerbs
+    assert sorted((r.left, r.right) for r in kp) == [(False, False), (False, True)]
     rs = RayScene(scene)
     p = place(rs, "street-parking", seed=4, overrides={"parking": {"occupancy_mean": 1.0}})
     # each parked car: the road it stands on and its side (the truth centre lines run in the

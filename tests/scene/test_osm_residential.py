@@ -32,20 +32,20 @@ def test_osm_residential_meta_and_driveway_parking(tmp_path):
     sc = build_osm_scene(_street(tmp_path))
     res = sc.meta["residential"]
     assert res == {"houses": 4, "garages": 4, "sheds": 4, "swimming_pools": 1, "driveways": 4}
-    neg = sc.meta["hard_negatives"]
+    neg = sc.hints.negatives.to_dict()
     assert neg["counts"]["shed"] == 4 and neg["labelled"] is False and len(neg["positions"]) == 4
-    hints = sc.meta["driveways"]
+    hints = sc.hints.driveways
     assert len(hints) == 4
     for h in hints:  # the axis points away from the street (north), the site lies off it
-        assert abs(h["axis_deg"] - 90.0) < 2.5  # (UTM grid convergence)
-        assert h["center_xy"][1] > 5.0 and h["long_m"] >= 5.6
+        assert abs(h.axis_deg - 90.0) < 2.5  # (UTM grid convergence)
+        assert h.center_xy[1] > 5.0 and h.long_m >= 5.6
     rs = RayScene(sc)
     pl = place(rs, "residential", seed=2, overrides={"lines": 2, "parking": {"kerb_lines": 4}})
     dv = [v for v in pl.vehicles if v.driveway >= 0]
     assert dv and all(v.state == "parked" for v in dv)
     for v in dv:
         h = hints[v.driveway]
-        c = np.asarray(h["center_xy"])
-        assert abs(v.y_m - c[1]) <= h["long_m"] / 2 and abs(v.x_m - c[0]) <= h["short_m"] / 2
+        c = np.asarray(h.center_xy)
+        assert abs(v.y_m - c[1]) <= h.long_m / 2 and abs(v.x_m - c[0]) <= h.short_m / 2
     rep = validate_placement(rs, pl).summary()
     assert rep["overlaps"] == 0 and rep["footprint_off_drivable"] == 0

@@ -124,8 +124,8 @@ def test_suburb_lots_are_joined_to_the_street_network(suburb):
 
 def test_suburb_lots_show_painted_bays(suburb):
     rs = RayScene(suburb)
-    hints = suburb.meta["parking_lots"]
-    assert [h["bays"] for h in hints] == [102, 75]
+    hints = suburb.hints.lots
+    assert [h.bays for h in hints] == [102, 75]
     xs, ys = np.meshgrid(np.arange(95, 145, 0.05), [100.0, 115.0])
     lab = rs.trace_labels(np.stack([xs.ravel(), ys.ravel()], 1)).reshape(xs.shape)
     marks = lab == LABEL_IDS["parking_marking"]
@@ -137,9 +137,9 @@ def test_suburb_lots_show_painted_bays(suburb):
 
 def test_depot_has_long_bays_and_entrances():
     s = load_scene("depot")
-    hints = s.meta["parking_lots"]
-    assert [h["layout"]["bay_length_m"] for h in hints] == [14.0, 18.0]
-    assert all(h["bays"] >= 40 for h in hints)
+    hints = s.hints.lots
+    assert [h.layout_dict()["bay_length_m"] for h in hints] == [14.0, 18.0]
+    assert all(h.bays >= 40 for h in hints)
     t = s.truth
     drivable = shapely.union_all([t.road_area.buffer(0.01), t.parking_area.buffer(0.01)])
     assert len(list(shapely.get_parts(drivable))) == 1  # yards joined to the road

@@ -61,16 +61,16 @@ def test_layout(name):
     road = sc.truth.road_area
     park = sc.truth.parking_area
     assert park is not None and park.intersection(road).area < 1e-6
-    hints = sc.meta["driveways"]
-    assert hints and len({h["id"] for h in hints}) == len(hints)
+    hints = sc.hints.driveways
+    assert hints and len({h.id for h in hints}) == len(hints)
     for h in hints:  # every hint's usable rectangle is parking surface
-        a = np.radians(h["axis_deg"])
+        a = np.radians(h.axis_deg)
         u = np.array([np.cos(a), np.sin(a)])
         v = np.array([-u[1], u[0]])
-        c = np.asarray(h["center_xy"])
-        L, W = h["long_m"] / 2, h["short_m"] / 2
+        c = np.asarray(h.center_xy)
+        L, W = h.long_m / 2, h.short_m / 2
         rect = shapely.Polygon([c - u * L - v * W, c + u * L - v * W, c + u * L + v * W, c - u * L + v * W])
-        assert park.buffer(0.05).contains(rect), (name, h["id"])
+        assert park.buffer(0.05).contains(rect), (name, h.id)
     for o in sc.objects:
         if o.label in ("building", "trunk", "pole"):
             assert not shapely.contains_xy(road.buffer(-0.05), o.vertices[:, 0], o.vertices[:, 1]).any(), o.name
@@ -79,7 +79,7 @@ def test_layout(name):
 @pytest.mark.parametrize("name", NEW)
 def test_hard_negatives_counted(name):
     sc = _scene(name)
-    meta = sc.meta["hard_negatives"]
+    meta = sc.hints.negatives.to_dict()
     assert meta["labelled"] is False
     assert set(meta["counts"]) == set(NEGATIVE_KINDS)
     assert sum(meta["counts"].values()) == len(meta["positions"]) > 0
@@ -93,10 +93,10 @@ def test_densities_scale_counts():
     base = _small("residential", variant="us")
     none = generate({**base, "hard_negatives": {"scale": 0.0}})
     many = generate({**base, "hard_negatives": {"scale": 4.0}})
-    assert sum(none.meta["hard_negatives"]["counts"].values()) == 0
+    assert sum(none.hints.negatives.to_dict()["counts"].values()) == 0
     assert not any(o.name.startswith("negative_") for o in none.objects)
-    assert sum(many.meta["hard_negatives"]["counts"].values()) > sum(
-        generate(base).meta["hard_negatives"]["counts"].values())
+    assert sum(many.hints.negatives.to_dict()["counts"].values()) > sum(
+        generate(base).hints.negatives.to_dict()["counts"].values())
 
 
 def test_rural_fields_and_tracks():

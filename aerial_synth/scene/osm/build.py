@@ -19,9 +19,10 @@ import numpy as np
 
 from ...errors import SceneError
 from ..build import flat_polygon, merge_meshes
-from ..hints import META_KEY, HintRoad, RoadHints
+from ..hints import HintRoad, RoadHints
 from ..model import RoadTruth, Scene, SceneObject, SceneTruth
 from ..procedural.roofs import ROOF_MATERIALS, covering_from_tags
+from ..scene_hints import KerbHint, SceneHints
 from .read import OsmData
 from .residential import residential_meta
 from .roads import OsmRoad, find_junctions, road_markings, road_surface, tyre_tracks
@@ -243,9 +244,6 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
         "format": "osm",
         "bbox": [float(c) for c in data.bbox],
         "attribution": ATTRIBUTION,
-        META_KEY: hints,
-        "parking_spaces": [np.asarray(p.exterior.coords)[:-1].round(4).tolist() for p in spaces],
-        "kerb_parking": kerbs,
         "osm": {
             "roads": len(roads),
             "oneway_roads": int(sum(r.p.oneway for r in roads)),
@@ -258,9 +256,15 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
                           "total": round(time.perf_counter() - t0, 3)},
     }
     # driveway sites, house/garage/shed counts, sheds as hard negatives (osm/residential.py)
-    meta.update(residential_meta(roads, data.areas, ageoms, clip))
+    w = f"OSM file {source}"
+    res, drive, neg = residential_meta(roads, data.areas, ageoms, clip, w)
+    meta.update(res)
+    scene_hints = SceneHints(
+        roads=hints, driveways=drive, negatives=neg,
+        spaces=tuple(np.asarray(p.exterior.coords)[:-1].round(4) for p in spaces),
+        kerbs=tuple(KerbHint.from_dict(k, f"{w}: kerb parking") for k in kerbs))
     return Scene(name=name, objects=objects, source=source, truth=truth, meta=meta,
-                 origin=(float(origin_xy[0]), float(origin_xy[1]), 0.0), crs=crs)
+                 origin=(float(origin_xy[0]), float(origin_xy[1]), 0.0), crs=crs, hints=scene_hints)
 
 
 
@@ -340,7 +344,7 @@ def _surfaces(data: OsmData, kinds, lgeoms, akinds, ageoms, clip):
     sidewalk = _polys(np.concatenate(side_geoms + [areas("sidewalk")]), clip)
     water = _polys(np.concatenate(water_geoms + [areas("water")]), clip)
     # parking spaces (amenity=parking_space) are parking surface too, and their rectangles
-    # go to placement as bays (meta "parking_spaces", docs/parking.md)
+    # go to placement as bays (``Scene.hints.spaces``, docs/parking.md)
     spaces = _polys(areas("parking_space"), clip)
     parking = _polys(np.concatenate([areas("parking"), areas("parking_space")]), clip)
     grass = _polys(np.concatenate([areas("grass"), areas("forest")]), clip)

@@ -3,11 +3,11 @@ sheds as hard negatives, swimming pools (issue 29; docs/osm.md).
 
 - ``highway=service`` + ``service=driveway`` ways stay drivable road surface (as every
   service way); their stretch beyond the other roads' surfaces becomes a driveway site
-  (``Scene.meta["driveways"]``, the hint format of procedural/residential.py, with
+  (``Scene.hints.driveways``, the hint format of procedural/residential.py, with
   ``labels: [road, lane_marking, parking, parking_marking]``), so the ``driveways``
   scenario (placement/driveways.py) parks cars on it and records the driveway id.
 - ``building=house|detached|garage|shed`` are counted (``meta["residential"]``); sheds are
-  also hard negatives (``meta["hard_negatives"]``, never labelled, like the procedural ones).
+  also hard negatives (``Scene.hints.negatives``, never labelled, like the procedural ones).
 - ``leisure=swimming_pool`` areas are water (tags.py) and counted here.
 
 Nothing is added to the metadata of a scene without any of these (so other OSM scenes keep
@@ -21,6 +21,7 @@ import math
 import numpy as np
 
 from ..procedural.negatives import NEGATIVE_KINDS
+from ..scene_hints import DrivewayHint, NegativesHint
 from .tags import RESIDENTIAL_BUILDINGS, is_driveway
 
 __all__ = ["residential_meta", "DRIVEWAY_WIDTH_M"]
@@ -77,8 +78,9 @@ def _driveways(roads, clip) -> list[dict]:
     return hints
 
 
-def residential_meta(roads, areas, geoms, clip) -> dict:
-    """Metadata entries of an OSM scene's residential features (empty: none).
+def residential_meta(roads, areas, geoms, clip, where: str = "OSM file") -> tuple[dict, tuple, NegativesHint | None]:
+    """Metadata entries of an OSM scene's residential features (empty: none), its driveway
+    hints (:class:`DrivewayHint`) and its sheds as hard negatives (None: no shed).
 
     roads : the scene's drivable ways (build.py ``_Road``: tags, line, ``p.width_m``)
     areas : reader areas [(kind, id, tags, geometry)]; geoms : their local-frame geometries
@@ -101,12 +103,9 @@ def residential_meta(roads, areas, geoms, clip) -> dict:
         elif kind == "water" and tags.get("leisure") == "swimming_pool":
             counts["swimming_pools"] += 1
     if not any(counts.values()):
-        return out
+        return out, (), None
     out["residential"] = counts
-    if hints:
-        out["driveways"] = hints
-    if sheds:
-        out["hard_negatives"] = {"scene_kind": "osm", "density_per_ha": {},
-                                 "counts": {k: (len(sheds) if k == "shed" else 0) for k in NEGATIVE_KINDS},
-                                 "labelled": False, "positions": sheds}
-    return out
+    drive = tuple(DrivewayHint.from_dict(h, f"{where}: driveway hint") for h in hints)
+    neg = NegativesHint("osm", (), tuple((k, len(sheds) if k == "shed" else 0) for k in NEGATIVE_KINDS),
+                        tuple(sheds)) if sheds else None
+    return out, drive, neg

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..build import cylinder, merge_meshes, polygon_object, prism
 from ..model import LabelConfig, RoadTruth, Scene, SceneObject, SceneTruth
+from ..scene_hints import LotHint, SceneHints
 from .markings import TRACK_DEFAULTS, road_markings, road_tracks
 from .roads import Road, offset_line, polygonal, road_polygon
 from .roofs import building_objects
@@ -259,8 +260,8 @@ class Builder:
             pm = polygonal(shapely.union_all(lot_marks).intersection(parking))
             if not pm.is_empty:
                 objs.append(polygon_object("parking_marking", "parking_marking", pm, Z_MARKING))
-        if getattr(self, "parking_hints", None):
-            meta = {**meta, "parking_lots": self.parking_hints}
+        lot_hints = tuple(LotHint.from_dict(h, f"scene {self.name}: lot hint")
+                          for h in getattr(self, "parking_hints", None) or ())
         if not water.is_empty:
             objs.append(polygon_object("water_lake", "water", water, Z_GROUND))
         if not sidewalk.is_empty:
@@ -318,6 +319,7 @@ class Builder:
             truth=truth,
             label_config=LabelConfig(),
             meta=meta,
+            hints=SceneHints(lots=lot_hints),
         )
 
 

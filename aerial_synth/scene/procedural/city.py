@@ -46,6 +46,7 @@ from ...errors import SceneError
 from ..build import merge_meshes
 from ..model import SceneObject
 from .builder import Builder
+from .generators import Generator
 from .roads import Road
 from .roofs import ROOF_DETAIL_MAX_M, building_objects
 from .trees import draw_species, tree_objects
@@ -300,6 +301,9 @@ def generate_city(b: Builder, spec: Mapping) -> None:
         if r.lanes >= 2:
             b.add_poles_along(r, _PHASE_M, _POLE_M, r.sidewalk_m + 0.6)
     b.scene = functools.partial(_city_scene, b)  # buildings and trees with seeded colours
+
+
+GENERATOR = Generator("city", generate_city)
 
 
 def _park(rng, box, density, pond_f, b: Builder, trees: list) -> None:

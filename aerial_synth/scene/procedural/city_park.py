@@ -6,6 +6,7 @@ from typing import Mapping
 
 from .builder import Builder
 from .features import lake, random_buildings, spec_roads
+from .generators import Generator
 from .roads import offset_line
 
 
@@ -37,3 +38,4 @@ def generate_city_park(b: Builder, spec: Mapping):
                               r.sidewalk_m + float(p.get("offset_m", 0.6)))
 
 
+GENERATOR = Generator("city_park", generate_city_park)

@@ -9,6 +9,7 @@ import numpy as np
 
 from .builder import Builder
 from .features import random_buildings
+from .generators import Generator
 from .roads import Road, chaikin, offset_line, wiggle
 
 
@@ -94,6 +95,9 @@ def generate_highway(b: Builder, spec: Mapping):
     _local_roads(b, hw, base_long, base, outer)
     b.freeze_areas()
     _dress(b, spec, crossings, base)
+
+
+GENERATOR = Generator("highway", generate_highway)
 
 
 def _local_roads(b: Builder, hw: Mapping, base_long, base, outer: float) -> None:

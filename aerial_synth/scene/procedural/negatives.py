@@ -5,7 +5,7 @@ patches and the like (issue 29). The ``residential`` and ``rural`` generators sc
 with a density per scene kind (:data:`DENSITY_PER_HA`, objects per hectare of the scene),
 which a spec may scale or override (``hard_negatives: {scale: 1.0, density_per_ha: {kind:
 x}}``). Every kind is an ordinary scene object with a non-vehicle label, so no label file
-can ever hold one; the counts go into ``Scene.meta["hard_negatives"]`` (and from there into
+can ever hold one; the counts go into ``Scene.hints.negatives`` (and from there into
 the placement stats and every exported image's metadata).
 
 ======================  =========================================  ========  ===========

@@ -17,6 +17,7 @@ import numpy as np
 from ... import validators as V
 from ...errors import ConfigError, SceneError
 from ..parking_layout import bay_markings, layout_bays, lot_frame, parse_layout
+from .generators import Generator
 from .roads import Road
 
 __all__ = [
@@ -163,3 +164,6 @@ def generate_depot(b, spec: Mapping):
         b.add_tree_cluster(n, free, [2.0, 3.5], [5, 9], species=t.get("species"))
     for r in b.roads:
         b.add_poles_along(r, 40.0, 8.0, r.sidewalk_m + 0.5)
+
+
+GENERATOR = Generator("depot", generate_depot)

@@ -10,7 +10,7 @@ sides of every street (and fan round every turning circle); each holds:
   procedural/houses.py) set back from the street, with an attached garage on one side
   (or, without one, a parking place beside the house);
 - a driveway from the street to the garage door (``parking``, concrete or asphalt; single
-  or double width), recorded as a scene hint with an id (``Scene.meta["driveways"]``) so
+  or double width), recorded as a scene hint with an id (``Scene.hints.driveways``) so
   that placement can park cars on it and name the driveway each car stands in;
 - sometimes a gravel side pad beside the house for an RV, a boat trailer or a utility
   trailer (also ``parking``, hint kind ``pad``);
@@ -50,8 +50,10 @@ import numpy as np
 from ... import validators as V
 from ...errors import SceneError
 from ..build import polygon_object
+from ..scene_hints import DrivewayHint, NegativesHint
 from . import spec as S
 from .builder import Z_ROAD, Builder
+from .generators import Generator
 from .houses import HouseSet
 from .negatives import NEGATIVE_KINDS, add_negatives
 from .roads import Road, chaikin, offset_line, polygonal
@@ -307,6 +309,8 @@ def generate_residential(b: Builder, spec: Mapping) -> None:
               "concrete": concrete, "pads": pads}
     b.scene = functools.partial(_residential_scene, b)
 
+
+GENERATOR = Generator("residential", generate_residential)
 
 
 @dataclass
@@ -565,7 +569,10 @@ def _residential_scene(b: Builder, source: str, meta: dict):
     objs.extend(r["houses"].objects("house"))
     objs.extend(r["negatives"])
     scene.objects = [o for o in objs if o.n_triangles]
-    scene.meta = {**scene.meta, "driveways": r["hints"], "hard_negatives": r["neg_meta"],
+    scene.hints = scene.hints.replace(
+        driveways=tuple(DrivewayHint.from_dict(h, f"scene {scene.name}: driveway hint") for h in r["hints"]),
+        negatives=NegativesHint.from_dict(r["neg_meta"], f"scene {scene.name}: hard negatives"))
+    scene.meta = {**scene.meta,
                   "yard_counts": {k: (round(v, 2) if isinstance(v, float) else v)
                                   for k, v in r["houses"].counts.items()}}
     return scene

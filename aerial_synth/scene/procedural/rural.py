@@ -40,8 +40,10 @@ from ... import validators as V
 from ...errors import SceneError
 from ..build import polygon_object, prism
 from ..model import SceneObject
+from ..scene_hints import DrivewayHint, NegativesHint
 from . import spec as S
 from .builder import Z_ROAD, Z_TRACK, Builder
+from .generators import Generator
 from .houses import HouseSet, rect_poly
 from .negatives import add_negatives
 from .residential import NEGATIVES_SECTION, VEHICLES_SECTION
@@ -169,6 +171,7 @@ def generate_rural(b: Builder, spec: Mapping) -> None:
     b.scene = functools.partial(_rural_scene, b)
 
 
+GENERATOR = Generator("rural", generate_rural)
 
 
 def _rural_roads(b: Builder, rng, rc: Mapping, W: float, H: float):
@@ -422,7 +425,10 @@ def _rural_scene(b: Builder, source: str, meta: dict):
     objs.extend(r["houses"].objects("farm"))
     objs.extend(r["negatives"])
     scene.objects = [o for o in objs if o.n_triangles]
-    scene.meta = {**scene.meta, "driveways": r["hints"], "hard_negatives": r["neg_meta"],
+    scene.hints = scene.hints.replace(
+        driveways=tuple(DrivewayHint.from_dict(h, f"scene {scene.name}: driveway hint") for h in r["hints"]),
+        negatives=NegativesHint.from_dict(r["neg_meta"], f"scene {scene.name}: hard negatives"))
+    scene.meta = {**scene.meta,
                   "fields": r["field_counts"],
                   "farm_counts": {k: (round(v, 2) if isinstance(v, float) else v)
                                   for k, v in r["houses"].counts.items()}}

@@ -9,6 +9,7 @@ from typing import Mapping
 import numpy as np
 
 from .builder import Builder
+from .generators import Generator
 from .parking import add_lots
 from .roads import Road, offset_line
 
@@ -102,6 +103,9 @@ def generate_suburb(b: Builder, spec: Mapping):
             b.parking.append(LineString([a, e]).buffer(dw / 2, cap_style="flat"))
     b.freeze_areas()
     _trees_and_poles(b, spec)
+
+
+GENERATOR = Generator("suburb", generate_suburb)
 
 
 def _trees_and_poles(b: Builder, spec: Mapping) -> None:
