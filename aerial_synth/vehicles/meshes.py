@@ -1,3 +1,4 @@
+# size: every procedural body builder (cars, vans, trucks, buses) in one module, which the body registry (body_types.py) reads
 """Vehicle meshes: procedural low-poly bodies and user glTF/GLB/OBJ files.
 
 Vehicle frame: metres, origin at the footprint centre on the ground, +x forward, +y left,
@@ -339,11 +340,10 @@ def _wheels(axles, half_w, r, width, inset=0.06, dual_rear=False) -> list[Part]:
 # ----------------------------------------------------------------- body types
 def _procedural_parts(model: VehicleModel, height_m: float | None = None) -> list[Part]:
     if model.body not in BODY_REGISTRY.names():  # the catalog validates body types; this guards hand-made models
-        raise AssetError(
-            f"model {model.name!r}: body must be one of {', '.join(BODY_REGISTRY.names())}, got {model.body!r}"
-        )
-    build = BODY_REGISTRY.get(model.body).build
-    return build(model.length_m, model.width_m, model.height_m if height_m is None else height_m)
+        raise AssetError(f"model {model.name!r}: body must be one of "
+                         f"{', '.join(BODY_REGISTRY.names())}, got {model.body!r}")
+    h = model.height_m if height_m is None else height_m
+    return BODY_REGISTRY.get(model.body).build(model.length_m, model.width_m, h)
 
 
 def _car(L, W, H, *, bonnet, ws_run, rw_top_from_rear, rw_base_from_rear, belt, nose_top,

@@ -164,6 +164,26 @@ def _polys(geoms, clip):
     return parts[(shapely.get_type_id(parts) == 3) & ~shapely.is_empty(parts)]
 
 
+def _scene_meta(data: OsmData, source: str, roads, n_buildings: int, n_trees: int,
+                n_junctions: int, seconds: dict) -> dict:
+    """The OSM scene's ``meta``: its file, bbox, attribution, what was built, how long it took."""
+    return {
+        "file": source,
+        "format": "osm",
+        "bbox": [float(c) for c in data.bbox],
+        "attribution": ATTRIBUTION,
+        "osm": {
+            "roads": len(roads),
+            "oneway_roads": int(sum(r.p.oneway for r in roads)),
+            "buildings": n_buildings,
+            "trees": int(n_trees),
+            "junctions": int(n_junctions),
+            "objects_read": dict(data.counts),
+        },
+        "build_seconds": seconds,
+    }
+
+
 def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: str,
                 seed: int = 0) -> Scene:
     """Turn reader output into a Scene (see the module docstring for frame and layers).
@@ -239,22 +259,8 @@ def build_scene(data: OsmData, crs, transformer, origin_xy, name: str, source: s
     hints = RoadHints(hint_roads)
     truth = SceneTruth(road_area=road_area, roads=tuple(truth_roads),
                        parking_area=_union(list(parking)) if len(parking) else None)
-    meta = {
-        "file": source,
-        "format": "osm",
-        "bbox": [float(c) for c in data.bbox],
-        "attribution": ATTRIBUTION,
-        "osm": {
-            "roads": len(roads),
-            "oneway_roads": int(sum(r.p.oneway for r in roads)),
-            "buildings": n_buildings,
-            "trees": int(len(txy)),
-            "junctions": int(len(junctions)),
-            "objects_read": dict(data.counts),
-        },
-        "build_seconds": {"roads": round(t_roads - t0, 3),
-                          "total": round(time.perf_counter() - t0, 3)},
-    }
+    meta = _scene_meta(data, source, roads, n_buildings, len(txy), len(junctions),
+                       {"roads": round(t_roads - t0, 3), "total": round(time.perf_counter() - t0, 3)})
     # driveway sites, house/garage/shed counts, sheds as hard negatives (osm/residential.py)
     w = f"OSM file {source}"
     res, drive, neg = residential_meta(roads, data.areas, ageoms, clip, w)
