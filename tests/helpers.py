@@ -63,3 +63,11 @@ def children(pid: int, cmdline: bytes | None = None) -> set[int]:
         out.add(int(d))
     return out
 
+
+def one_line(code, err, status=2):
+    """``err`` when a command exited with ``status`` and said so in exactly one line, with no
+    traceback (the hostile-input tests' promise)."""
+    assert code == status, err
+    assert len(err.strip().splitlines()) == 1, err
+    assert "Traceback" not in err
+    return err

@@ -429,28 +429,45 @@ def _ao_pass(rayscene, camera, buffers, ao_cfg, pseed, mark):
     return ao
 
 
-def _camera_pass(lin, factors, h, w):
-    """The camera: white balance and tint, auto (metered) or fixed exposure, saturation, the
-    tone curve, a panchromatic frame; (H, W, 3) uint8. Adds ``exposure_gain`` and
-    ``tone_power`` to ``factors``."""
+def camera_gains(factors) -> np.ndarray:
+    """White balance and tint as RGB gains, (3,) float64 scaled to unit luma."""
     wb = float(factors["white_balance"])  # log(R gain / B gain)
     tint = float(factors.get("tint", 0.0))  # log G gain
     gains = np.array([math.exp(wb / 2), math.exp(tint), math.exp(-wb / 2)])
-    gains /= float(_LUMA @ gains)
+    return gains / float(_LUMA @ gains)
+
+
+def exposure(factors, metered) -> tuple[float, float, float]:
+    """The tone curve's (gain, power, shoulder): auto exposure solved from ``metered()`` (the
+    sensor's luma, softened by the frame's optical blur, every 4th pixel, (n,) float64), or the
+    fixed exposure. Adds ``exposure_gain`` and ``tone_power`` to ``factors``. Every backend's
+    camera pass calls this; only the metering differs (host or device)."""
     shoulder = float(factors.get("tone_shoulder", 0.25))
     if factors.get("exposure_mode", "fixed") == "auto":
-        # meter what the sensor records: the luma softened by the frame's optical blur
-        # (metering sharp pixels overestimated the final gray sd by ~2.5 on average)
-        y = cv2.transform(lin, (_LUMA * gains).reshape(1, 3).astype(np.float32))
-        if factors["blur_sigma_px"] > 0.05:
-            y = cv2.GaussianBlur(y, (0, 0), float(factors["blur_sigma_px"]))
-        sub = y[::4, ::4].reshape(-1).astype(np.float64)
-        gain, power = solve_tone(sub, float(factors["key_gray"]),
+        gain, power = solve_tone(metered(), float(factors["key_gray"]),
                                  float(factors["target_gray_sd"]), shoulder)
     else:
         gain, power = float(factors["exposure"]), 1.0 / 2.2
     factors["exposure_gain"] = float(gain)
     factors["tone_power"] = float(power)
+    return gain, power, shoulder
+
+
+def _camera_pass(lin, factors, h, w):
+    """The camera: white balance and tint, auto (metered) or fixed exposure, saturation, the
+    tone curve, a panchromatic frame; (H, W, 3) uint8. Adds ``exposure_gain`` and
+    ``tone_power`` to ``factors``."""
+    gains = camera_gains(factors)
+
+    def metered():
+        # meter what the sensor records: the luma softened by the frame's optical blur
+        # (metering sharp pixels overestimated the final gray sd by ~2.5 on average)
+        y = cv2.transform(lin, (_LUMA * gains).reshape(1, 3).astype(np.float32))
+        if factors["blur_sigma_px"] > 0.05:
+            y = cv2.GaussianBlur(y, (0, 0), float(factors["blur_sigma_px"]))
+        return y[::4, ::4].reshape(-1).astype(np.float64)
+
+    gain, power, shoulder = exposure(factors, metered)
     rgb = np.empty((h, w, 3), np.uint8)
     K.tone(lin, (gains * gain).astype(np.float32),
            np.float32(factors.get("saturation", 1.0)), tone_lut(shoulder, power), rgb)

@@ -16,7 +16,7 @@ import pytest
 
 from aerial_synth.cli import main
 from tests.evaluate.conftest import make_dota
-from tests.helpers import REPO, tree_bytes
+from tests.helpers import REPO, one_line, tree_bytes
 
 # -- helpers -----------------------------------------------------------------------------------
 
@@ -26,13 +26,6 @@ def run(capsys, *argv):
     code = main([str(a) for a in argv])
     cap = capsys.readouterr()
     return code, cap.err
-
-
-def one_line(code, err, status=2):
-    assert code == status, err
-    assert len(err.strip().splitlines()) == 1, err
-    assert "Traceback" not in err
-    return err
 
 
 def cli(*argv, timeout=60, cwd=None, env=None):

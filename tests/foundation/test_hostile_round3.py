@@ -17,7 +17,7 @@ import pytest
 
 from aerial_synth.cli import main
 from tests.evaluate.conftest import make_dota
-from tests.helpers import REPO, tree_bytes, write_crossing_obj
+from tests.helpers import REPO, one_line, tree_bytes, write_crossing_obj
 
 SECRET = "root:$6$s3cr3tHASHvalue:19000:0:99999:7:::"
 
@@ -27,13 +27,6 @@ def run(capsys, *argv):
     code = main([a if isinstance(a, str) else os.fsdecode(a) if isinstance(a, (bytes, os.PathLike)) else str(a) for a in argv])
     cap = capsys.readouterr()
     return code, cap.err
-
-
-def one_line(code, err, status=2):
-    assert code == status, err
-    assert len(err.strip().splitlines()) == 1, err
-    assert "Traceback" not in err
-    return err
 
 
 def cli(*argv, timeout=60, cwd=None, env=None, **kw):

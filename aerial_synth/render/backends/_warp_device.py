@@ -293,27 +293,20 @@ def shade_on_device(ws, camera, d: dict, factors: dict, timings: dict | None = N
 
 def _camera(wp, K, R, dev, lin, factors, h, w):
     """``shading._camera_pass`` on the device: (n, 3) uint8."""
-    from ..tone import solve_tone, tone_lut
+    from ..tone import tone_lut
 
-    wb = float(factors["white_balance"])
-    tint = float(factors.get("tint", 0.0))
-    gains = np.array([math.exp(wb / 2), math.exp(tint), math.exp(-wb / 2)])
-    gains /= float(S._LUMA @ gains)
-    shoulder = float(factors.get("tone_shoulder", 0.25))
-    if factors.get("exposure_mode", "fixed") == "auto":
+    gains = S.camera_gains(factors)
+
+    def metered():  # as the host meters it, on the device
         y = wp.empty((h, w), dtype=wp.float32, device=dev)
         wts = (S._LUMA * gains).astype(np.float32)
         wp.launch(K.luma, dim=h * w, inputs=[lin, wp.vec3(*wts.tolist()), w], outputs=[y],
                   device=dev)
         if factors["blur_sigma_px"] > 0.05:
             y = _blur(wp, R, dev, y, h, w, float(factors["blur_sigma_px"]))
-        sub = y.numpy()[::4, ::4].reshape(-1).astype(np.float64)
-        gain, power = solve_tone(sub, float(factors["key_gray"]),
-                                 float(factors["target_gray_sd"]), shoulder)
-    else:
-        gain, power = float(factors["exposure"]), 1.0 / 2.2
-    factors["exposure_gain"] = float(gain)
-    factors["tone_power"] = float(power)
+        return y.numpy()[::4, ::4].reshape(-1).astype(np.float64)
+
+    gain, power, shoulder = S.exposure(factors, metered)
     rgb = wp.empty((h * w, 3), dtype=wp.uint8, device=dev)
     g = (gains * gain).astype(np.float32)
     lut = _up(wp, dev, tone_lut(shoulder, power), wp.uint8)
