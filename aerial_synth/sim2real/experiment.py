@@ -288,8 +288,11 @@ def run_score(weights: list, real, out, *, device: str = "auto", real_gsd=None, 
     ultra.require_train_extra()
     ws = [Path(w) for w in weights]
     for w in ws:
-        if not w.is_file():
+        if not os.path.lexists(w):
             raise Sim2RealError(f"--weights {w}: no such file")
+        if not w.is_file():  # a folder, a device, a FIFO: never opened
+            raise Sim2RealError(f"--weights {w}: expected a .pt file, found "
+                                f"{'a folder' if w.is_dir() else 'no regular file'}")
     out = check_output_dir(Path(out), "--out")
     if out.exists() and any(out.iterdir()) and not (force and (out / "report.json").is_file()):
         raise Sim2RealError(f"--out {out}: exists and is not empty; choose a new folder"

@@ -144,9 +144,8 @@ def _read_yaml(path: Path) -> dict:
     from ..safe_input import load_yaml_file
 
     where = f"--plan {path}"
-    if not path.is_file():
-        raise Sim2RealError(f"{where}: " + ("expected a YAML file, found a folder" if path.is_dir()
-                                            else "no such file"))
+    if not os.path.lexists(path):  # a folder, a device, a FIFO: load_yaml_file names what it is
+        raise Sim2RealError(f"{where}: no such file")
     data = load_yaml_file(path, where, Sim2RealError)
     if not isinstance(data, dict):
         raise Sim2RealError(f"{where}: expected a mapping (real, baseline, seeds, train, arms), "
