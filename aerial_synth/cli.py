@@ -19,7 +19,6 @@ from contextlib import contextmanager
 from . import __version__
 from ._open3d import stub_viewer
 from .errors import AerialSynthError
-from .io_utils import set_pending_interrupt
 from .out_guard import INPUT_OPTIONS, out_lock, refuse_out_is_input
 from .safe_input import input_roots
 
@@ -192,7 +191,6 @@ def _on_terminate(main_pid: int):
             return
         if not _PENDING:
             _PENDING.append(int(signum))
-            set_pending_interrupt(lambda: _raise(signum))  # nothing is put in place meanwhile
             try:
                 old = signal.signal(signal.SIGALRM, _remind)
                 _SAVED_ALARM.append((old, signal.setitimer(signal.ITIMER_REAL, REMIND_S, REMIND_S)))
@@ -209,7 +207,6 @@ def _disarm() -> None:
     import signal
 
     _PENDING.clear()
-    set_pending_interrupt(None)
     while _SAVED_ALARM:
         handler, (delay, interval) = _SAVED_ALARM.pop()
         try:

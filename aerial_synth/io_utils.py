@@ -131,25 +131,6 @@ def is_inside(child: str | os.PathLike, parent: str | os.PathLike) -> bool:
     return c == p or p in c.parents
 
 
-#: The signal the CLI is delivering, while a library has swallowed it (``cli``'s handlers set
-#: it, its catch clears it): a callable that raises it again. Nothing is put in place while it
-#: is set: a build that ends before the CLI's reminder fires must not write its output and
-#: exit 0 (issue 37 H3).
-_PENDING_INTERRUPT: list = []
-
-
-def set_pending_interrupt(raise_it=None) -> None:
-    """``raise_it`` (a callable raising the signal being delivered), or None when it has been
-    caught."""
-    _PENDING_INTERRUPT[:] = [] if raise_it is None else [raise_it]
-
-
-def raise_pending_interrupt() -> None:
-    """Raise the pending signal, if any: called before anything is put in place."""
-    if _PENDING_INTERRUPT:
-        _PENDING_INTERRUPT[0]()
-
-
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically (temp file in the same folder + ``os.replace``)."""
     return atomic_write_chunks(path, (data,))
@@ -178,7 +159,6 @@ def atomic_write_chunks(path: str | os.PathLike, chunks: Iterable[bytes | str]) 
                 fh.write(chunk.encode("utf-8") if isinstance(chunk, str) else chunk)
             fh.flush()
             os.fsync(fh.fileno())
-        raise_pending_interrupt()
         os.replace(tmp, path)
     except BaseException:
         try:
@@ -273,7 +253,6 @@ def replace_dir(tmp: Path, out: Path) -> None:
     """Put the finished folder ``tmp`` (a sibling of ``out``) at ``out``. An existing ``out`` is
     renamed aside first (``.NAME.XXXX.old``, what a dead run's cleanup looks for) and removed
     after, so ``out`` is always the old folder or the new one, never a mix."""
-    raise_pending_interrupt()
     if out.exists():
         trash = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".old", dir=out.parent))
         os.rename(out, trash / "old")

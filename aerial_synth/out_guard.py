@@ -31,7 +31,6 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from .errors import OutputError
-from .io_utils import raise_pending_interrupt
 from .safe_input import shown
 
 __all__ = ["LOCK_SUFFIX", "lock_path", "out_lock", "remove_dead_temps", "refuse_out_is_input",
@@ -202,7 +201,6 @@ def staged_dir(out, option: str = "--out") -> Iterator[Path]:
 
 
 def _publish(tmp: Path, out: Path, option: str) -> None:
-    raise_pending_interrupt()
     if not os.path.lexists(out):
         os.rename(tmp, out)
         return
