@@ -300,6 +300,7 @@ def swallowing(*a, **k):
         time.sleep(0.5)
     except BaseException:
         pass
+    time.sleep(0.6)  # the library's own work after the swallowed signal (a reminder falls in it)
     return build(*a, **k)
 
 commands.load_osm_scene = swallowing
